@@ -1,0 +1,30 @@
+"""The ``gaitforge`` command line: ``gaitforge scenes list | show NAME | check NAME``."""
+
+from __future__ import annotations
+
+import logging
+
+import typer
+from rich.console import Console
+
+from service.scene_commands import scenes_app
+
+app = typer.Typer(
+    help="gaitforge: train muscle-driven bodies on heavy simulators.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+)
+app.add_typer(scenes_app, name="scenes")
+console = Console()
+
+
+@app.callback()
+def main(verbose: bool = typer.Option(False, "--verbose", "-v", help="Log at DEBUG.")) -> None:
+    logging.basicConfig(
+        level=logging.DEBUG if verbose else logging.WARNING,
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+
+
+if __name__ == "__main__":
+    app()

@@ -1,0 +1,276 @@
+"""Simulator-independent description of a musculoskeletal body.
+
+Conventions (the same as OpenSim's, so a transcription stays literal):
+* world frame is Y-up, X forward, Z to the body's right; gravity is -Y;
+* lengths in metres, masses in kilograms, angles in radians, forces in newtons;
+* every location is expressed in the frame of the segment it names.
+
+A body is a tree of segments. Each non-root segment hangs from its parent through one
+:class:`Joint`, whose degrees of freedom (:class:`Dof`) are applied in the order listed,
+each about or along an axis expressed in the joint frame. The root segment hangs from the
+ground the same way (for ``gait2d`` a planar joint: slide x, slide y, hinge z).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+Vec3 = tuple[float, float, float]
+PositiveFloat = Annotated[float, Field(gt=0)]
+GROUND = "ground"
+
+
+class _Strict(BaseModel):
+    """Base for every file-backed model: unknown keys are errors, values are frozen."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Segment(_Strict):
+    """A rigid body: mass properties in its own frame."""
+
+    name: str
+    mass: PositiveFloat = Field(description="kg")
+    com: Vec3 = Field(default=(0.0, 0.0, 0.0), description="centre of mass, m, segment frame")
+    inertia: tuple[PositiveFloat, PositiveFloat, PositiveFloat] = Field(
+        description="principal moments about the centre of mass, kg m^2 (xx, yy, zz)"
+    )
+    length_hint: float = Field(
+        default=0.0, ge=0, description="m; drawn as a capsule along -Y for visuals (0: none)"
+    )
+
+
+class Dof(_Strict):
+    """One degree of freedom of a joint."""
+
+    name: str
+    type: Literal["hinge", "slide"]
+    axis: Vec3 = Field(description="unit axis in the joint frame")
+    range: tuple[float, float] = Field(description="rad for hinge, m for slide")
+    default: float = 0.0
+    limited: bool = Field(default=True, description="enforce the range with a joint limit")
+
+    @model_validator(mode="after")
+    def _check(self) -> Dof:
+        lo, hi = self.range
+        if not lo < hi:
+            raise ValueError(f"range must be increasing, got {self.range}")
+        if not lo <= self.default <= hi:
+            raise ValueError(f"default {self.default} outside range {self.range}")
+        if sum(a * a for a in self.axis) < 1e-12:
+            raise ValueError("axis must be non-zero")
+        return self
+
+
+class Joint(_Strict):
+    """Connects ``child`` to ``parent``; no dofs means a weld."""
+
+    name: str
+    parent: str = Field(description=f"segment name or '{GROUND}'")
+    child: str
+    location_in_parent: Vec3 = (0.0, 0.0, 0.0)
+    dofs: list[Dof] = Field(default_factory=list)
+
+
+class PathPoint(_Strict):
+    """A fixed via point of a muscle path."""
+
+    segment: str
+    location: Vec3
+
+
+class WrapRef(_Strict):
+    """The muscle path wraps over the named wrap object between its neighbouring points."""
+
+    wrap: str
+
+
+PathElement = PathPoint | WrapRef
+
+
+class Muscle(_Strict):
+    """A Hill-type muscle-tendon unit with a piecewise-straight path."""
+
+    name: str
+    max_isometric_force: PositiveFloat = Field(description="N")
+    optimal_fiber_length: PositiveFloat = Field(description="m")
+    tendon_slack_length: PositiveFloat = Field(description="m")
+    pennation_angle: float = Field(default=0.0, ge=0, lt=1.5, description="rad at optimal length")
+    max_contraction_velocity: PositiveFloat = Field(
+        default=10.0, description="optimal fibre lengths per second"
+    )
+    activation_time: PositiveFloat = Field(default=0.01, description="s")
+    deactivation_time: PositiveFloat = Field(default=0.04, description="s")
+    path: list[PathElement] = Field(min_length=2)
+
+    @field_validator("path")
+    @classmethod
+    def _path_shape(cls, path: list[PathElement]) -> list[PathElement]:
+        if not isinstance(path[0], PathPoint) or not isinstance(path[-1], PathPoint):
+            raise ValueError("path must start and end with a point")
+        for a, b in zip(path, path[1:], strict=False):
+            if isinstance(a, WrapRef) and isinstance(b, WrapRef):
+                raise ValueError("two wrap objects in a row: put a point between them")
+        return path
+
+    @property
+    def points(self) -> list[PathPoint]:
+        return [e for e in self.path if isinstance(e, PathPoint)]
+
+    @property
+    def wraps(self) -> list[str]:
+        return [e.wrap for e in self.path if isinstance(e, WrapRef)]
+
+
+class WrapObject(_Strict):
+    """A smooth obstacle that muscle paths slide over."""
+
+    name: str
+    segment: str
+    type: Literal["cylinder", "sphere"]
+    location: Vec3
+    axis: Vec3 = Field(default=(0.0, 0.0, 1.0), description="cylinder axis, segment frame")
+    radius: PositiveFloat
+    length: float = Field(default=0.1, gt=0, description="cylinder length, m (visual only)")
+    side: Vec3 | None = Field(
+        default=None, description="a point (segment frame) on the side the path passes"
+    )
+
+
+class ContactSphere(_Strict):
+    name: str
+    segment: str
+    location: Vec3
+    radius: PositiveFloat
+
+
+class Marker(_Strict):
+    name: str
+    segment: str
+    location: Vec3
+
+
+class ContactMaterial(_Strict):
+    """Hunt-Crossley style ground contact parameters."""
+
+    stiffness: PositiveFloat = Field(default=1.5e7, description="N/m^(3/2) (Hunt-Crossley)")
+    dissipation: float = Field(default=1.0, ge=0, description="s/m")
+    static_friction: float = Field(default=0.9, ge=0)
+    dynamic_friction: float = Field(default=0.8, ge=0)
+
+
+class Body(_Strict):
+    """A whole musculoskeletal body (see module docstring for conventions)."""
+
+    name: str
+    description: str = ""
+    source: str = Field(default="", description="where the numbers come from")
+    segments: list[Segment]
+    joints: list[Joint]
+    muscles: list[Muscle] = Field(default_factory=list)
+    wrap_objects: list[WrapObject] = Field(default_factory=list)
+    contact_spheres: list[ContactSphere] = Field(default_factory=list)
+    contact: ContactMaterial = ContactMaterial()
+    markers: list[Marker] = Field(default_factory=list)
+    planar: bool = Field(default=False, description="all motion in the X-Y plane")
+
+    @model_validator(mode="after")
+    def _check_references(self) -> Body:
+        seg_names = _unique("segments", [s.name for s in self.segments])
+        _unique("joints", [j.name for j in self.joints])
+        _unique("dofs", [d.name for j in self.joints for d in j.dofs])
+        _unique("muscles", [m.name for m in self.muscles])
+        wrap_names = _unique("wrap_objects", [w.name for w in self.wrap_objects])
+        children = [j.child for j in self.joints]
+        _unique("joint children", children)
+        for j in self.joints:
+            if j.parent != GROUND and j.parent not in seg_names:
+                raise ValueError(f"joint {j.name!r}: unknown parent segment {j.parent!r}")
+            if j.child not in seg_names:
+                raise ValueError(f"joint {j.name!r}: unknown child segment {j.child!r}")
+        orphans = seg_names - set(children)
+        if orphans:
+            raise ValueError(f"segments without a joint: {sorted(orphans)}")
+        roots = [j for j in self.joints if j.parent == GROUND]
+        if len(roots) != 1:
+            raise ValueError(f"exactly one joint must hang from '{GROUND}', found {len(roots)}")
+        for m in self.muscles:
+            for p in m.points:
+                if p.segment not in seg_names:
+                    raise ValueError(f"muscle {m.name!r}: unknown segment {p.segment!r}")
+            for w in m.wraps:
+                if w not in wrap_names:
+                    raise ValueError(f"muscle {m.name!r}: unknown wrap object {w!r}")
+        for item in [*self.wrap_objects, *self.contact_spheres, *self.markers]:
+            if item.segment not in seg_names:
+                raise ValueError(f"{item.name!r}: unknown segment {item.segment!r}")
+        return self
+
+    # ---- look-ups used by pruning and backends -------------------------------------
+
+    def segment(self, name: str) -> Segment:
+        return next(s for s in self.segments if s.name == name)
+
+    def joint_of(self, segment: str) -> Joint:
+        """The joint whose child is ``segment``."""
+        return next(j for j in self.joints if j.child == segment)
+
+    def ordered_joints(self) -> list[Joint]:
+        """Joints parent-before-child (the order a simulator must build them in)."""
+        done: set[str] = {GROUND}
+        ordered: list[Joint] = []
+        pending = list(self.joints)
+        while pending:
+            ready = [j for j in pending if j.parent in done]
+            if not ready:
+                raise ValueError("joint tree has a cycle")
+            for j in ready:
+                ordered.append(j)
+                done.add(j.child)
+                pending.remove(j)
+        return ordered
+
+    @property
+    def dof_names(self) -> list[str]:
+        return [d.name for j in self.ordered_joints() for d in j.dofs]
+
+    def dof(self, name: str) -> Dof:
+        return next(d for j in self.joints for d in j.dofs if d.name == name)
+
+    def joint_of_dof(self, name: str) -> Joint:
+        return next(j for j in self.joints if any(d.name == name for d in j.dofs))
+
+    def chain_to_root(self, segment: str) -> list[str]:
+        """Segments from ``segment`` up to the root, inclusive."""
+        chain = [segment]
+        while (parent := self.joint_of(chain[-1]).parent) != GROUND:
+            chain.append(parent)
+        return chain
+
+    def dofs_spanned(self, muscle: Muscle) -> list[str]:
+        """Dofs on the tree path between the segments a muscle's points attach to."""
+        segments = {p.segment for p in muscle.points}
+        chains = [self.chain_to_root(s) for s in segments]
+        common = set.intersection(*(set(c) for c in chains))
+        crossed: set[str] = set()
+        for chain in chains:
+            for seg in chain:
+                if seg in common:
+                    break
+                crossed.add(seg)
+        return [d.name for j in self.ordered_joints() if j.child in crossed for d in j.dofs]
+
+    @property
+    def total_mass(self) -> float:
+        return sum(s.mass for s in self.segments)
+
+
+def _unique(what: str, names: list[str]) -> set[str]:
+    seen: set[str] = set()
+    for n in names:
+        if n in seen:
+            raise ValueError(f"duplicate name {n!r} in {what}")
+        seen.add(n)
+    return seen

@@ -1,0 +1,166 @@
+"""Gymnasium environment over one scene on one simulator backend.
+
+Observation (float32, names in ``env.obs_names``), in this order:
+    dof angles [n_dofs] (rad or m) and speeds [n_dofs];
+    locomotion only: pelvis height (m), pelvis up axis in world [3], pelvis linear [3] (m/s)
+    and angular [3] (rad/s) velocity, normal ground force per foot [n_feet] (body weights);
+    muscle activations [n_muscles]; previous excitations [n_muscles];
+    task: target speed (m/s) or reach target (rad); with obstacles, the nearest obstacle
+    ahead: forward distance, height, radius (m; 0, 0, 0 when none is left).
+Action: excitations [n_muscles] in [0, 1].
+
+A simulator failure never raises and never reaches the observation: the step is
+``terminated`` with ``info["health"]`` naming the cause, reward 0, and the last healthy
+observation repeated.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+
+from workers.rewards import TERMS, StepContext, reward_terms, weighted
+from workers.scenes import Scene, load_scene
+from workers.sim import make_simulator
+from workers.sim.base import HEALTHY, Health, SimState
+
+GRAVITY = 9.81
+
+
+class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
+    """One scene (by catalogue name, path or spec) on ``backend``."""
+
+    metadata = {"render_modes": []}  # noqa: RUF012 (gymnasium's convention)
+
+    def __init__(self, scene: str | Scene, backend: str = "mujoco") -> None:
+        self.scene = scene if isinstance(scene, Scene) else load_scene(scene)
+        if backend not in self.scene.backends:
+            raise ValueError(
+                f"backend {backend!r}: scene {self.scene.name!r} runs on {self.scene.backends}"
+            )
+        self.backend = backend
+        self.sim = make_simulator(self.scene, backend)
+        self.dt = 1.0 / self.scene.control_hz
+        task = self.scene.task
+        self._locomotion = task.kind == "locomotion"
+        self._reach_index = (
+            self.sim.dof_names.index(task.reach_dof) if task.reach_dof is not None else None
+        )
+        self._reach_target = 0.0
+        self._weight = GRAVITY * self.sim.report.mass
+        self.obs_names = self._observation_names()
+        n_mus = len(self.sim.muscle_names)
+        self.observation_space = gym.spaces.Box(
+            -np.inf, np.inf, (len(self.obs_names),), dtype=np.float32
+        )
+        self.action_space = gym.spaces.Box(0.0, 1.0, (n_mus,), dtype=np.float32)
+        self._prev_excitation = np.zeros(n_mus)
+        self._state: SimState | None = None
+        self._obs = np.zeros(len(self.obs_names), dtype=np.float32)
+        self._steps = 0
+        self._start_forward = 0.0
+
+    # ---- gymnasium API ----------------------------------------------------------------
+
+    def reset(
+        self, *, seed: int | None = None, options: dict | None = None
+    ) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        self.sim.reset(int(self.np_random.integers(2**31 - 1)))
+        if self.scene.task.reach_range is not None:
+            self._reach_target = float(self.np_random.uniform(*self.scene.task.reach_range))
+        self._prev_excitation = np.zeros(len(self.sim.muscle_names))
+        self._steps = 0
+        self._state = self.sim.state()
+        self._start_forward = float(self._state.pelvis_pos[self.sim.forward_axis])
+        self._obs = self._observe(self._state)
+        return self._obs.copy(), {"health": HEALTHY}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        if self._state is None:
+            raise RuntimeError("call reset() before step()")
+        excitation = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64)), 0.0, 1.0)
+        self._steps += 1
+        truncated = self._steps >= self.scene.steps_per_episode
+        health = self.sim.step(excitation, self.dt)
+        state = self.sim.state() if health.ok else None
+        if state is not None and not state.is_finite():
+            health, state = Health("nan_state"), None
+        if state is None:
+            info = {"health": health.cause, "reward_terms": dict.fromkeys(TERMS, 0.0)}
+            info.update(self._episode_info(self._state))
+            return self._obs.copy(), 0.0, True, truncated, info
+        ctx = StepContext(
+            previous=self._state,
+            excitation=excitation,
+            previous_excitation=self._prev_excitation,
+            dt=self.dt,
+            forward_axis=self.sim.forward_axis,
+            up_axis=self.sim.up_axis,
+            target_speed=self.scene.task.target_speed,
+            reach_index=self._reach_index,
+            reach_target=self._reach_target,
+        )
+        terms = weighted(reward_terms(state, ctx), self.scene.task.reward)
+        self._prev_excitation = excitation
+        self._state = state
+        self._obs = self._observe(state)
+        fell = self._fell(state)
+        info = {"health": HEALTHY, "reward_terms": terms, "fell": fell}
+        info.update(self._episode_info(state))
+        return self._obs.copy(), float(sum(terms.values())), fell, truncated and not fell, info
+
+    # ---- observation --------------------------------------------------------------------
+
+    def _observation_names(self) -> list[str]:
+        sim = self.sim
+        names = [f"q:{d}" for d in sim.dof_names] + [f"qd:{d}" for d in sim.dof_names]
+        if self._locomotion:
+            names += ["pelvis_height", *(f"pelvis_up_{a}" for a in "xyz")]
+            names += [f"pelvis_vel_{a}" for a in "xyz"] + [f"pelvis_angvel_{a}" for a in "xyz"]
+            names += [f"grf:{f}" for f in sim.foot_names]
+        names += [f"act:{m}" for m in sim.muscle_names]
+        names += [f"prev_exc:{m}" for m in sim.muscle_names]
+        names += ["target_speed"] if self._locomotion else ["reach_target"]
+        if self.scene.obstacles is not None:
+            names += ["obstacle_dx", "obstacle_height", "obstacle_radius"]
+        return names
+
+    def _observe(self, s: SimState) -> np.ndarray:
+        parts = [s.dof_pos, s.dof_vel]
+        if self._locomotion:
+            parts += [
+                [s.pelvis_pos[self.sim.up_axis]],
+                s.pelvis_up,
+                s.pelvis_vel,
+                s.pelvis_angvel,
+                s.foot_forces / self._weight,
+            ]
+        parts += [s.activations, self._prev_excitation]
+        task = self.scene.task
+        parts.append([task.target_speed or 0.0] if self._locomotion else [self._reach_target])
+        if self.scene.obstacles is not None:
+            parts.append(self._obstacle_ahead(s))
+        return np.concatenate([np.ravel(p) for p in parts]).astype(np.float32)
+
+    def _obstacle_ahead(self, s: SimState) -> np.ndarray:
+        here = s.pelvis_pos[self.sim.forward_axis]
+        obstacles = self.sim.obstacles()
+        ahead = obstacles[obstacles[:, 0] + obstacles[:, 2] > here]
+        if not len(ahead):
+            return np.zeros(3)
+        nearest = ahead[np.argmin(ahead[:, 0])]
+        return np.array([nearest[0] - here, nearest[1], nearest[2]])
+
+    # ---- episode bookkeeping ------------------------------------------------------------
+
+    def _fell(self, s: SimState) -> bool:
+        limit = self.scene.task.min_pelvis_height
+        return limit is not None and float(s.pelvis_pos[self.sim.up_axis]) < limit
+
+    def _episode_info(self, s: SimState) -> dict:
+        return {
+            "distance": float(s.pelvis_pos[self.sim.forward_axis]) - self._start_forward,
+            "sim_time": s.time,
+            "step": self._steps,
+        }

@@ -1,0 +1,135 @@
+"""The Scene spec: what a training scene is made of, validated once when it is loaded."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from workers.sim.profiles import BACKENDS, Backend, FidelityProfile, resolve_profile
+
+MJCF_BODIES: tuple[str, ...] = ("myoleg", "myoelbow")
+"""Bodies loaded from MyoSuite's MJCF files (MuJoCo only); all others are neutral bodies."""
+
+NonNegative = Annotated[float, Field(ge=0)]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Keep(_Strict):
+    """What the scene keeps; everything else is locked (joints) or removed (muscles)."""
+
+    joints: list[str] | Literal["all"] = Field(
+        default="all", description="dofs that move; the others are welded at their default"
+    )
+    muscles: list[str] | Literal["all"] = Field(
+        default="all", description="muscles to keep (those spanning only locked dofs go anyway)"
+    )
+    lock_at: dict[str, float] = Field(
+        default_factory=dict, description="value (rad or m) for locked dofs instead of default"
+    )
+    planar: bool = Field(
+        default=False, description="drop muscles with < 5 mm moment arm about every kept dof"
+    )
+
+
+class Terrain(_Strict):
+    type: Literal["flat"] = "flat"
+    friction: NonNegative = 0.9
+
+
+class Obstacles(_Strict):
+    """Spheres half buried in the ground ahead of the body, re-placed every episode."""
+
+    count: Annotated[int, Field(ge=0, le=50)] = 10
+    x_range: tuple[float, float] = Field(default=(1.0, 5.0), description="m ahead of start")
+    radius_range: tuple[float, float] = Field(default=(0.05, 0.1), description="m")
+    height_range: tuple[float, float] = Field(
+        default=(-0.5, 0.5), description="centre height in radii above the ground"
+    )
+
+    @model_validator(mode="after")
+    def _ranges(self) -> Obstacles:
+        for name in ("x_range", "radius_range", "height_range"):
+            lo, hi = getattr(self, name)
+            if lo > hi:
+                raise ValueError(f"{name} must be (low, high), got {(lo, hi)}")
+        if self.radius_range[0] <= 0:
+            raise ValueError("radius_range must be positive")
+        return self
+
+
+class RewardWeights(_Strict):
+    """Weights of the named reward terms (see ``workers.rewards`` for each term's unit)."""
+
+    forward: float = 0.0
+    target_speed: float = 0.0
+    effort: float = 0.0
+    smoothness: float = 0.0
+    upright: float = 0.0
+    alive: float = 0.0
+    reach: float = 0.0
+
+
+class Task(_Strict):
+    kind: Literal["locomotion", "reach"]
+    target_speed: NonNegative | None = Field(default=None, description="m/s, locomotion")
+    min_pelvis_height: float | None = Field(
+        default=None, description="m; the episode terminates below it (a fall)"
+    )
+    reach_dof: str | None = Field(default=None, description="dof to bring to a target angle")
+    reach_range: tuple[float, float] | None = Field(
+        default=None, description="rad; target sampled uniformly each episode"
+    )
+    reward: RewardWeights = RewardWeights()
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Task:
+        if self.kind == "reach" and (self.reach_dof is None or self.reach_range is None):
+            raise ValueError("a reach task needs reach_dof and reach_range")
+        if self.kind == "locomotion" and self.min_pelvis_height is None:
+            raise ValueError("a locomotion task needs min_pelvis_height")
+        return self
+
+
+class Scene(_Strict):
+    """A scene: a body, what of it to keep, the world around it and the task."""
+
+    name: str = Field(pattern=r"^[a-z0-9][a-z0-9-]*$")
+    description: str = ""
+    body: str = Field(description=f"a neutral body name, or one of {list(MJCF_BODIES)}")
+    backends: list[Backend] = Field(default_factory=lambda: ["mujoco"], min_length=1)
+    keep: Keep = Keep()
+    terrain: Terrain = Terrain()
+    obstacles: Obstacles | None = None
+    task: Task
+    control_hz: Annotated[float, Field(gt=0, le=1000)] = 100.0
+    episode_s: Annotated[float, Field(gt=0, le=600)] = 10.0
+    fidelity: str | FidelityProfile = "default"
+    init_noise: NonNegative = Field(default=0.01, description="rad, m: uniform reset noise")
+
+    @model_validator(mode="after")
+    def _check(self) -> Scene:
+        if self.body in MJCF_BODIES and "opensim" in self.backends:
+            raise ValueError(f"backends: body {self.body!r} is MJCF and runs on MuJoCo only")
+        for backend in self.backends:
+            profile = resolve_profile(self.fidelity, backend)
+            steps = 1.0 / (self.control_hz * profile.timestep)
+            if backend == "mujoco" and abs(steps - round(steps)) > 1e-6:
+                raise ValueError(
+                    f"fidelity.timestep {profile.timestep} s does not divide the control "
+                    f"period 1/{self.control_hz} s"
+                )
+        return self
+
+    @property
+    def steps_per_episode(self) -> int:
+        return round(self.episode_s * self.control_hz)
+
+    def profile(self, backend: str) -> FidelityProfile:
+        return resolve_profile(self.fidelity, backend)
+
+
+__all__ = ["BACKENDS", "Keep", "Obstacles", "RewardWeights", "Scene", "Task", "Terrain"]

@@ -1,0 +1,27 @@
+"""Simulator backends behind one protocol (see ``workers.sim.base.Simulator``)."""
+
+from __future__ import annotations
+
+from workers.scenes.spec import Scene
+from workers.sim.base import CompileReport, Health, SimState, Simulator
+from workers.sim.profiles import FidelityProfile
+
+__all__ = [
+    "CompileReport",
+    "FidelityProfile",
+    "Health",
+    "SimState",
+    "Simulator",
+    "make_simulator",
+]
+
+
+def make_simulator(scene: Scene, backend: str = "mujoco") -> Simulator:
+    """Compile ``scene`` for ``backend`` and return its simulator."""
+    if backend == "mujoco":
+        from workers.sim.mujoco import MujocoSimulator
+
+        return MujocoSimulator(scene)
+    if backend == "opensim":
+        raise NotImplementedError("the OpenSim backend is not built yet (see the OpenSim issue)")
+    raise ValueError(f"backend: unknown {backend!r}; allowed: ['mujoco', 'opensim']")

@@ -1,0 +1,111 @@
+"""The small protocol every simulator backend implements, and what it returns."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from workers.scenes.prune import PrunePlan
+from workers.sim.profiles import FidelityProfile
+
+HEALTHY = "ok"
+
+
+@dataclass(frozen=True)
+class Health:
+    """Numerical health of one control step. ``cause`` names the first failure seen."""
+
+    cause: str = HEALTHY
+
+    @property
+    def ok(self) -> bool:
+        return self.cause == HEALTHY
+
+
+@dataclass
+class SimState:
+    """Read-out after a step. World frame of the body's source (up and forward axes named).
+
+    Attributes:
+        time: simulated time, s.
+        dof_pos: [n_dofs] kept non-root dof positions, rad or m.
+        dof_vel: [n_dofs] their speeds, rad/s or m/s.
+        pelvis_pos: [3] pelvis origin in the world, m.
+        pelvis_up: [3] the pelvis's up axis in the world (unit; equals world up when upright).
+        pelvis_vel: [3] linear velocity of the pelvis origin, m/s.
+        pelvis_angvel: [3] angular velocity of the pelvis, rad/s.
+        activations: [n_muscles] in [0, 1].
+        foot_forces: [n_feet] normal ground reaction force per foot, N.
+    """
+
+    time: float
+    dof_pos: np.ndarray
+    dof_vel: np.ndarray
+    pelvis_pos: np.ndarray
+    pelvis_up: np.ndarray
+    pelvis_vel: np.ndarray
+    pelvis_angvel: np.ndarray
+    activations: np.ndarray
+    foot_forces: np.ndarray
+
+    def arrays(self) -> list[np.ndarray]:
+        return [
+            self.dof_pos, self.dof_vel, self.pelvis_pos, self.pelvis_up, self.pelvis_vel,
+            self.pelvis_angvel, self.activations, self.foot_forces,
+        ]  # fmt: skip
+
+    def is_finite(self) -> bool:
+        return bool(np.isfinite(self.time)) and all(np.isfinite(a).all() for a in self.arrays())
+
+
+@dataclass
+class CompileReport:
+    """What compiling a scene kept and dropped, and the model's size before and after.
+
+    ``size_full`` is the body with nothing removed; ``size`` the scene's model. Keys: dofs,
+    joints, bodies, muscles, tendons, wrap_objects, geoms, sites, contact_pairs.
+    """
+
+    scene: str
+    backend: str
+    body: str
+    profile: FidelityProfile
+    plan: PrunePlan
+    size_full: dict[str, int]
+    size: dict[str, int]
+    mass: float = 0.0
+    """kg, of the compiled model"""
+    dropped_joints: list[str] = field(default_factory=list)
+
+    def saved(self) -> dict[str, int]:
+        return {k: self.size_full.get(k, 0) - v for k, v in self.size.items()}
+
+
+class Simulator(Protocol):
+    """One simulated scene. Implementations never raise for a numerical failure: they
+    report it in :class:`Health` and leave the state for ``reset`` to repair."""
+
+    report: CompileReport
+    dof_names: list[str]
+    muscle_names: list[str]
+    foot_names: list[str]
+    up_axis: int
+    forward_axis: int
+
+    def reset(self, seed: int) -> None:
+        """Default pose plus seeded noise; re-place obstacles; zero activations."""
+
+    def step(self, excitations: np.ndarray, duration: float) -> Health:
+        """Hold ``excitations`` ([n_muscles] in [0, 1]) for ``duration`` seconds."""
+
+    def state(self) -> SimState: ...
+
+    def obstacles(self) -> np.ndarray:
+        """[n_obstacles, 3]: forward position, height (m) and radius (m) of each obstacle."""
+
+    def get_state(self) -> dict[str, np.ndarray]:
+        """Everything needed to continue the integration exactly (for pickling)."""
+
+    def set_state(self, state: dict[str, np.ndarray]) -> None: ...

@@ -1,0 +1,268 @@
+"""MuJoCo backend: a scene compiled to a pruned ``MjModel``, stepped with health checks.
+
+MuJoCo does not raise on numerical failure: on a NaN or huge acceleration it resets the
+state (``mj_resetData``) and only bumps ``data.warning`` counters. So every control step
+zeroes the counters, steps, and then reads them (BADQACC, BADQPOS, BADQVEL, CNSTRFULL,
+CONTACTFULL) besides checking the state for non-finite values.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import mujoco
+import numpy as np
+
+from workers.bodies import load_body
+from workers.scenes import PrunePlan, Scene, plan_pruning
+from workers.scenes.topology import Topology, topology_for
+from workers.sim.base import HEALTHY, CompileReport, Health, SimState
+from workers.sim.mjcf_models import MJCF_SOURCES
+from workers.sim.mjcf_prune import (
+    lock_joints,
+    model_size,
+    planar_muscles,
+    remove_muscles,
+    restrict_contacts,
+)
+from workers.sim.mujoco_build import CONTACT_GROUP, FLOOR, build_spec
+
+INTEGRATORS = {
+    "euler": mujoco.mjtIntegrator.mjINT_EULER,
+    "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
+    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+    "rk4": mujoco.mjtIntegrator.mjINT_RK4,
+}
+WATCHED_WARNINGS = {
+    "mujoco_badqacc": mujoco.mjtWarning.mjWARN_BADQACC,
+    "mujoco_badqpos": mujoco.mjtWarning.mjWARN_BADQPOS,
+    "mujoco_badqvel": mujoco.mjtWarning.mjWARN_BADQVEL,
+    "mujoco_cnstrfull": mujoco.mjtWarning.mjWARN_CNSTRFULL,
+    "mujoco_contactfull": mujoco.mjtWarning.mjWARN_CONTACTFULL,
+}
+AXES = {"gait2d": (1, 0), "myoleg": (2, 1), "myoelbow": (2, 0)}
+"""(up, forward) world axes per body; neutral bodies are Y-up, X-forward."""
+OBSTACLE_PREFIX = "obstacle_"
+PARKED = -100.0
+"""Forward position (m) of obstacle geoms a reset leaves unused (none here; kept for spares)."""
+
+
+def source_spec(body: str) -> mujoco.MjSpec:
+    """The body as an ``MjSpec`` with nothing removed."""
+    if body in MJCF_SOURCES:
+        return MJCF_SOURCES[body]()
+    return build_spec(load_body(body))
+
+
+@lru_cache(maxsize=8)
+def _full_model_facts(body: str, sagittal: tuple[str, ...]) -> tuple[dict[str, int], list[str]]:
+    """Size of the unpruned model, and its muscles that act in the given dofs' plane."""
+    model = source_spec(body).compile()
+    planar = planar_muscles(model, list(sagittal)) if sagittal else []
+    return model_size(model), planar
+
+
+def _add_obstacles(spec: mujoco.MjSpec, count: int) -> list[str]:
+    names = [f"{OBSTACLE_PREFIX}{i}" for i in range(count)]
+    for name in names:
+        spec.worldbody.add_geom(
+            name=name,
+            type=mujoco.mjtGeom.mjGEOM_SPHERE,
+            size=[0.1, 0, 0],
+            pos=[PARKED, 0, 0],
+            group=CONTACT_GROUP,
+            rgba=[0.6, 0.4, 0.3, 1.0],
+        )
+    return names
+
+
+def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology]:
+    """Compile ``scene`` to a pruned model, with the report of what was removed."""
+    topology = topology_for(scene.body)
+    plan0 = plan_pruning(scene, topology)
+    size_full, planar = _full_model_facts(
+        scene.body, tuple(plan0.kept_dofs) if scene.keep.planar else ()
+    )
+    plan: PrunePlan = plan_pruning(scene, topology, planar if scene.keep.planar else None)
+    spec = source_spec(scene.body)
+    dropped = lock_joints(spec, plan.locked_dofs)
+    remove_muscles(spec, list(plan.removed_muscles))
+    obstacles = _add_obstacles(spec, plan.obstacles)
+    restrict_contacts(spec, plan.contact_geoms, [FLOOR, *obstacles])
+    for geom in spec.geoms:
+        if geom.name == FLOOR:
+            geom.friction = [scene.terrain.friction, 0.005, 0.0001]
+    profile = scene.profile("mujoco")
+    spec.option.integrator = INTEGRATORS[profile.integrator]
+    spec.option.timestep = profile.timestep
+    model = spec.compile()
+    report = CompileReport(
+        scene=scene.name,
+        backend="mujoco",
+        body=scene.body,
+        profile=profile,
+        plan=plan,
+        size_full=size_full,
+        size=model_size(model),
+        mass=float(sum(model.body_mass)),
+        dropped_joints=dropped,
+    )
+    return model, report, topology
+
+
+class MujocoSimulator:
+    """A scene on MuJoCo. Picklable: it pickles as its scene plus its integration state."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self.model, self.report, topology = compile_scene(scene)
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self.up_axis, self.forward_axis = AXES.get(scene.body, (1, 0))
+        self.dof_names = list(self.report.plan.kept_dofs)
+        jids = np.array([self._joint_id(n) for n in self.dof_names], dtype=int)
+        self._qadr = m.jnt_qposadr[jids]
+        self._vadr = m.jnt_dofadr[jids]
+        limited = m.jnt_limited[jids].astype(bool)
+        self._qlo = np.where(limited, m.jnt_range[jids, 0], -np.inf)
+        self._qhi = np.where(limited, m.jnt_range[jids, 1], np.inf)
+        self.muscle_names = [m.actuator(i).name for i in range(m.nu)]
+        self.foot_names = sorted(topology.feet)
+        self._geom_foot = np.full(m.ngeom, -1, dtype=int)
+        for k, foot in enumerate(self.foot_names):
+            for geom in topology.feet[foot]:
+                gid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, geom)
+                if gid >= 0:
+                    self._geom_foot[gid] = k
+        self._pelvis = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "pelvis")
+        self._obstacle_ids = np.array(
+            [
+                mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{OBSTACLE_PREFIX}{i}")
+                for i in range(self.report.plan.obstacles)
+            ],
+            dtype=int,
+        )
+        initial = {**topology.root_defaults, **{d: topology.dof_defaults[d] for d in self.dof_names}}
+        self._init_adr = np.array([m.jnt_qposadr[self._joint_id(n)] for n in initial], dtype=int)
+        self._init_val = np.array(list(initial.values()))
+        self._rng = np.random.default_rng(0)
+
+    # ---- protocol -------------------------------------------------------------------
+
+    def reset(self, seed: int) -> None:
+        m, d = self.model, self.data
+        self._rng = np.random.default_rng(seed)
+        mujoco.mj_resetData(m, d)
+        d.qpos[self._init_adr] = self._init_val
+        noise = self.scene.init_noise
+        jitter = self._rng.uniform(-noise, noise, len(self._qadr))
+        d.qpos[self._qadr] = np.clip(d.qpos[self._qadr] + jitter, self._qlo, self._qhi)
+        self._place_obstacles()
+        mujoco.mj_forward(m, d)
+
+    def step(self, excitations: np.ndarray, duration: float) -> Health:
+        m, d = self.model, self.data
+        d.ctrl[:] = np.clip(np.nan_to_num(excitations, nan=0.0), 0.0, 1.0)
+        for warning in WATCHED_WARNINGS.values():
+            d.warning[warning].number = 0
+        n_sub = max(1, round(duration / m.opt.timestep))
+        t0 = d.time
+        mujoco.mj_step(m, d, nstep=n_sub)
+        for cause, warning in WATCHED_WARNINGS.items():
+            if d.warning[warning].number > 0:
+                return Health(cause)
+        if d.time < t0:
+            return Health("mujoco_reset")
+        if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all() and np.isfinite(d.act).all()):
+            return Health("nan_state")
+        return Health(HEALTHY)
+
+    def state(self) -> SimState:
+        m, d = self.model, self.data
+        if self._pelvis >= 0:
+            vel = np.zeros(6)
+            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._pelvis, vel, 0)
+            pelvis_pos = d.xpos[self._pelvis].copy()
+            pelvis_up = d.xmat[self._pelvis].reshape(3, 3)[:, self.up_axis].copy()
+            angvel, linvel = vel[:3].copy(), vel[3:].copy()
+        else:
+            pelvis_pos, angvel, linvel = np.zeros(3), np.zeros(3), np.zeros(3)
+            pelvis_up = np.eye(3)[self.up_axis]
+        return SimState(
+            time=float(d.time),
+            dof_pos=d.qpos[self._qadr].copy(),
+            dof_vel=d.qvel[self._vadr].copy(),
+            pelvis_pos=pelvis_pos,
+            pelvis_up=pelvis_up,
+            pelvis_vel=linvel,
+            pelvis_angvel=angvel,
+            activations=d.act.copy() if m.na else np.zeros(m.nu),
+            foot_forces=self._foot_forces(),
+        )
+
+    def obstacles(self) -> np.ndarray:
+        m = self.model
+        if not len(self._obstacle_ids):
+            return np.zeros((0, 3))
+        pos = m.geom_pos[self._obstacle_ids]
+        return np.column_stack(
+            [pos[:, self.forward_axis], pos[:, self.up_axis], m.geom_size[self._obstacle_ids, 0]]
+        )
+
+    def get_state(self) -> dict[str, np.ndarray]:
+        m, d = self.model, self.data
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        physics = np.empty(mujoco.mj_stateSize(m, spec))
+        mujoco.mj_getState(m, d, physics, spec)
+        return {
+            "physics": physics,
+            "obstacle_pos": m.geom_pos[self._obstacle_ids].copy(),
+            "obstacle_size": m.geom_size[self._obstacle_ids].copy(),
+        }
+
+    def set_state(self, state: dict[str, np.ndarray]) -> None:
+        m, d = self.model, self.data
+        m.geom_pos[self._obstacle_ids] = state["obstacle_pos"]
+        m.geom_size[self._obstacle_ids] = state["obstacle_size"]
+        mujoco.mj_setState(m, d, state["physics"], mujoco.mjtState.mjSTATE_INTEGRATION)
+        mujoco.mj_forward(m, d)
+
+    # ---- pickling: rebuild the model from the scene, then restore the state ----------
+
+    def __getstate__(self) -> dict:
+        return {"scene": self.scene, "state": self.get_state()}
+
+    def __setstate__(self, saved: dict) -> None:
+        self.__init__(saved["scene"])  # type: ignore[misc]
+        self.set_state(saved["state"])
+
+    # ---- helpers ----------------------------------------------------------------------
+
+    def _joint_id(self, name: str) -> int:
+        return mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, name)
+
+    def _place_obstacles(self) -> None:
+        spec = self.scene.obstacles
+        if spec is None or not len(self._obstacle_ids):
+            return
+        n = len(self._obstacle_ids)
+        radius = self._rng.uniform(*spec.radius_range, n)
+        ahead = np.sort(self._rng.uniform(*spec.x_range, n))
+        height = radius * self._rng.uniform(*spec.height_range, n)
+        pos = np.zeros((n, 3))
+        pos[:, self.forward_axis] = ahead
+        pos[:, self.up_axis] = height
+        self.model.geom_pos[self._obstacle_ids] = pos
+        self.model.geom_size[self._obstacle_ids, 0] = radius
+
+    def _foot_forces(self) -> np.ndarray:
+        m, d = self.model, self.data
+        forces = np.zeros(len(self.foot_names))
+        wrench = np.zeros(6)
+        for i in range(d.ncon):
+            contact = d.contact[i]
+            foot = max(self._geom_foot[contact.geom1], self._geom_foot[contact.geom2])
+            if foot >= 0:
+                mujoco.mj_contactForce(m, d, i, wrench)
+                forces[foot] += abs(wrench[0])
+        return forces

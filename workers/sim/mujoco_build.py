@@ -1,0 +1,170 @@
+"""Build a MuJoCo model (``mujoco.MjSpec``) from a neutral :class:`~workers.bodies.Body`.
+
+Naming in the compiled model: bodies are segments, joints are dofs, tendons and actuators
+are muscles, wrap geoms are wrap objects (side sites ``<wrap>_side``), path sites are
+``<muscle>_p<i>``, contact geoms are contact spheres, markers are sites. The world is
+Y-up with gravity along -Y, as in the neutral format; the floor geom is ``floor``.
+
+Muscles: MuJoCo's muscle has no fibre length parameter of its own; it derives the optimal
+length ``L0`` and tendon length ``LT`` from ``lengthrange`` and ``range`` as
+``L0 = (lr1 - lr0) / (r1 - r0)``, ``LT = lr0 - r0 * L0``. We set ``lengthrange`` so that
+``L0`` is the optimal fibre length projected on the tendon (``l_opt cos(pennation)``) and
+``LT`` the tendon slack length: a rigid-tendon Hill muscle with the same operating point.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from workers.bodies.schema import GROUND, Body, PathPoint, WrapObject
+
+FLOOR = "floor"
+MUSCLE_RANGE = (0.75, 1.05)
+"""Normalised fibre lengths that map onto ``lengthrange`` (any consistent pair works)."""
+CONTACT_GROUP = 1
+VISUAL_GROUP = 2
+WRAP_GROUP = 3
+
+
+def quat_from_z(axis: tuple[float, float, float]) -> np.ndarray:
+    """Quaternion (w, x, y, z) rotating +Z onto ``axis``."""
+    a = np.asarray(axis, dtype=float)
+    a = a / np.linalg.norm(a)
+    quat = np.zeros(4)
+    mujoco.mju_quatZ2Vec(quat, a)
+    return quat
+
+
+def _add_floor(spec: mujoco.MjSpec, friction: float) -> None:
+    spec.worldbody.add_geom(
+        name=FLOOR,
+        type=mujoco.mjtGeom.mjGEOM_PLANE,
+        size=[50.0, 50.0, 0.1],
+        quat=quat_from_z((0.0, 1.0, 0.0)),
+        friction=[friction, 0.005, 0.0001],
+        rgba=[0.75, 0.8, 0.85, 1.0],
+        group=CONTACT_GROUP,
+    )
+
+
+def _add_segments(spec: mujoco.MjSpec, body: Body) -> dict[str, mujoco.MjsBody]:
+    bodies: dict[str, mujoco.MjsBody] = {GROUND: spec.worldbody}
+    for joint in body.ordered_joints():
+        seg = body.segment(joint.child)
+        mj_body = bodies[joint.parent].add_body(
+            name=seg.name,
+            pos=list(joint.location_in_parent),
+            mass=seg.mass,
+            ipos=list(seg.com),
+            inertia=list(seg.inertia),
+            explicitinertial=True,
+        )
+        for dof in joint.dofs:
+            kind = mujoco.mjtJoint.mjJNT_HINGE if dof.type == "hinge" else mujoco.mjtJoint.mjJNT_SLIDE
+            mj_body.add_joint(
+                name=dof.name,
+                type=kind,
+                axis=list(dof.axis),
+                range=list(dof.range),
+                limited=mujoco.mjtLimited.mjLIMITED_TRUE if dof.limited else 0,
+                armature=0.01,
+                damping=0.05 if dof.type == "hinge" else 0.0,
+            )
+        if seg.length_hint > 0:
+            mj_body.add_geom(
+                name=f"{seg.name}_visual",
+                type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                fromto=[0, 0, 0, 0, -seg.length_hint, 0],
+                size=[0.03, 0, 0],
+                contype=0,
+                conaffinity=0,
+                group=VISUAL_GROUP,
+                rgba=[0.9, 0.87, 0.8, 1.0],
+            )
+        bodies[seg.name] = mj_body
+    return bodies
+
+
+def _add_wrap(mj_body: mujoco.MjsBody, wrap: WrapObject) -> None:
+    is_cyl = wrap.type == "cylinder"
+    mj_body.add_geom(
+        name=wrap.name,
+        type=mujoco.mjtGeom.mjGEOM_CYLINDER if is_cyl else mujoco.mjtGeom.mjGEOM_SPHERE,
+        size=[wrap.radius, wrap.length / 2 if is_cyl else 0, 0],
+        pos=list(wrap.location),
+        quat=quat_from_z(wrap.axis),
+        contype=0,
+        conaffinity=0,
+        group=WRAP_GROUP,
+        rgba=[0.5, 0.5, 0.9, 0.4],
+    )
+    if wrap.side is not None:
+        mj_body.add_site(name=f"{wrap.name}_side", pos=list(wrap.side), group=WRAP_GROUP)
+
+
+def _add_muscles(spec: mujoco.MjSpec, body: Body, bodies: dict[str, mujoco.MjsBody]) -> None:
+    wraps = {w.name: w for w in body.wrap_objects}
+    for wrap in body.wrap_objects:
+        _add_wrap(bodies[wrap.segment], wrap)
+    for muscle in body.muscles:
+        tendon = spec.add_tendon(name=muscle.name, width=0.006, rgba=[0.8, 0.2, 0.2, 1])
+        for i, element in enumerate(muscle.path):
+            if isinstance(element, PathPoint):
+                site = f"{muscle.name}_p{i}"
+                bodies[element.segment].add_site(name=site, pos=list(element.location))
+                tendon.wrap_site(site)
+            else:
+                side = wraps[element.wrap].side
+                tendon.wrap_geom(element.wrap, f"{element.wrap}_side" if side else "")
+        fibre = muscle.optimal_fiber_length * math.cos(muscle.pennation_angle)
+        lo, hi = MUSCLE_RANGE
+        actuator = spec.add_actuator(
+            name=muscle.name,
+            target=muscle.name,
+            trntype=mujoco.mjtTrn.mjTRN_TENDON,
+            lengthrange=[
+                muscle.tendon_slack_length + lo * fibre,
+                muscle.tendon_slack_length + hi * fibre,
+            ],
+        )
+        actuator.set_to_muscle(
+            timeconst=[muscle.activation_time, muscle.deactivation_time],
+            tausmooth=0.0,
+            range=list(MUSCLE_RANGE),
+            force=muscle.max_isometric_force,
+            vmax=muscle.max_contraction_velocity,
+        )
+
+
+def _add_contacts(body: Body, bodies: dict[str, mujoco.MjsBody]) -> None:
+    for sphere in body.contact_spheres:
+        bodies[sphere.segment].add_geom(
+            name=sphere.name,
+            type=mujoco.mjtGeom.mjGEOM_SPHERE,
+            size=[sphere.radius, 0, 0],
+            pos=list(sphere.location),
+            friction=[body.contact.static_friction, 0.005, 0.0001],
+            group=CONTACT_GROUP,
+            rgba=[0.3, 0.6, 0.3, 1.0],
+        )
+
+
+def build_spec(body: Body) -> mujoco.MjSpec:
+    """The whole body as an ``MjSpec``: every dof a joint, every muscle an actuator.
+
+    Pruning (locking joints, removing muscles and contacts) happens afterwards on the spec.
+    """
+    spec = mujoco.MjSpec()
+    spec.modelname = body.name
+    spec.option.gravity = [0.0, -9.81, 0.0]
+    spec.compiler.autolimits = True
+    _add_floor(spec, body.contact.static_friction)
+    bodies = _add_segments(spec, body)
+    _add_muscles(spec, body, bodies)
+    _add_contacts(body, bodies)
+    for marker in body.markers:
+        bodies[marker.segment].add_site(name=marker.name, pos=list(marker.location), group=4)
+    return spec
