@@ -8,8 +8,17 @@ from rich.text import Text
 
 from workers.sim.base import CompileReport
 
-SIZE_KEYS = ("dofs", "joints", "bodies", "muscles", "tendons", "wrap_objects", "geoms", "sites",
-             "contact_pairs")
+SIZE_KEYS = (
+    "dofs",
+    "joints",
+    "bodies",
+    "muscles",
+    "tendons",
+    "wrap_objects",
+    "geoms",
+    "sites",
+    "contact_pairs",
+)
 
 
 def render_report(report: CompileReport) -> Group:
@@ -22,13 +31,18 @@ def render_report(report: CompileReport) -> Group:
     size = Table("model size", "full body", "scene", "saved", title="What pruning saved")
     saved = report.saved()
     for key in SIZE_KEYS:
-        size.add_row(key, str(report.size_full.get(key, "-")), str(report.size.get(key, "-")),
-                     str(saved.get(key, "-")))
+        size.add_row(
+            key,
+            str(report.size_full.get(key, "-")),
+            str(report.size.get(key, "-")),
+            str(saved.get(key, "-")),
+        )
     kept = Table("kept", "dropped", title="Parts")
     locked = ", ".join(f"{k}={v:.3g}" for k, v in plan.locked_dofs.items()) or "none"
     kept.add_row(f"joints: {', '.join(plan.kept_dofs)}", f"welded: {locked}")
     removed = ", ".join(f"{m} ({why})" for m, why in plan.removed_muscles.items()) or "none"
     kept.add_row(f"muscles: {len(plan.kept_muscles)}", f"muscles: {removed}")
-    kept.add_row(f"contact geoms: {', '.join(plan.contact_geoms) or 'none'}",
-                 f"obstacles: {plan.obstacles}")
+    kept.add_row(
+        f"contact geoms: {', '.join(plan.contact_geoms) or 'none'}", f"obstacles: {plan.obstacles}"
+    )
     return Group(head, size, kept)

@@ -66,16 +66,29 @@ def check(
         console.print("[red]error:[/red] give a scene NAME or --all, not both or neither")
         raise typer.Exit(2)
     names = catalogue() if all_scenes else [name]
-    table = Table("scene", "backend", "steps", "steps/s", "real-time x", "episodes", "falls",
-                  "health failures")
+    table = Table(
+        "scene",
+        "backend",
+        "steps",
+        "steps/s",
+        "real-time x",
+        "episodes",
+        "falls",
+        "health failures",
+    )
     for scene_name in names:
         scene = _load(scene_name)
         if backend not in scene.backends:
             continue
         env = MuscleEnv(scene, backend)
-        with Progress(TextColumn(f"{scene.name} [{backend}]"), BarColumn(),
-                      TextColumn("{task.fields[rate]}"), TimeElapsedColumn(),
-                      console=console, transient=True) as progress:
+        with Progress(
+            TextColumn(f"{scene.name} [{backend}]"),
+            BarColumn(),
+            TextColumn("{task.fields[rate]}"),
+            TimeElapsedColumn(),
+            console=console,
+            transient=True,
+        ) as progress:
             task = progress.add_task("check", total=seconds, rate="")
 
             def update(r, task=task, progress=progress) -> None:
@@ -83,9 +96,16 @@ def check(
 
             result = random_excitations(env, seconds, seed=seed, on_step=update)
         failures = ", ".join(f"{k}: {v}" for k, v in sorted(result.health.items())) or "none"
-        table.add_row(scene.name, backend, str(result.steps), f"{result.steps_per_s:.0f}",
-                      f"{result.realtime_factor:.2f}", str(result.episodes), str(result.falls),
-                      failures)
+        table.add_row(
+            scene.name,
+            backend,
+            str(result.steps),
+            f"{result.steps_per_s:.0f}",
+            f"{result.realtime_factor:.2f}",
+            str(result.episodes),
+            str(result.falls),
+            failures,
+        )
     console.print(table)
 
 

@@ -41,8 +41,12 @@ class ProbeResult:
         return self.sim_s / self.wall_s if self.wall_s else 0.0
 
 
-def random_excitations(env: MuscleEnv, seconds: float, seed: int = 0,
-                       on_step: Callable[[ProbeResult], None] | None = None) -> ProbeResult:
+def random_excitations(
+    env: MuscleEnv,
+    seconds: float,
+    seed: int = 0,
+    on_step: Callable[[ProbeResult], None] | None = None,
+) -> ProbeResult:
     """Run uniform random excitations in [0, 1] for ``seconds`` of wall-clock time."""
     rng = np.random.default_rng(seed)
     result = ProbeResult()

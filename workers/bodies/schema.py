@@ -13,6 +13,7 @@ ground the same way (for ``gait2d`` a planar joint: slide x, slide y, hinge z).
 
 from __future__ import annotations
 
+import itertools
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -101,6 +102,12 @@ class Muscle(_Strict):
     max_contraction_velocity: PositiveFloat = Field(
         default=10.0, description="optimal fibre lengths per second"
     )
+    passive_fibre_strain: PositiveFloat = Field(
+        default=0.6, description="fibre strain at which passive force equals max isometric force"
+    )
+    tendon_strain_at_fmax: PositiveFloat = Field(
+        default=0.049, description="tendon strain at max isometric force (compliant tendons)"
+    )
     activation_time: PositiveFloat = Field(default=0.01, description="s")
     deactivation_time: PositiveFloat = Field(default=0.04, description="s")
     path: list[PathElement] = Field(min_length=2)
@@ -110,7 +117,7 @@ class Muscle(_Strict):
     def _path_shape(cls, path: list[PathElement]) -> list[PathElement]:
         if not isinstance(path[0], PathPoint) or not isinstance(path[-1], PathPoint):
             raise ValueError("path must start and end with a point")
-        for a, b in zip(path, path[1:], strict=False):
+        for a, b in itertools.pairwise(path):
             if isinstance(a, WrapRef) and isinstance(b, WrapRef):
                 raise ValueError("two wrap objects in a row: put a point between them")
         return path
@@ -140,10 +147,14 @@ class WrapObject(_Strict):
 
 
 class ContactSphere(_Strict):
+    """A sphere that can touch the ground. ``foot`` spheres carry gait; ``body`` spheres only
+    matter in a fall (scenes keep them with ``keep.contacts: all``)."""
+
     name: str
     segment: str
     location: Vec3
     radius: PositiveFloat
+    part: Literal["foot", "body"] = "foot"
 
 
 class Marker(_Strict):

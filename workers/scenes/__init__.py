@@ -10,11 +10,16 @@ from workers.scenes.spec import Scene
 from workers.scenes.topology import topology_for
 from workers.spec_io import SpecError, load_yaml_model
 
-__all__ = ["PrunePlan", "Scene", "catalogue", "load_scene", "plan_pruning"]
+__all__ = ["PrunePlan", "Scene", "catalogue", "catalogue_file", "load_scene", "plan_pruning"]
 
 
 def _catalogue_dir() -> Path:
     return Path(str(resources.files("workers.scenes") / "catalogue"))
+
+
+def catalogue_file(name: str) -> Path:
+    """Path of a shipped scene's YAML file."""
+    return _catalogue_dir() / f"{name}.yaml"
 
 
 def catalogue() -> list[str]:
@@ -30,7 +35,7 @@ def load_scene(name_or_path: str | Path) -> Scene:
     """
     path = Path(name_or_path)
     if path.suffix not in {".yaml", ".yml"}:
-        path = _catalogue_dir() / f"{name_or_path}.yaml"
+        path = catalogue_file(str(name_or_path))
         if not path.exists():
             raise SpecError(f"scene {str(name_or_path)!r}: unknown; catalogue: {catalogue()}")
     scene = load_yaml_model(path, Scene)

@@ -86,7 +86,13 @@ def plan_pruning(
             removed[muscle] = "out of plane (moment arm < 5 mm about every kept joint)"
         else:
             kept_muscles.append(muscle)
-    contact = topology.contact_geoms if scene.task.kind == "locomotion" else []
+    feet = [g for geoms in topology.feet.values() for g in geoms]
+    if scene.task.kind != "locomotion":
+        contact: list[str] = []
+    elif scene.keep.contacts == "all":
+        contact = topology.contact_geoms
+    else:
+        contact = feet
     return PrunePlan(
         kept_dofs=kept_dofs,
         locked_dofs=locked,

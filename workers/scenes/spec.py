@@ -6,7 +6,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from workers.sim.profiles import BACKENDS, Backend, FidelityProfile, resolve_profile
+from workers.scenes.profiles import BACKENDS, Backend, FidelityProfile, resolve_profile
 
 MJCF_BODIES: tuple[str, ...] = ("myoleg", "myoelbow")
 """Bodies loaded from MyoSuite's MJCF files (MuJoCo only); all others are neutral bodies."""
@@ -29,6 +29,9 @@ class Keep(_Strict):
     )
     lock_at: dict[str, float] = Field(
         default_factory=dict, description="value (rad or m) for locked dofs instead of default"
+    )
+    contacts: Literal["feet", "all"] = Field(
+        default="feet", description="which body geoms may touch the ground and obstacles"
     )
     planar: bool = Field(
         default=False, description="drop muscles with < 5 mm moment arm about every kept dof"

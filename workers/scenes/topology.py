@@ -23,7 +23,7 @@ class Topology:
         root_dofs: dofs that place the body in the world (never locked by a scene).
         root_defaults: initial values of root dofs given as hinges/slides (rad or m).
         muscle_spans: each muscle and the dofs its path crosses.
-        contact_geoms: the body's geoms that may touch the ground.
+        contact_geoms: all the body's geoms that may touch the ground (feet included).
         feet: foot name -> its contact geoms (ground reaction forces are summed per foot).
     """
 
@@ -43,7 +43,7 @@ def _neutral_topology(name: str) -> Topology:
     body = load_body(name)
     root = next(j for j in body.joints if j.parent == GROUND)
     feet: dict[str, list[str]] = {}
-    for sphere in body.contact_spheres:
+    for sphere in (c for c in body.contact_spheres if c.part == "foot"):
         side = "right" if sphere.name.startswith("r_") or sphere.name.endswith("_r") else "left"
         feet.setdefault(f"foot_{side}", []).append(sphere.name)
     return Topology(

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
-from workers.scenes.spec import Scene
+from typing import TYPE_CHECKING
+
+from workers.scenes.profiles import FidelityProfile
 from workers.sim.base import CompileReport, Health, SimState, Simulator
-from workers.sim.profiles import FidelityProfile
+if TYPE_CHECKING:
+    from workers.scenes.spec import Scene
 
 __all__ = [
     "CompileReport",

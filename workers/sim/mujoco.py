@@ -17,7 +17,7 @@ from workers.bodies import load_body
 from workers.scenes import PrunePlan, Scene, plan_pruning
 from workers.scenes.topology import Topology, topology_for
 from workers.sim.base import HEALTHY, CompileReport, Health, SimState
-from workers.sim.mjcf_models import MJCF_SOURCES
+from workers.sim.mjcf_sources import MJCF_SOURCES
 from workers.sim.mjcf_prune import (
     lock_joints,
     model_size,
@@ -40,8 +40,12 @@ WATCHED_WARNINGS = {
     "mujoco_cnstrfull": mujoco.mjtWarning.mjWARN_CNSTRFULL,
     "mujoco_contactfull": mujoco.mjtWarning.mjWARN_CONTACTFULL,
 }
-AXES = {"gait2d": (1, 0), "myoleg": (2, 1), "myoelbow": (2, 0)}
+AXES = {"gait2d": (1, 0), "myoleg": (2, 0), "myoelbow": (2, 0)}
 """(up, forward) world axes per body; neutral bodies are Y-up, X-forward."""
+PELVIS_UP = 1
+"""The pelvis frame's up axis (Y in OpenSim-derived bodies, MyoLeg's included)."""
+STAND_KEY = "stand"
+"""Keyframe that, where a model has it, is the reset pose (MyoLeg)."""
 OBSTACLE_PREFIX = "obstacle_"
 PARKED = -100.0
 """Forward position (m) of obstacle geoms a reset leaves unused (none here; kept for spares)."""
@@ -88,7 +92,8 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
     dropped = lock_joints(spec, plan.locked_dofs)
     remove_muscles(spec, list(plan.removed_muscles))
     obstacles = _add_obstacles(spec, plan.obstacles)
-    restrict_contacts(spec, plan.contact_geoms, [FLOOR, *obstacles])
+    world = [g.name for g in spec.geoms if g.name in {FLOOR, *obstacles}]
+    restrict_contacts(spec, plan.contact_geoms if world else [], world)
     for geom in spec.geoms:
         if geom.name == FLOOR:
             geom.friction = [scene.terrain.friction, 0.005, 0.0001]
@@ -142,9 +147,22 @@ class MujocoSimulator:
             ],
             dtype=int,
         )
-        initial = {**topology.root_defaults, **{d: topology.dof_defaults[d] for d in self.dof_names}}
+        initial = {
+            **topology.root_defaults,
+            **{d: topology.dof_defaults[d] for d in self.dof_names},
+        }
         self._init_adr = np.array([m.jnt_qposadr[self._joint_id(n)] for n in initial], dtype=int)
         self._init_val = np.array(list(initial.values()))
+        self._contact_spheres = np.array(
+            [
+                g
+                for g in range(m.ngeom)
+                if self._geom_foot[g] >= 0 and m.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE
+            ],
+            dtype=int,
+        )
+        self._lift_adr = self._root_slide_along(self.up_axis)
+        self._stand_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, STAND_KEY)
         self._rng = np.random.default_rng(0)
 
     # ---- protocol -------------------------------------------------------------------
@@ -152,12 +170,16 @@ class MujocoSimulator:
     def reset(self, seed: int) -> None:
         m, d = self.model, self.data
         self._rng = np.random.default_rng(seed)
-        mujoco.mj_resetData(m, d)
-        d.qpos[self._init_adr] = self._init_val
+        if self._stand_key >= 0:
+            mujoco.mj_resetDataKeyframe(m, d, self._stand_key)
+        else:
+            mujoco.mj_resetData(m, d)
+            d.qpos[self._init_adr] = self._init_val
         noise = self.scene.init_noise
         jitter = self._rng.uniform(-noise, noise, len(self._qadr))
         d.qpos[self._qadr] = np.clip(d.qpos[self._qadr] + jitter, self._qlo, self._qhi)
         self._place_obstacles()
+        self._touch_floor()
         mujoco.mj_forward(m, d)
 
     def step(self, excitations: np.ndarray, duration: float) -> Health:
@@ -173,7 +195,9 @@ class MujocoSimulator:
                 return Health(cause)
         if d.time < t0:
             return Health("mujoco_reset")
-        if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all() and np.isfinite(d.act).all()):
+        if not (
+            np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all() and np.isfinite(d.act).all()
+        ):
             return Health("nan_state")
         return Health(HEALTHY)
 
@@ -183,7 +207,7 @@ class MujocoSimulator:
             vel = np.zeros(6)
             mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._pelvis, vel, 0)
             pelvis_pos = d.xpos[self._pelvis].copy()
-            pelvis_up = d.xmat[self._pelvis].reshape(3, 3)[:, self.up_axis].copy()
+            pelvis_up = d.xmat[self._pelvis].reshape(3, 3)[:, PELVIS_UP].copy()
             angvel, linvel = vel[:3].copy(), vel[3:].copy()
         else:
             pelvis_pos, angvel, linvel = np.zeros(3), np.zeros(3), np.zeros(3)
@@ -240,6 +264,28 @@ class MujocoSimulator:
 
     def _joint_id(self, name: str) -> int:
         return mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, name)
+
+    def _root_slide_along(self, axis: int) -> int:
+        """qpos address of a root slide dof along world ``axis`` (-1 if there is none)."""
+        m = self.model
+        for j in range(m.njnt):
+            if (
+                m.jnt_bodyid[j] == self._pelvis
+                and m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE
+                and abs(m.jnt_axis[j][axis]) > 0.999
+            ):
+                return int(m.jnt_qposadr[j])
+        return -1
+
+    def _touch_floor(self) -> None:
+        """Raise or lower the body so its lowest contact sphere just touches the floor."""
+        if self._lift_adr < 0 or not len(self._contact_spheres):
+            return
+        m, d = self.model, self.data
+        mujoco.mj_kinematics(m, d)
+        ids = self._contact_spheres
+        lowest = np.min(d.geom_xpos[ids, self.up_axis] - m.geom_size[ids, 0])
+        d.qpos[self._lift_adr] -= lowest
 
     def _place_obstacles(self) -> None:
         spec = self.scene.obstacles

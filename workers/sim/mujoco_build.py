@@ -24,6 +24,10 @@ from workers.bodies.schema import GROUND, Body, PathPoint, WrapObject
 FLOOR = "floor"
 MUSCLE_RANGE = (0.75, 1.05)
 """Normalised fibre lengths that map onto ``lengthrange`` (any consistent pair works)."""
+PASSIVE_AT_LMAX = 1.0 / 1.5
+"""MuJoCo's passive force at ``lmax`` is ``1.5 fpmax``: this makes it the max isometric force
+there, as Thelen 2003 has it at ``1 + passive_fibre_strain`` (MuJoCo's own default, 1.3 at
+1.6, is about twice as stiff)."""
 CONTACT_GROUP = 1
 VISUAL_GROUP = 2
 WRAP_GROUP = 3
@@ -63,7 +67,9 @@ def _add_segments(spec: mujoco.MjSpec, body: Body) -> dict[str, mujoco.MjsBody]:
             explicitinertial=True,
         )
         for dof in joint.dofs:
-            kind = mujoco.mjtJoint.mjJNT_HINGE if dof.type == "hinge" else mujoco.mjtJoint.mjJNT_SLIDE
+            kind = (
+                mujoco.mjtJoint.mjJNT_HINGE if dof.type == "hinge" else mujoco.mjtJoint.mjJNT_SLIDE
+            )
             mj_body.add_joint(
                 name=dof.name,
                 type=kind,
@@ -136,6 +142,8 @@ def _add_muscles(spec: mujoco.MjSpec, body: Body, bodies: dict[str, mujoco.MjsBo
             range=list(MUSCLE_RANGE),
             force=muscle.max_isometric_force,
             vmax=muscle.max_contraction_velocity,
+            lmax=1.0 + muscle.passive_fibre_strain,
+            fpmax=PASSIVE_AT_LMAX,
         )
 
 
@@ -161,6 +169,7 @@ def build_spec(body: Body) -> mujoco.MjSpec:
     spec.modelname = body.name
     spec.option.gravity = [0.0, -9.81, 0.0]
     spec.compiler.autolimits = True
+    spec.compiler.degree = False
     _add_floor(spec, body.contact.static_friction)
     bodies = _add_segments(spec, body)
     _add_muscles(spec, body, bodies)

@@ -1,0 +1,44 @@
+"""The gaitforge CLI, run for real through typer's runner."""
+
+from __future__ import annotations
+
+from typer.testing import CliRunner
+
+from service.cli import app
+
+runner = CliRunner()
+
+
+def test_scenes_list_names_the_catalogue() -> None:
+    result = runner.invoke(app, ["scenes", "list"], env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    for name in ("elbow-reach", "walk-2d", "walk-3d", "obstacles-2d"):
+        assert name in result.output
+
+
+def test_scenes_show_prints_the_compile_report() -> None:
+    result = runner.invoke(app, ["scenes", "show", "walk-2d"], env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    assert "lumbar_extension" in result.output
+    assert "contact_pairs" in result.output
+
+
+def test_scenes_check_reports_speed_and_health() -> None:
+    result = runner.invoke(
+        app, ["scenes", "check", "elbow-reach", "--seconds", "0.5"], env={"COLUMNS": "200"}
+    )
+    assert result.exit_code == 0, result.output
+    assert "steps/s" in result.output
+    assert "elbow-reach" in result.output
+
+
+def test_unknown_scene_is_one_clear_error() -> None:
+    result = runner.invoke(app, ["scenes", "show", "walk-9d"], env={"COLUMNS": "200"})
+    assert result.exit_code == 2
+    assert "unknown" in result.output and "walk-2d" in result.output
+
+
+def test_bad_seconds_is_rejected() -> None:
+    result = runner.invoke(app, ["scenes", "check", "walk-2d", "--seconds", "-1"])
+    assert result.exit_code != 0
+    assert "seconds" in result.output

@@ -1,0 +1,201 @@
+"""MuJoCo models from MyoSuite's MJCF files (the ``myo-sim`` package), as editable specs.
+
+``myo-sim`` ships MyoLeg only as include fragments (assets, kinematic chain, tendons,
+muscles) that its own composer attaches to a torso scaffold. :func:`myoleg_spec` wraps the
+fragments in a small standalone model instead: a floor, a floating root and the legs, and
+nothing else. The wrapper is an MJCF string whose ``<include>`` and ``meshdir`` entries
+are absolute paths into the installed package, so nothing is written anywhere (the
+package is only read).
+
+MyoLeg world frame (after our wrapper): Z up, gravity -Z (MuJoCo default), the body
+faces +X, its left is +Y. (The fragments themselves are OpenSim-style Y-up; MyoSuite's
+own models face -Y. We turn the root by +90 degrees about Z so that forward is +X.)
+Lengths are metres, angles radians, masses kilograms. Leg and pelvis only: no torso, so
+the total mass is ~38 kg.
+
+Collision (as shipped by MyoSuite): leg capsules/ellipsoids (class ``myolegs_coll``) have
+``contype=1 conaffinity=0`` so they touch the floor (``contype=conaffinity=1``) but not
+each other; bone meshes and wrap objects have ``contype=conaffinity=0`` (render only).
+"""
+
+from __future__ import annotations
+
+import logging
+import xml.etree.ElementTree as ET
+from functools import cache
+from importlib import resources
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+logger = logging.getLogger(__name__)
+
+FLOOR = "floor"
+ROOT_JOINT = "root"
+ROOT_BODY = "root"
+STAND_KEY = "stand"
+
+MYOLEG_STAND_HEIGHT = 0.945402
+"""Height (m) of the root body at which, in the ``stand`` pose, the lowest foot collision
+geoms just touch the floor (signed distance 0; the geoms' 1 mm margin makes contact
+active). Checked by the tests with ``mj_geomDistance``."""
+
+MYOLEG_STAND_ANKLE = 0.0119593609
+"""Ankle angle (rad) of MyoSuite's ``standing`` posture (myo_sim/build/data/postures.json):
+foot flat on the floor with the knees straight."""
+
+MYOLEG_FOOT_GEOMS: tuple[str, ...] = tuple(
+    f"{name}_{side}"
+    for side in ("r", "l")
+    for name in ("foot_col1", "foot_col3", "foot_col4", "bofoot_col1", "bofoot_col2")
+)
+"""Collision geoms of the feet (calcaneus and toes), right then left."""
+
+MYOLEG_SAGITTAL_JOINTS: tuple[str, ...] = tuple(
+    f"{name}_{side}" for side in ("r", "l") for name in ("hip_flexion", "knee_angle", "ankle_angle")
+)
+"""The sagittal-plane joints of MyoLeg, right then left (for ``planar_muscles``)."""
+
+_LEG_FRAGMENTS = (
+    "myolegs_assets.xml",
+    "myolegs_chain.xml",
+    "myolegs_tendon.xml",
+    "myolegs_muscle.xml",
+)
+_ROOT_QUAT = (np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5))
+"""+90 degrees about Z: MyoLeg's forward (-Y as shipped) becomes +X."""
+
+
+@cache
+def myosim_models_dir() -> Path:
+    """Absolute path of ``myo_sim/models`` in the installed ``myo-sim`` package.
+
+    Raises:
+        FileNotFoundError: If the package is not installed as plain files (e.g. zipped).
+    """
+    path = Path(str(resources.files("myo_sim") / "models")).resolve()
+    if not (path / "leg" / "assets" / "myolegs_chain.xml").is_file():
+        raise FileNotFoundError(f"myo-sim models not found as files under {path}")
+    return path
+
+
+def _myoleg_xml() -> str:
+    models = myosim_models_dir()
+    assets, chain, tendon, muscle = (models / "leg" / "assets" / f for f in _LEG_FRAGMENTS)
+    quat = " ".join(f"{q:.17g}" for q in _ROOT_QUAT)
+    # The fragments reference meshes as "meshes/<name>.stl", relative to models/.
+    return f"""<mujoco model="myoleg">
+  <compiler meshdir="{models}" texturedir="{models / "textures"}"/>
+  <include file="{assets}"/>
+  <asset>
+    <texture name="floor_tex" type="2d" builtin="checker" rgb1=".82 .84 .86"
+             rgb2=".72 .74 .76" width="256" height="256"/>
+    <material name="floor_mat" texture="floor_tex" texrepeat="2 2" texuniform="true"/>
+  </asset>
+  <worldbody>
+    <light name="sun" pos="0 0 4" dir="0 0 -1" directional="true"/>
+    <geom name="{FLOOR}" type="plane" size="0 0 0.05" material="floor_mat"
+          contype="1" conaffinity="1" condim="3"/>
+    <body name="{ROOT_BODY}" pos="0 0 {MYOLEG_STAND_HEIGHT}" quat="{quat}">
+      <freejoint name="{ROOT_JOINT}"/>
+      <include file="{chain}"/>
+    </body>
+  </worldbody>
+  <include file="{tendon}"/>
+  <include file="{muscle}"/>
+</mujoco>
+"""
+
+
+def _add_self_contacts(spec: mujoco.MjSpec) -> None:
+    """MyoSuite's leg-on-leg contact pairs (thighs, shanks, feet), condim 1."""
+    path = myosim_models_dir() / "contacts" / "myolegs_contacts.xml"
+    for pair in ET.parse(path).getroot().iter("pair"):
+        spec.add_pair(
+            geomname1=pair.attrib["geom1"],
+            geomname2=pair.attrib["geom2"],
+            condim=int(pair.attrib.get("condim", "3")),
+        )
+
+
+def coupled_qpos(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
+    """``qpos`` with every joint driven by an active ``<equality><joint>`` set to its value.
+
+    MuJoCo's joint coupling is ``q1 - q1_0 = sum_k c_k (q2 - q2_0)^k`` (``q_0`` = ``qpos0``,
+    ``c`` = ``polycoef``); a coupling with no ``joint2`` fixes ``q1 = q1_0 + c_0``.
+    Chains (a driver that is itself driven) are resolved.
+
+    Args:
+        model: Compiled model.
+        qpos: Generalised positions (rad, m), not modified.
+
+    Returns:
+        A copy of ``qpos`` that satisfies the joint couplings.
+    """
+    out = np.array(qpos, dtype=float, copy=True)
+    eqs = [
+        i
+        for i in range(model.neq)
+        if model.eq_type[i] == mujoco.mjtEq.mjEQ_JOINT and model.eq_active0[i]
+    ]
+    for _ in range(max(1, len(eqs))):
+        for i in eqs:
+            a1 = model.jnt_qposadr[model.eq_obj1id[i]]
+            j2 = model.eq_obj2id[i]
+            coef = model.eq_data[i, :5]
+            if j2 < 0:
+                out[a1] = model.qpos0[a1] + coef[0]
+                continue
+            a2 = model.jnt_qposadr[j2]
+            x = out[a2] - model.qpos0[a2]
+            out[a1] = model.qpos0[a1] + np.polyval(coef[::-1], x)
+    return out
+
+
+def _add_stand_key(spec: mujoco.MjSpec) -> None:
+    model = spec.compile()
+    qpos = model.qpos0.copy()
+    for side in ("r", "l"):
+        qpos[model.jnt_qposadr[model.joint(f"ankle_angle_{side}").id]] = MYOLEG_STAND_ANKLE
+    spec.add_key(name=STAND_KEY, qpos=coupled_qpos(model, qpos).tolist())
+
+
+def myoleg_spec(self_contacts: bool = False) -> mujoco.MjSpec:
+    """MyoLeg (80 muscles, 3-D) on a floor, as a fresh editable spec.
+
+    Contents: floor plane ``floor``; body ``root`` with free joint ``root`` at
+    :data:`MYOLEG_STAND_HEIGHT`, holding MyoSuite's pelvis and legs (28 hinge/slide joints,
+    14 knee/patella ``<equality><joint>`` couplings to ``knee_angle_*``); 80 spatial
+    tendons with 80 muscles; bone meshes for rendering (non-colliding); one keyframe
+    ``stand`` (knees straight, feet flat on the floor, couplings satisfied; ``qpos0``
+    itself violates the patella couplings by ~1 cm). Every function in
+    :mod:`workers.sim.mjcf_prune` keeps the keyframe consistent.
+
+    Args:
+        self_contacts: Also add MyoSuite's explicit leg-on-leg contact pairs (26 pairs).
+
+    Returns:
+        A new ``mujoco.MjSpec`` (each call parses the files again).
+    """
+    spec = mujoco.MjSpec.from_string(_myoleg_xml())
+    spec.nkey = 0  # the assets' <size nkey="1"> would add an unnamed blank keyframe
+    for geom in spec.geoms:
+        if geom.type == mujoco.mjtGeom.mjGEOM_MESH:
+            geom.contype = 0
+            geom.conaffinity = 0
+    if self_contacts:
+        _add_self_contacts(spec)
+    _add_stand_key(spec)
+    return spec
+
+
+def elbow_spec() -> mujoco.MjSpec:
+    """MyoSuite's elbow: one hinge (``r_elbow_flex``), 6 muscles, fixed to the world.
+
+    Returns:
+        A new ``mujoco.MjSpec`` parsed from
+        ``myo_sim/models/legacy/elbow/myoelbow_1dof6muscles.xml``.
+    """
+    path = myosim_models_dir() / "legacy" / "elbow" / "myoelbow_1dof6muscles.xml"
+    return mujoco.MjSpec.from_file(str(path))
