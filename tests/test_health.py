@@ -10,37 +10,47 @@ from workers.scenes import Scene, load_scene
 from workers.scenes.profiles import FidelityProfile
 
 
-def _unstable_walk_3d() -> Scene:
+def _unstable_walk_3d(control_hz: float = 50.0) -> Scene:
     """MyoLeg with explicit Euler at a 20 ms step: known to blow up under full excitation."""
     scene = load_scene("walk-3d")
     return scene.model_copy(
         update={
             "fidelity": FidelityProfile(integrator="euler", timestep=0.02),
-            "control_hz": 50.0,
+            "control_hz": control_hz,
         }
     )
 
 
-def test_myoleg_euler_20ms_full_excitation_is_flagged_not_propagated() -> None:
-    env = MuscleEnv(_unstable_walk_3d())
+def _run_full_excitation(env: MuscleEnv, steps: int = 200) -> list[str]:
+    """Full excitation until the first unhealthy step; every observation must be finite."""
     obs, _ = env.reset(seed=0)
-    causes = []
     full = np.ones(env.action_space.shape, dtype=np.float32)
-    for _ in range(200):
+    for _ in range(steps):
         obs, reward, terminated, truncated, info = env.step(full)
         assert np.isfinite(obs).all() and np.isfinite(reward)
         if info["health"] != "ok":
-            causes.append(info["health"])
-            assert terminated
-            assert reward == 0.0
-            break
+            assert terminated and reward == 0.0
+            return [info["health"]]
         if terminated or truncated:
             env.reset()
-    assert causes and causes[0].startswith("mujoco_"), causes
+    return []
+
+
+def test_myoleg_euler_20ms_full_excitation_is_flagged_not_propagated() -> None:
+    env = MuscleEnv(_unstable_walk_3d())
+    causes = _run_full_excitation(env)
+    assert causes == ["diverged_speed"], causes
     obs, info = env.reset(seed=1)
     assert info["health"] == "ok" and np.isfinite(obs).all()
     obs, _, _, _, info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
-    assert np.isfinite(obs).all()
+    assert np.isfinite(obs).all() and info["health"] == "ok"
+
+
+def test_mujoco_silent_reset_is_read_from_its_warning_counters() -> None:
+    """With 10 substeps per control step, MuJoCo blows up, resets the state and carries on
+    inside one env step: only its BADQACC counter tells, and the env must report it."""
+    env = MuscleEnv(_unstable_walk_3d(control_hz=5.0))
+    assert _run_full_excitation(env, steps=20) == ["mujoco_badqacc"]
 
 
 def test_default_profile_full_excitation_stays_healthy_on_walk_2d() -> None:

@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 from workers.scenes.profiles import FidelityProfile
 from workers.sim.base import CompileReport, Health, SimState, Simulator
+
 if TYPE_CHECKING:
     from workers.scenes.spec import Scene
 

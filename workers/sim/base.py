@@ -7,8 +7,8 @@ from typing import Protocol
 
 import numpy as np
 
-from workers.scenes.prune import PrunePlan
 from workers.scenes.profiles import FidelityProfile
+from workers.scenes.prune import PrunePlan
 
 HEALTHY = "ok"
 

@@ -8,6 +8,7 @@ CONTACTFULL) besides checking the state for non-finite values.
 
 from __future__ import annotations
 
+import logging
 from functools import lru_cache
 
 import mujoco
@@ -17,7 +18,6 @@ from workers.bodies import load_body
 from workers.scenes import PrunePlan, Scene, plan_pruning
 from workers.scenes.topology import Topology, topology_for
 from workers.sim.base import HEALTHY, CompileReport, Health, SimState
-from workers.sim.mjcf_sources import MJCF_SOURCES
 from workers.sim.mjcf_prune import (
     lock_joints,
     model_size,
@@ -25,7 +25,10 @@ from workers.sim.mjcf_prune import (
     remove_muscles,
     restrict_contacts,
 )
+from workers.sim.mjcf_sources import MJCF_SOURCES
 from workers.sim.mujoco_build import CONTACT_GROUP, FLOOR, build_spec
+
+logger = logging.getLogger(__name__)
 
 INTEGRATORS = {
     "euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -46,6 +49,9 @@ PELVIS_UP = 1
 """The pelvis frame's up axis (Y in OpenSim-derived bodies, MyoLeg's included)."""
 STAND_KEY = "stand"
 """Keyframe that, where a model has it, is the reset pose (MyoLeg)."""
+MAX_SPEED = 200.0
+"""Any joint speed above this (rad/s or m/s) is divergence, not motion: a human joint peaks
+near 50 rad/s. MuJoCo only flags accelerations above 1e10, long after a blow-up starts."""
 OBSTACLE_PREFIX = "obstacle_"
 PARKED = -100.0
 """Forward position (m) of obstacle geoms a reset leaves unused (none here; kept for spares)."""
@@ -115,10 +121,22 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
     return model, report, topology
 
 
+def _log_mujoco_warning(message: str) -> None:
+    logger.debug("mujoco: %s", message.strip())
+
+
+def route_mujoco_warnings_to_logging() -> None:
+    """MuJoCo prints its warnings to stdout; the counters already carry them into
+    ``Health``, so the text goes to this module's logger at DEBUG instead."""
+    if mujoco.get_mju_user_warning() is None:
+        mujoco.set_mju_user_warning(_log_mujoco_warning)
+
+
 class MujocoSimulator:
     """A scene on MuJoCo. Picklable: it pickles as its scene plus its integration state."""
 
     def __init__(self, scene: Scene) -> None:
+        route_mujoco_warnings_to_logging()
         self.scene = scene
         self.model, self.report, topology = compile_scene(scene)
         self.data = mujoco.MjData(self.model)
@@ -199,6 +217,8 @@ class MujocoSimulator:
             np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all() and np.isfinite(d.act).all()
         ):
             return Health("nan_state")
+        if np.abs(d.qvel).max(initial=0.0) > MAX_SPEED:
+            return Health("diverged_speed")
         return Health(HEALTHY)
 
     def state(self) -> SimState:
