@@ -43,6 +43,20 @@ class Segment(_Strict):
     )
 
 
+class JointLimit(_Strict):
+    """A passive limit force (OpenSim's CoordinateLimitForce): a stiff spring beyond ``range``.
+
+    MuJoCo has no one-sided spring: its backend enforces ``range`` as a soft joint limit.
+    """
+
+    range: tuple[float, float] = Field(
+        description="rad or m, where the force starts (the dof's range is not enforced then)"
+    )
+    stiffness: PositiveFloat = Field(description="N m/rad (or N/m) past the range")
+    damping: float = Field(default=0.0, ge=0, description="N m s/rad (or N s/m) past the range")
+    transition: float = Field(default=0.17, gt=0, description="rad or m to full stiffness")
+
+
 class Dof(_Strict):
     """One degree of freedom of a joint."""
 
@@ -52,6 +66,7 @@ class Dof(_Strict):
     range: tuple[float, float] = Field(description="rad for hinge, m for slide")
     default: float = 0.0
     limited: bool = Field(default=True, description="enforce the range with a joint limit")
+    limit: JointLimit | None = Field(default=None, description="passive limit force, if any")
 
     @model_validator(mode="after")
     def _check(self) -> Dof:
@@ -60,6 +75,8 @@ class Dof(_Strict):
             raise ValueError(f"range must be increasing, got {self.range}")
         if not lo <= self.default <= hi:
             raise ValueError(f"default {self.default} outside range {self.range}")
+        if self.limit is not None and not self.limit.range[0] < self.limit.range[1]:
+            raise ValueError(f"limit.range must be increasing, got {self.limit.range}")
         if sum(a * a for a in self.axis) < 1e-12:
             raise ValueError("axis must be non-zero")
         return self
@@ -207,6 +224,7 @@ class Body(_Strict):
         roots = [j for j in self.joints if j.parent == GROUND]
         if len(roots) != 1:
             raise ValueError(f"exactly one joint must hang from '{GROUND}', found {len(roots)}")
+        self.ordered_joints()
         for m in self.muscles:
             for p in m.points:
                 if p.segment not in seg_names:
@@ -229,18 +247,18 @@ class Body(_Strict):
         return next(j for j in self.joints if j.child == segment)
 
     def ordered_joints(self) -> list[Joint]:
-        """Joints parent-before-child (the order a simulator must build them in)."""
-        done: set[str] = {GROUND}
+        """Joints depth-first from the ground, siblings in file order (parents first)."""
         ordered: list[Joint] = []
-        pending = list(self.joints)
-        while pending:
-            ready = [j for j in pending if j.parent in done]
-            if not ready:
-                raise ValueError("joint tree has a cycle")
-            for j in ready:
-                ordered.append(j)
-                done.add(j.child)
-                pending.remove(j)
+
+        def visit(parent: str) -> None:
+            for joint in self.joints:
+                if joint.parent == parent:
+                    ordered.append(joint)
+                    visit(joint.child)
+
+        visit(GROUND)
+        if len(ordered) != len(self.joints):
+            raise ValueError("joint tree is not connected to the ground")
         return ordered
 
     @property

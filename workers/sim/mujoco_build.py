@@ -74,7 +74,7 @@ def _add_segments(spec: mujoco.MjSpec, body: Body) -> dict[str, mujoco.MjsBody]:
                 name=dof.name,
                 type=kind,
                 axis=list(dof.axis),
-                range=list(dof.range),
+                range=list(dof.limit.range if dof.limit else dof.range),
                 limited=mujoco.mjtLimited.mjLIMITED_TRUE if dof.limited else 0,
                 armature=0.01,
                 damping=0.05 if dof.type == "hinge" else 0.0,
