@@ -56,8 +56,10 @@ def _broken(tmp_path: Path, edit) -> Path:
     [
         (lambda r: r["segments"][0].update(mass=-1), ["segments.0.mass", "greater than 0"]),
         (lambda r: r["muscles"][0]["path"][0].update(segment="humerus"), ["humerus"]),
-        (lambda r: r["muscles"][0].pop("max_isometric_force"),
-         ["muscles.0.max_isometric_force", "Field required"]),
+        (
+            lambda r: r["muscles"][0].pop("max_isometric_force"),
+            ["muscles.0.max_isometric_force", "Field required"],
+        ),
         (lambda r: r["joints"][1]["dofs"][0].update(type="ball"), ["dofs.0.type", "'hinge'"]),
         (lambda r: r["joints"][1]["dofs"][0].update(range=[1, -1]), ["range must be increasing"]),
         (lambda r: r["muscles"].append(r["muscles"][0]), ["duplicate name"]),

@@ -9,7 +9,7 @@ import pytest
 
 from workers.bodies import load_body
 from workers.scenes import load_scene
-from workers.sim.mjcf_prune import lock_joints
+from workers.sim.mjcf_lock import lock_joints
 from workers.sim.mujoco import MujocoSimulator
 from workers.sim.mujoco_build import build_spec
 

@@ -29,6 +29,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from workers.sim.mjcf_lock import coupled_qpos
+
 logger = logging.getLogger(__name__)
 
 FLOOR = "floor"
@@ -119,40 +121,6 @@ def _add_self_contacts(spec: mujoco.MjSpec) -> None:
         )
 
 
-def coupled_qpos(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
-    """``qpos`` with every joint driven by an active ``<equality><joint>`` set to its value.
-
-    MuJoCo's joint coupling is ``q1 - q1_0 = sum_k c_k (q2 - q2_0)^k`` (``q_0`` = ``qpos0``,
-    ``c`` = ``polycoef``); a coupling with no ``joint2`` fixes ``q1 = q1_0 + c_0``.
-    Chains (a driver that is itself driven) are resolved.
-
-    Args:
-        model: Compiled model.
-        qpos: Generalised positions (rad, m), not modified.
-
-    Returns:
-        A copy of ``qpos`` that satisfies the joint couplings.
-    """
-    out = np.array(qpos, dtype=float, copy=True)
-    eqs = [
-        i
-        for i in range(model.neq)
-        if model.eq_type[i] == mujoco.mjtEq.mjEQ_JOINT and model.eq_active0[i]
-    ]
-    for _ in range(max(1, len(eqs))):
-        for i in eqs:
-            a1 = model.jnt_qposadr[model.eq_obj1id[i]]
-            j2 = model.eq_obj2id[i]
-            coef = model.eq_data[i, :5]
-            if j2 < 0:
-                out[a1] = model.qpos0[a1] + coef[0]
-                continue
-            a2 = model.jnt_qposadr[j2]
-            x = out[a2] - model.qpos0[a2]
-            out[a1] = model.qpos0[a1] + np.polyval(coef[::-1], x)
-    return out
-
-
 def _add_stand_key(spec: mujoco.MjSpec) -> None:
     model = spec.compile()
     qpos = model.qpos0.copy()
@@ -169,8 +137,9 @@ def myoleg_spec(self_contacts: bool = False) -> mujoco.MjSpec:
     14 knee/patella ``<equality><joint>`` couplings to ``knee_angle_*``); 80 spatial
     tendons with 80 muscles; bone meshes for rendering (non-colliding); one keyframe
     ``stand`` (knees straight, feet flat on the floor, couplings satisfied; ``qpos0``
-    itself violates the patella couplings by ~1 cm). Every function in
-    :mod:`workers.sim.mjcf_prune` keeps the keyframe consistent.
+    itself violates the patella couplings by ~1 cm). The pruning functions of
+    :mod:`workers.sim.mjcf_lock`, :mod:`workers.sim.mjcf_muscles` and
+    :mod:`workers.sim.mjcf_contacts` keep the keyframe consistent.
 
     Args:
         self_contacts: Also add MyoSuite's explicit leg-on-leg contact pairs (26 pairs).

@@ -18,13 +18,9 @@ from workers.bodies import load_body
 from workers.scenes import PrunePlan, Scene, plan_pruning
 from workers.scenes.topology import Topology, topology_for
 from workers.sim.base import HEALTHY, CompileReport, Health, SimState
-from workers.sim.mjcf_prune import (
-    lock_joints,
-    model_size,
-    planar_muscles,
-    remove_muscles,
-    restrict_contacts,
-)
+from workers.sim.mjcf_contacts import model_size, restrict_contacts
+from workers.sim.mjcf_lock import lock_joints
+from workers.sim.mjcf_muscles import planar_muscles, remove_muscles
 from workers.sim.mjcf_sources import MJCF_SOURCES
 from workers.sim.mujoco_build import CONTACT_GROUP, FLOOR, build_spec
 

@@ -1,0 +1,14 @@
+"""Shared fixtures."""
+
+from __future__ import annotations
+
+import mujoco
+import pytest
+
+from workers.sim.mjcf_models import myoleg_spec
+
+
+@pytest.fixture(scope="session")
+def myoleg_model() -> mujoco.MjModel:
+    """MyoLeg as shipped (compiled once; do not modify)."""
+    return myoleg_spec().compile()
