@@ -18,7 +18,8 @@ from workers.sim.mjcf_models import (
     STAND_KEY,
     myoleg_spec,
 )
-from workers.sim.mjcf_muscles import planar_muscles, remove_muscles
+from workers.sim.mjcf_moment_arms import planar_muscles
+from workers.sim.mjcf_muscles import remove_muscles
 
 logger = logging.getLogger(__name__)
 

@@ -17,7 +17,7 @@ from workers.sim.mjcf_models import (
     myoleg_spec,
     myosim_models_dir,
 )
-from workers.sim.mjcf_muscles import muscle_ids, muscle_spans
+from workers.sim.mjcf_moment_arms import muscle_ids, muscle_spans
 
 
 def test_myoleg_loads_and_steps_without_warnings() -> None:

@@ -10,7 +10,8 @@ import pytest
 from mjcf_helpers import OUT_OF_PLANE, object_names
 
 from workers.sim.mjcf_models import MYOLEG_SAGITTAL_JOINTS, ROOT_JOINT, myoleg_spec
-from workers.sim.mjcf_muscles import muscle_spans, planar_muscles, remove_muscles
+from workers.sim.mjcf_moment_arms import muscle_spans, planar_muscles
+from workers.sim.mjcf_muscles import remove_muscles
 
 logger = logging.getLogger(__name__)
 

@@ -80,3 +80,20 @@ def test_planar_myoleg_drops_out_of_plane_muscles(planar: bool) -> None:
     assert out_of_plane, reasons
     assert "vasint_r" not in report.plan.removed_muscles
     assert report.size["muscles"] == 80 - len(report.plan.removed_muscles)
+
+
+def test_training_scenes_drop_drawing_only_parts_and_visuals_keeps_them() -> None:
+    """Bone meshes, visual capsules and markers cost kinematics time and memory, not physics."""
+    lean = MujocoSimulator(load_scene("walk-3d"))
+    drawn = MujocoSimulator(_variant("walk-3d", visuals=True))
+    meshes = [
+        g
+        for g in range(drawn.model.ngeom)
+        if drawn.model.geom_type[g] == 7  # mjGEOM_MESH
+    ]
+    assert meshes
+    assert not any(lean.model.geom_type[g] == 7 for g in range(lean.model.ngeom))
+    assert lean.report.size["sites"] < drawn.report.size["sites"]
+    assert lean.report.size["contact_pairs"] == drawn.report.size["contact_pairs"]
+    assert lean.report.size["muscles"] == drawn.report.size["muscles"] == 80
+    assert lean.report.mass == pytest.approx(drawn.report.mass)

@@ -33,6 +33,10 @@ class Keep(_Strict):
     contacts: Literal["feet", "all"] = Field(
         default="feet", description="which body geoms may touch the ground and obstacles"
     )
+    visuals: bool = Field(
+        default=False,
+        description="keep geoms and sites that only draw (bone meshes, markers); for rendering",
+    )
     planar: bool = Field(
         default=False, description="drop muscles with < 5 mm moment arm about every kept dof"
     )

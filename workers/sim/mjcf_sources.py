@@ -1,4 +1,5 @@
-"""MyoSuite bodies by the name a scene gives them."""
+"""MyoSuite bodies by the name a scene gives them, as shipped (MyoLeg with its leg-on-leg
+contact pairs): the "nothing removed" model that pruning reports against."""
 
 from __future__ import annotations
 
@@ -9,6 +10,6 @@ import mujoco
 from workers.sim.mjcf_models import elbow_spec, myoleg_spec
 
 MJCF_SOURCES: dict[str, Callable[[], mujoco.MjSpec]] = {
-    "myoleg": myoleg_spec,
+    "myoleg": lambda: myoleg_spec(self_contacts=True),
     "myoelbow": elbow_spec,
 }

@@ -5,7 +5,7 @@ from __future__ import annotations
 import mujoco
 
 from workers.scenes.topology import Topology
-from workers.sim.mjcf_muscles import muscle_spans
+from workers.sim.mjcf_moment_arms import muscle_spans
 from workers.sim.mjcf_sources import MJCF_SOURCES
 
 FOOT_BODIES = {"foot_right": ("calcn_r", "toes_r"), "foot_left": ("calcn_l", "toes_l")}

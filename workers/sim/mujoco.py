@@ -20,7 +20,8 @@ from workers.scenes.topology import Topology, topology_for
 from workers.sim.base import HEALTHY, CompileReport, Health, SimState
 from workers.sim.mjcf_contacts import model_size, restrict_contacts
 from workers.sim.mjcf_lock import lock_joints
-from workers.sim.mjcf_muscles import planar_muscles, remove_muscles
+from workers.sim.mjcf_moment_arms import planar_muscles
+from workers.sim.mjcf_muscles import remove_muscles, strip_unused
 from workers.sim.mjcf_sources import MJCF_SOURCES
 from workers.sim.mujoco_build import CONTACT_GROUP, FLOOR, build_spec
 
@@ -96,6 +97,8 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
     obstacles = _add_obstacles(spec, plan.obstacles)
     world = [g.name for g in spec.geoms if g.name in {FLOOR, *obstacles}]
     restrict_contacts(spec, plan.contact_geoms if world else [], world)
+    if not scene.keep.visuals:
+        strip_unused(spec)
     for geom in spec.geoms:
         if geom.name == FLOOR:
             geom.friction = [scene.terrain.friction, 0.005, 0.0001]
