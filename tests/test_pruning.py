@@ -89,7 +89,7 @@ def test_training_scenes_drop_drawing_only_parts_and_visuals_keeps_them() -> Non
     drawn = MujocoSimulator(_variant("walk-3d", visuals=True))
     mesh = int(mujoco.mjtGeom.mjGEOM_MESH)
     n_lean, n_drawn = ((sim.model.geom_type == mesh).sum() for sim in (lean, drawn))
-    assert n_drawn > 20
+    assert n_drawn > 10
     assert n_lean <= 6, "only meshes that give their body its mass (talus, toes, patella)"
     assert lean.report.size["sites"] < drawn.report.size["sites"]
     assert lean.report.size["contact_pairs"] == drawn.report.size["contact_pairs"]
