@@ -80,3 +80,31 @@ def test_env_pickles_mid_episode_and_continues_identically(name: str, backend: s
         b = clone.step(action)
         np.testing.assert_array_equal(a[0], b[0])
         assert a[1:4] == b[1:4]
+
+
+def test_obstacles_are_replaced_each_episode_and_the_nearest_one_ahead_is_observed() -> None:
+    env = MuscleEnv("obstacles-2d")
+    names = env.obs_names
+    dx, radius = names.index("obstacle_dx"), names.index("obstacle_radius")
+    obs_a, _ = env.reset(seed=1)
+    first = env.sim.obstacles().copy()
+    obs_b, _ = env.reset(seed=2)
+    assert first.shape == (10, 3)
+    assert not np.allclose(first, env.sim.obstacles())
+    nearest = env.sim.obstacles()[np.argmin(env.sim.obstacles()[:, 0])]
+    assert obs_b[dx] == pytest.approx(nearest[0] - env.sim.state().pelvis_pos[0], abs=1e-5)
+    assert obs_b[radius] == pytest.approx(nearest[2], abs=1e-6)
+    assert 0.05 <= obs_a[radius] <= 0.1
+
+
+def test_a_fall_terminates_the_episode() -> None:
+    env = MuscleEnv("walk-2d")
+    env.reset(seed=0)
+    for step in range(env.scene.steps_per_episode):
+        _, _, terminated, truncated, info = env.step(np.zeros(env.action_space.shape))
+        if terminated:
+            assert info["fell"] and info["health"] == "ok" and not truncated
+            break
+    else:
+        pytest.fail("a body with no excitation should fall within the episode")
+    assert step * env.dt < 3.0
