@@ -51,7 +51,7 @@ MAX_SPEED = 200.0
 near 50 rad/s. MuJoCo only flags accelerations above 1e10, long after a blow-up starts."""
 OBSTACLE_PREFIX = "obstacle_"
 PARKED = -100.0
-"""Forward position (m) of obstacle geoms a reset leaves unused (none here; kept for spares)."""
+"""Forward position (m) of obstacle geoms until the first reset places them."""
 
 
 def source_spec(body: str) -> mujoco.MjSpec:
@@ -170,7 +170,7 @@ class MujocoSimulator:
         }
         self._init_adr = np.array([m.jnt_qposadr[self._joint_id(n)] for n in initial], dtype=int)
         self._init_val = np.array(list(initial.values()))
-        self._contact_spheres = np.array(
+        self._foot_spheres = np.array(
             [
                 g
                 for g in range(m.ngeom)
@@ -260,13 +260,12 @@ class MujocoSimulator:
         return {
             "physics": physics,
             "obstacle_pos": m.geom_pos[self._obstacle_ids].copy(),
-            "obstacle_size": m.geom_size[self._obstacle_ids].copy(),
+            "obstacle_radius": m.geom_size[self._obstacle_ids, 0].copy(),
         }
 
     def set_state(self, state: dict[str, np.ndarray]) -> None:
         m, d = self.model, self.data
-        m.geom_pos[self._obstacle_ids] = state["obstacle_pos"]
-        m.geom_size[self._obstacle_ids] = state["obstacle_size"]
+        self._set_obstacles(state["obstacle_pos"], state["obstacle_radius"])
         mujoco.mj_setState(m, d, state["physics"], mujoco.mjtState.mjSTATE_INTEGRATION)
         mujoco.mj_forward(m, d)
 
@@ -298,11 +297,11 @@ class MujocoSimulator:
 
     def _touch_floor(self) -> None:
         """Raise or lower the body so its lowest contact sphere just touches the floor."""
-        if self._lift_adr < 0 or not len(self._contact_spheres):
+        if self._lift_adr < 0 or not len(self._foot_spheres):
             return
         m, d = self.model, self.data
         mujoco.mj_kinematics(m, d)
-        ids = self._contact_spheres
+        ids = self._foot_spheres
         lowest = np.min(d.geom_xpos[ids, self.up_axis] - m.geom_size[ids, 0])
         d.qpos[self._lift_adr] -= lowest
 
@@ -317,8 +316,15 @@ class MujocoSimulator:
         pos = np.zeros((n, 3))
         pos[:, self.forward_axis] = ahead
         pos[:, self.up_axis] = height
-        self.model.geom_pos[self._obstacle_ids] = pos
-        self.model.geom_size[self._obstacle_ids, 0] = radius
+        self._set_obstacles(pos, radius)
+
+    def _set_obstacles(self, pos: np.ndarray, radius: np.ndarray) -> None:
+        """Move and resize obstacle spheres, bounding volumes included (for the broadphase)."""
+        m, ids = self.model, self._obstacle_ids
+        m.geom_pos[ids] = pos
+        m.geom_size[ids, 0] = radius
+        m.geom_rbound[ids] = radius
+        m.geom_aabb[ids, 3:] = radius[:, None]
 
     def _foot_forces(self) -> np.ndarray:
         m, d = self.model, self.data
