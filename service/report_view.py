@@ -40,7 +40,10 @@ def render_report(report: CompileReport) -> Group:
     kept = Table("kept", "dropped", title="Parts")
     locked = ", ".join(f"{k}={v:.3g}" for k, v in plan.locked_dofs.items()) or "none"
     kept.add_row(f"joints: {', '.join(plan.kept_dofs)}", f"welded: {locked}")
-    removed = ", ".join(f"{m} ({why})" for m, why in plan.removed_muscles.items()) or "none"
+    by_reason: dict[str, list[str]] = {}
+    for muscle, why in plan.removed_muscles.items():
+        by_reason.setdefault(why, []).append(muscle)
+    removed = "; ".join(f"{why}: {', '.join(ms)}" for why, ms in by_reason.items()) or "none"
     kept.add_row(f"muscles: {len(plan.kept_muscles)}", f"muscles: {removed}")
     kept.add_row(
         f"contact geoms: {', '.join(plan.contact_geoms) or 'none'}", f"obstacles: {plan.obstacles}"

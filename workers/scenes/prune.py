@@ -61,8 +61,9 @@ def plan_pruning(
     """What ``scene`` keeps of the body described by ``topology``.
 
     Args:
-        planar_muscles: with ``keep.planar``, the muscles whose moment arm about some kept
-            dof reaches the threshold (the backend measures it); the others are dropped.
+        planar_muscles: with ``keep.planar``, the muscles that act in the plane of the kept
+            dofs (the backend measures moment arms: at least 5 mm about some kept dof, and at
+            least half the moment arm about the welded ones); the others are dropped.
     """
     check_names(scene, topology)
     wanted = set(topology.dof_defaults if scene.keep.joints == "all" else scene.keep.joints)
@@ -83,7 +84,7 @@ def plan_pruning(
         elif not any(d in wanted or d in topology.root_dofs for d in spans):
             removed[muscle] = "spans only locked joints"
         elif scene.keep.planar and planar_muscles is not None and muscle not in planar_muscles:
-            removed[muscle] = "out of plane (moment arm < 5 mm about every kept joint)"
+            removed[muscle] = "out of plane"
         else:
             kept_muscles.append(muscle)
     feet = [g for geoms in topology.feet.values() for g in geoms]

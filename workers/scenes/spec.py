@@ -38,7 +38,8 @@ class Keep(_Strict):
         description="keep geoms and sites that only draw (bone meshes, markers); for rendering",
     )
     planar: bool = Field(
-        default=False, description="drop muscles with < 5 mm moment arm about every kept dof"
+        default=False,
+        description="drop muscles that act mainly out of the kept dofs' plane (see prune.py)",
     )
 
 
