@@ -2,24 +2,42 @@
 
 from __future__ import annotations
 
+from enum import StrEnum
+
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from workers.scenes import catalogue, load_scene
+from workers.scenes import Scene, catalogue, load_scene
 from workers.spec_io import SpecError
 
 scenes_app = typer.Typer(help="The scene catalogue.", no_args_is_help=True)
 console = Console()
 
 
-def _load(name: str):
+class BackendChoice(StrEnum):
+    mujoco = "mujoco"
+    opensim = "opensim"
+
+
+BACKEND_OPTION = typer.Option(BackendChoice.mujoco, help="Simulator backend.")
+
+
+def _fail(message: str) -> typer.Exit:
+    console.print(f"[red]error:[/red] {message}", soft_wrap=True)
+    return typer.Exit(2)
+
+
+def _load(name: str, backend: BackendChoice) -> Scene:
+    """The scene, checked to run on ``backend``; exits with one line on any fault."""
     try:
-        return load_scene(name)
+        scene = load_scene(name)
     except SpecError as exc:
-        console.print(f"[red]error:[/red] {exc}", soft_wrap=True)
-        raise typer.Exit(2) from None
+        raise _fail(str(exc)) from None
+    if backend.value not in scene.backends:
+        raise _fail(f"--backend: scene {scene.name!r} runs on {scene.backends}")
+    return scene
 
 
 @scenes_app.command("list")
@@ -31,7 +49,7 @@ def list_scenes() -> None:
         task = s.task.kind + (f" {s.task.target_speed} m/s" if s.task.target_speed else "")
         table.add_row(
             s.name, s.body, ",".join(s.backends), task, f"{s.control_hz:g}", f"{s.episode_s:g}",
-            " ".join(s.description.split())[:60],
+            " ".join(s.description.split()),
         )  # fmt: skip
     console.print(table)
 
@@ -39,56 +57,45 @@ def list_scenes() -> None:
 @scenes_app.command("show")
 def show(
     name: str = typer.Argument(help="Catalogue name or path to a scene YAML."),
-    backend: str = typer.Option("mujoco", help="Simulator backend."),
+    backend: BackendChoice = BACKEND_OPTION,
 ) -> None:
     """Compile a scene and print what it kept, what it dropped and what that saved."""
-    from service.report_view import render_report
-    from workers.sim import make_simulator
+    from service.report_view import render_report  # lazy: imports MuJoCo
+    from workers.sim import make_simulator  # lazy: imports MuJoCo
 
-    scene = _load(name)
-    _check_backend(scene, backend)
-    console.print(render_report(make_simulator(scene, backend).report))
+    scene = _load(name, backend)
+    console.print(render_report(make_simulator(scene, backend.value).report))
 
 
 @scenes_app.command("check")
 def check(
     name: str = typer.Argument(None, help="Catalogue name or scene YAML; omit with --all."),
     seconds: float = typer.Option(5.0, min=0.1, help="Wall-clock seconds per scene."),
-    backend: str = typer.Option("mujoco", help="Simulator backend."),
-    all_scenes: bool = typer.Option(False, "--all", help="Check every catalogue scene."),
+    backend: BackendChoice = BACKEND_OPTION,
+    all_scenes: bool = typer.Option(False, "--all", help="Every catalogue scene on --backend."),
     seed: int = typer.Option(0, help="Seed of the random excitations."),
 ) -> None:
     """Step with random excitations: env steps/s, real-time factor and health counts."""
-    from workers.env import MuscleEnv
-    from workers.probe import random_excitations
+    from workers.env import MuscleEnv  # lazy: imports MuJoCo
+    from workers.probe import random_excitations  # lazy: imports MuJoCo
 
     if all_scenes == (name is not None):
-        console.print("[red]error:[/red] give a scene NAME or --all, not both or neither")
-        raise typer.Exit(2)
-    names = catalogue() if all_scenes else [name]
-    table = Table(
-        "scene",
-        "backend",
-        "steps",
-        "steps/s",
-        "real-time x",
-        "episodes",
-        "falls",
-        "health failures",
-    )
-    for scene_name in names:
-        scene = _load(scene_name)
-        if backend not in scene.backends:
-            continue
-        env = MuscleEnv(scene, backend)
+        raise _fail("give a scene NAME or --all, not both or neither")
+    if all_scenes:
+        scenes = [s for s in map(load_scene, catalogue()) if backend.value in s.backends]
+    else:
+        scenes = [_load(name, backend)]
+    if not scenes:
+        raise _fail(f"--backend: no catalogue scene runs on {backend.value!r} yet")
+    table = Table("scene", "backend", "steps", "steps/s", "real-time x", "episodes", "falls",
+                  "health failures")  # fmt: skip
+    for scene in scenes:
+        env = MuscleEnv(scene, backend.value)
         with Progress(
-            TextColumn(f"{scene.name} [{backend}]"),
-            BarColumn(),
-            TextColumn("{task.fields[rate]}"),
-            TimeElapsedColumn(),
-            console=console,
-            transient=True,
-        ) as progress:
+            TextColumn(f"{scene.name} [{backend.value}]"), BarColumn(),
+            TextColumn("{task.fields[rate]}"), TimeElapsedColumn(),
+            console=console, transient=True, disable=not console.is_terminal,
+        ) as progress:  # fmt: skip
             task = progress.add_task("check", total=seconds, rate="")
 
             def update(r, task=task, progress=progress) -> None:
@@ -97,19 +104,7 @@ def check(
             result = random_excitations(env, seconds, seed=seed, on_step=update)
         failures = ", ".join(f"{k}: {v}" for k, v in sorted(result.health.items())) or "none"
         table.add_row(
-            scene.name,
-            backend,
-            str(result.steps),
-            f"{result.steps_per_s:.0f}",
-            f"{result.realtime_factor:.2f}",
-            str(result.episodes),
-            str(result.falls),
-            failures,
-        )
+            scene.name, backend.value, str(result.steps), f"{result.steps_per_s:.0f}",
+            f"{result.realtime_factor:.2f}", str(result.episodes), str(result.falls), failures,
+        )  # fmt: skip
     console.print(table)
-
-
-def _check_backend(scene, backend: str) -> None:
-    if backend not in scene.backends:
-        console.print(f"[red]error:[/red] --backend: scene {scene.name!r} runs on {scene.backends}")
-        raise typer.Exit(2)

@@ -42,3 +42,21 @@ def test_bad_seconds_is_rejected() -> None:
     result = runner.invoke(app, ["scenes", "check", "walk-2d", "--seconds", "-1"])
     assert result.exit_code != 0
     assert "seconds" in result.output
+
+
+def test_unknown_backend_is_rejected_naming_the_choices() -> None:
+    result = runner.invoke(app, ["scenes", "check", "walk-2d", "--backend", "bullet"])
+    assert result.exit_code == 2
+    assert "bullet" in result.output and "mujoco" in result.output
+
+
+def test_a_backend_the_scene_does_not_name_is_one_line() -> None:
+    result = runner.invoke(app, ["scenes", "show", "walk-2d", "--backend", "opensim"])
+    assert result.exit_code == 2
+    assert "runs on ['mujoco']" in result.output
+
+
+def test_name_and_all_together_is_an_error() -> None:
+    result = runner.invoke(app, ["scenes", "check", "walk-2d", "--all"])
+    assert result.exit_code == 2
+    assert "not both" in result.output
