@@ -95,3 +95,10 @@ def test_training_scenes_drop_drawing_only_parts_and_visuals_keeps_them() -> Non
     assert lean.report.size["contact_pairs"] == drawn.report.size["contact_pairs"]
     assert lean.report.size["muscles"] == drawn.report.size["muscles"] == 80
     assert lean.report.mass == pytest.approx(drawn.report.mass)
+
+
+def test_contacts_all_lets_every_body_geom_touch_the_ground() -> None:
+    feet = MujocoSimulator(load_scene("walk-3d")).report
+    everything = MujocoSimulator(_variant("walk-3d", contacts="all")).report
+    assert feet.size["contact_pairs"] == len(feet.plan.contact_geoms) == 10
+    assert everything.size["contact_pairs"] == len(everything.plan.contact_geoms) == 20

@@ -22,7 +22,8 @@ def dependent_joints(model: mujoco.MjModel) -> dict[str, str]:
 
 
 def mjcf_topology(body: str) -> Topology:
-    """Dofs (free root and equality-driven joints excluded), muscle spans and foot geoms."""
+    """Dofs (free root and equality-driven joints excluded), muscle spans, colliding geoms
+    and which of them are feet."""
     model = MJCF_SOURCES[body]().compile()
     dependent = dependent_joints(model)
     root_dofs: list[str] = []
@@ -47,11 +48,16 @@ def mjcf_topology(body: str) -> Topology:
         ]
         if geoms:
             feet[foot] = geoms
+    colliding = [
+        model.geom(g).name
+        for g in range(model.ngeom)
+        if model.geom_bodyid[g] > 0 and (model.geom_contype[g] or model.geom_conaffinity[g])
+    ]
     return Topology(
         dof_defaults=defaults,
         root_dofs=root_dofs,
         root_defaults={},
         muscle_spans=spans,
-        contact_geoms=[g for geoms in feet.values() for g in geoms],
+        contact_geoms=colliding,
         feet=feet,
     )
