@@ -1,11 +1,16 @@
-"""Env steps/s on one core for every catalogue scene, and walk-3d pruned against full MyoLeg.
+"""Env steps/s on one core for every catalogue scene and backend, and what pruning saves.
 
-Usage: python bench/env_speed.py [--seconds S] [--repeats R]
+Usage: python bench/env_speed.py [--seconds S] [--repeats R] [--no-opensim]
 
-Each scene runs random excitations for S wall-clock seconds, R times interleaved, and the
-median is reported. The pruning comparison steps the same MuJoCo model physics (no env
-overhead) for the pruned walk-3d model and for MyoLeg with nothing removed, alternating
-the two in one run so that machine noise hits both alike; the ratio is the figure to quote.
+Table 1: each scene on MuJoCo at its profile and, for scenes that name OpenSim, on OpenSim
+at the ``default`` profile and at the 2017 challenge's setting (Runge-Kutta-Merson,
+accuracy 5e-5): random excitations for S wall-clock seconds, R repeats interleaved, median
+reported, resets included. The ratio column is the row's speed over the same scene on
+MuJoCo, measured in the same run.
+
+Table 2: the raw ``mj_step`` rate of the pruned ``walk-3d`` and ``walk-3d-planar`` models
+against MyoLeg as shipped (nothing removed), alternated in one run so that machine noise
+hits all alike.
 """
 
 from __future__ import annotations
@@ -24,11 +29,17 @@ from rich.console import Console
 from rich.table import Table
 
 from workers.env import MuscleEnv
-from workers.probe import random_excitations
-from workers.scenes import catalogue, load_scene
+from workers.probe import ProbeResult, random_excitations
+from workers.scenes import Scene, catalogue, load_scene
 from workers.sim.mujoco import INTEGRATORS, MujocoSimulator, source_spec
 
 console = Console()
+OPENSIM_PROFILES = ("default", "challenge2017")
+
+
+def median_run(env: MuscleEnv, seconds: float, repeats: int) -> ProbeResult:
+    runs = [random_excitations(env, seconds, seed=r) for r in range(repeats)]
+    return sorted(runs, key=lambda r: r.steps_per_s)[len(runs) // 2]
 
 
 def physics_steps_per_s(model: mujoco.MjModel, seconds: float, seed: int = 0) -> float:
@@ -47,74 +58,67 @@ def physics_steps_per_s(model: mujoco.MjModel, seconds: float, seed: int = 0) ->
     return steps / (time.perf_counter() - start)
 
 
+def env_table(seconds: float, repeats: int, opensim: bool) -> Table:
+    table = Table("scene", "backend", "profile", "dofs", "muscles", "env steps/s",
+                  "real-time x", "vs MuJoCo", title="Env steps/s, one core (median)")  # fmt: skip
+    for name in catalogue():
+        scene = load_scene(name)
+        runs: list[tuple[str, str, MuscleEnv]] = [("mujoco", "default", MuscleEnv(scene))]
+        if opensim and "opensim" in scene.backends:
+            runs += [("opensim", p, MuscleEnv(_with_profile(scene, p), "opensim"))
+                     for p in OPENSIM_PROFILES]  # fmt: skip
+        base = None
+        for backend, profile, env in runs:
+            result = median_run(env, seconds, repeats)
+            base = base or result.steps_per_s
+            size = env.sim.report.size
+            table.add_row(name, backend, profile, str(size["dofs"]), str(size["muscles"]),
+                          f"{result.steps_per_s:.1f}", f"{result.realtime_factor:.2f}",
+                          f"{result.steps_per_s / base:.4f}")  # fmt: skip
+    return table
+
+
+def _with_profile(scene: Scene, profile: str) -> Scene:
+    return scene.model_copy(update={"fidelity": {"mujoco": "default", "opensim": profile}})
+
+
+def pruning_table(seconds: float, repeats: int) -> Table:
+    walk = load_scene("walk-3d")
+    profile = walk.profile("mujoco")
+    full_spec = source_spec("myoleg")
+    full_spec.option.integrator = INTEGRATORS[profile.integrator]
+    full_spec.option.timestep = profile.timestep
+    full_report = MujocoSimulator(walk).report
+    models = {"MyoLeg as shipped": (full_spec.compile(), full_report.size_full)}
+    for name in ("walk-3d", "walk-3d-planar"):
+        sim = MujocoSimulator(load_scene(name))
+        models[f"{name} pruned"] = (sim.model, sim.report.size)
+    rates: dict[str, list[float]] = {label: [] for label in models}
+    for r in range(repeats):
+        for label, (model, _) in models.items():
+            rates[label].append(physics_steps_per_s(model, seconds, r))
+    table = Table("model", "dofs", "muscles", "contact pairs", "geoms", "sites",
+                  "physics steps/s", "ratio", title=f"Pruning: raw mj_step rate "
+                  f"({profile.integrator}, {profile.timestep * 1000:g} ms)")  # fmt: skip
+    base = statistics.median(rates["MyoLeg as shipped"])
+    for label, (_, size) in models.items():
+        rate = statistics.median(rates[label])
+        table.add_row(label, *(str(size[k]) for k in
+                               ("dofs", "muscles", "contact_pairs", "geoms", "sites")),
+                      f"{rate:.0f}", f"{rate / base:.2f}")  # fmt: skip
+    return table
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--no-opensim", action="store_true")
     args = parser.parse_args()
-    console.print(
-        f"machine: {platform.processor() or platform.machine()}, "
-        f"{os.cpu_count()} cores, mujoco {mujoco.__version__}"
-    )
-
-    table = Table(
-        "scene",
-        "dofs",
-        "muscles",
-        "contact pairs",
-        "env steps/s",
-        "real-time x",
-        title="Env steps/s, one core, random excitations (median)",
-    )
-    for name in catalogue():
-        env = MuscleEnv(name)
-        runs = [random_excitations(env, args.seconds, seed=r) for r in range(args.repeats)]
-        best = sorted(runs, key=lambda r: r.steps_per_s)[len(runs) // 2]
-        size = env.sim.report.size
-        table.add_row(
-            name,
-            str(size["dofs"]),
-            str(size["muscles"]),
-            str(size["contact_pairs"]),
-            f"{best.steps_per_s:.0f}",
-            f"{best.realtime_factor:.1f}",
-        )
-    console.print(table)
-
-    scene = load_scene("walk-3d")
-    pruned = MujocoSimulator(scene).model
-    full_spec = source_spec("myoleg")
-    profile = scene.profile("mujoco")
-    full_spec.option.integrator = INTEGRATORS[profile.integrator]
-    full_spec.option.timestep = profile.timestep
-    full = full_spec.compile()
-    rates: dict[str, list[float]] = {"full MyoLeg": [], "walk-3d pruned": []}
-    for r in range(args.repeats):
-        rates["full MyoLeg"].append(physics_steps_per_s(full, args.seconds, r))
-        rates["walk-3d pruned"].append(physics_steps_per_s(pruned, args.seconds, r))
-    cmp = Table(
-        "model",
-        "dofs",
-        "muscles",
-        "contact pairs",
-        "physics steps/s",
-        "ratio",
-        title=f"Pruning: walk-3d against full MyoLeg ({profile.integrator}, "
-        f"{profile.timestep * 1000:g} ms)",
-    )
-    base = statistics.median(rates["full MyoLeg"])
-    report = MujocoSimulator(scene).report
-    for label, model_size in (("full MyoLeg", report.size_full), ("walk-3d pruned", report.size)):
-        rate = statistics.median(rates[label])
-        cmp.add_row(
-            label,
-            str(model_size["dofs"]),
-            str(model_size["muscles"]),
-            str(model_size["contact_pairs"]),
-            f"{rate:.0f}",
-            f"{rate / base:.2f}",
-        )
-    console.print(cmp)
+    console.print(f"machine: {platform.machine()}, {os.cpu_count()} cores, "
+                  f"mujoco {mujoco.__version__}")  # fmt: skip
+    console.print(env_table(args.seconds, args.repeats, not args.no_opensim))
+    console.print(pruning_table(args.seconds, args.repeats))
 
 
 if __name__ == "__main__":

@@ -51,9 +51,17 @@ def test_unknown_backend_is_rejected_naming_the_choices() -> None:
 
 
 def test_a_backend_the_scene_does_not_name_is_one_line() -> None:
-    result = runner.invoke(app, ["scenes", "show", "walk-2d", "--backend", "opensim"])
+    result = runner.invoke(app, ["scenes", "show", "walk-3d", "--backend", "opensim"])
     assert result.exit_code == 2
     assert "runs on ['mujoco']" in result.output
+
+
+def test_scenes_show_on_opensim() -> None:
+    result = runner.invoke(
+        app, ["scenes", "show", "walk-2d", "--backend", "opensim"], env={"COLUMNS": "200"}
+    )
+    assert result.exit_code == 0, result.output
+    assert "rk-merson" in result.output and "lumbar_extension" in result.output
 
 
 def test_name_and_all_together_is_an_error() -> None:

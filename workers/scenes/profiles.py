@@ -1,8 +1,12 @@
-"""Fidelity profiles: how a backend integrates (integrator, timestep or accuracy).
+"""Fidelity profiles: how a backend integrates (integrator, timestep, accuracy).
 
-A scene names a profile (``fidelity: default``) or spells one out
-(``fidelity: {integrator: rk4, timestep: 0.001}``). Profiles are per backend; the
-speed/accuracy sweeps of the fidelity issue add measured profiles to this table.
+A scene names a profile (``fidelity: default``), spells one out
+(``fidelity: {integrator: rk4, timestep: 0.001}``), or gives one per backend
+(``fidelity: {mujoco: fast, opensim: {integrator: rk-merson, timestep: 0.01, accuracy: 5e-5}}``).
+The speed/accuracy sweeps of the fidelity issue add measured profiles to this table.
+
+MuJoCo integrates with a fixed ``timestep``. OpenSim's integrators are error-controlled:
+``accuracy`` is the error tolerance and ``timestep`` the largest internal step.
 """
 
 from __future__ import annotations
@@ -11,21 +15,40 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-MujocoIntegrator = Literal["euler", "implicit", "implicitfast", "rk4"]
+Backend = Literal["mujoco", "opensim"]
+BACKENDS: tuple[str, ...] = ("mujoco", "opensim")
+
+INTEGRATORS: dict[str, tuple[str, ...]] = {
+    "mujoco": ("euler", "implicit", "implicitfast", "rk4"),
+    "opensim": (
+        "rk-merson",
+        "rk-feldberg",
+        "rk2",
+        "rk3",
+        "semi-explicit-euler2",
+        "explicit-euler",
+        "verlet",
+        "cpodes",
+    ),
+}
 
 
 class FidelityProfile(BaseModel):
-    """One integration setting. ``timestep`` in seconds; ``accuracy`` for error-controlled
-    integrators (OpenSim), ignored by fixed-step ones."""
+    """One integration setting."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     integrator: str = Field(description="backend-specific integrator name")
-    timestep: Annotated[float, Field(gt=0, le=0.05)] = Field(description="s")
-    accuracy: Annotated[float, Field(gt=0, lt=1)] | None = None
+    timestep: Annotated[float, Field(gt=0, le=0.05)] = Field(
+        description="s: MuJoCo's step; OpenSim's largest internal step"
+    )
+    accuracy: Annotated[float, Field(gt=0, lt=1)] | None = Field(
+        default=None, description="error tolerance of OpenSim's integrators"
+    )
+    fixed_step: bool = Field(
+        default=False, description="OpenSim: integrate at a fixed ``timestep``, no error control"
+    )
 
-
-MUJOCO_INTEGRATORS: tuple[str, ...] = ("euler", "implicit", "implicitfast", "rk4")
 
 NAMED_PROFILES: dict[str, dict[str, FidelityProfile]] = {
     "mujoco": {
@@ -33,22 +56,34 @@ NAMED_PROFILES: dict[str, dict[str, FidelityProfile]] = {
         "fast": FidelityProfile(integrator="implicitfast", timestep=0.005),
         "accurate": FidelityProfile(integrator="rk4", timestep=0.0005),
     },
+    "opensim": {
+        "default": FidelityProfile(integrator="rk-merson", timestep=0.01, accuracy=1e-3),
+        "fast": FidelityProfile(integrator="semi-explicit-euler2", timestep=0.01, accuracy=1e-2),
+        "accurate": FidelityProfile(integrator="rk-merson", timestep=0.01, accuracy=1e-6),
+        "challenge2017": FidelityProfile(integrator="rk-merson", timestep=0.01, accuracy=5e-5),
+    },
 }
 
-BACKENDS: tuple[str, ...] = ("mujoco", "opensim")
-Backend = Literal["mujoco", "opensim"]
+Fidelity = str | FidelityProfile | dict[Backend, str | FidelityProfile]
 
 
-def resolve_profile(fidelity: str | FidelityProfile, backend: str) -> FidelityProfile:
-    """A scene's fidelity field, resolved for ``backend``; raises ``ValueError`` if unknown."""
+def resolve_profile(fidelity: Fidelity, backend: str) -> FidelityProfile:
+    """A scene's fidelity field, resolved for ``backend``; raises ``ValueError`` if invalid."""
+    if isinstance(fidelity, dict):
+        if backend not in fidelity:
+            raise ValueError(f"fidelity: no profile for backend {backend!r}")
+        return resolve_profile(fidelity[backend], backend)  # type: ignore[index]
     if isinstance(fidelity, FidelityProfile):
-        if backend == "mujoco" and fidelity.integrator not in MUJOCO_INTEGRATORS:
+        allowed = INTEGRATORS[backend]
+        if fidelity.integrator not in allowed:
             raise ValueError(
-                f"fidelity.integrator: {fidelity.integrator!r} is not a MuJoCo integrator; "
-                f"allowed: {list(MUJOCO_INTEGRATORS)}"
+                f"fidelity.integrator: {fidelity.integrator!r} is not a {backend} integrator; "
+                f"allowed: {list(allowed)}"
             )
+        if backend == "opensim" and fidelity.accuracy is None and not fidelity.fixed_step:
+            raise ValueError("fidelity.accuracy: OpenSim's integrators need an accuracy")
         return fidelity
-    named = NAMED_PROFILES.get(backend, {})
+    named = NAMED_PROFILES[backend]
     if fidelity not in named:
         raise ValueError(
             f"fidelity: unknown profile {fidelity!r} for backend {backend!r}; "

@@ -6,7 +6,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from workers.scenes.profiles import BACKENDS, Backend, FidelityProfile, resolve_profile
+from workers.scenes.profiles import BACKENDS, Backend, Fidelity, FidelityProfile, resolve_profile
 
 MJCF_BODIES: tuple[str, ...] = ("myoleg", "myoelbow")
 """Bodies loaded from MyoSuite's MJCF files (MuJoCo only); all others are neutral bodies."""
@@ -115,7 +115,13 @@ class Scene(_Strict):
     task: Task
     control_hz: Annotated[float, Field(gt=0, le=1000)] = 100.0
     episode_s: Annotated[float, Field(gt=0, le=600)] = 10.0
-    fidelity: str | FidelityProfile = "default"
+    fidelity: Fidelity = "default"
+    tendon: Literal["rigid", "compliant"] = Field(
+        default="rigid", description="OpenSim muscles' tendons (MuJoCo's are always rigid)"
+    )
+    step_wall_limit_s: Annotated[float, Field(gt=0)] = Field(
+        default=10.0, description="s of wall-clock time one control step may take (OpenSim)"
+    )
     init_noise: NonNegative = Field(default=0.01, description="rad, m: uniform reset noise")
 
     @model_validator(mode="after")

@@ -27,5 +27,7 @@ def make_simulator(scene: Scene, backend: str = "mujoco") -> Simulator:
 
         return MujocoSimulator(scene)
     if backend == "opensim":
-        raise NotImplementedError("the OpenSim backend is not built yet (see the OpenSim issue)")
+        from workers.sim.opensim import OpenSimSimulator  # lazy: imports OpenSim
+
+        return OpenSimSimulator(scene)
     raise ValueError(f"backend: unknown {backend!r}; allowed: ['mujoco', 'opensim']")

@@ -10,6 +10,8 @@ length ``L0`` and tendon length ``LT`` from ``lengthrange`` and ``range`` as
 ``L0 = (lr1 - lr0) / (r1 - r0)``, ``LT = lr0 - r0 * L0``. We set ``lengthrange`` so that
 ``L0`` is the optimal fibre length projected on the tendon (``l_opt cos(pennation)``) and
 ``LT`` the tendon slack length: a rigid-tendon Hill muscle with the same operating point.
+MuJoCo's muscle has no pennation, so its peak force is the max isometric force projected on
+the tendon, ``F_max cos(pennation)``, as a pennated Hill muscle delivers at optimal length.
 """
 
 from __future__ import annotations
@@ -140,7 +142,7 @@ def _add_muscles(spec: mujoco.MjSpec, body: Body, bodies: dict[str, mujoco.MjsBo
             timeconst=[muscle.activation_time, muscle.deactivation_time],
             tausmooth=0.0,
             range=list(MUSCLE_RANGE),
-            force=muscle.max_isometric_force,
+            force=muscle.max_isometric_force * math.cos(muscle.pennation_angle),
             vmax=muscle.max_contraction_velocity,
             lmax=1.0 + muscle.passive_fibre_strain,
             fpmax=PASSIVE_AT_LMAX,
