@@ -122,6 +122,10 @@ class Muscle(_Strict):
     passive_fibre_strain: PositiveFloat = Field(
         default=0.6, description="fibre strain at which passive force equals max isometric force"
     )
+    passive_shape: PositiveFloat = Field(
+        default=4.0,
+        description="Thelen 2003 exponential shape of the passive force (KshapePassive)",
+    )
     tendon_strain_at_fmax: PositiveFloat = Field(
         default=0.049, description="tendon strain at max isometric force (compliant tendons)"
     )

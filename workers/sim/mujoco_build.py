@@ -12,6 +12,8 @@ length ``L0`` and tendon length ``LT`` from ``lengthrange`` and ``range`` as
 ``LT`` the tendon slack length: a rigid-tendon Hill muscle with the same operating point.
 MuJoCo's muscle has no pennation, so its peak force is the max isometric force projected on
 the tendon, ``F_max cos(pennation)``, as a pennated Hill muscle delivers at optimal length.
+Its passive force follows Thelen 2003's (see ``muscle_curves``); MuJoCo's default passive
+curve is two to three times stiffer than the reference's.
 """
 
 from __future__ import annotations
@@ -22,14 +24,18 @@ import mujoco
 import numpy as np
 
 from workers.bodies.schema import GROUND, Body, PathPoint, WrapObject
+from workers.sim.muscle_curves import fit_mujoco_fpmax
 
 FLOOR = "floor"
 MUSCLE_RANGE = (0.75, 1.05)
 """Normalised fibre lengths that map onto ``lengthrange`` (any consistent pair works)."""
-PASSIVE_AT_LMAX = 1.0 / 1.5
-"""MuJoCo's passive force at ``lmax`` is ``1.5 fpmax``: this makes it the max isometric force
-there, as Thelen 2003 has it at ``1 + passive_fibre_strain`` (MuJoCo's own default, 1.3 at
-1.6, is about twice as stiff)."""
+ACTIVE_RANGE = (0.4441, 1.8)
+"""MuJoCo ``lmin``, ``lmax``: normalised fibre lengths where active force vanishes, those of
+Millard 2012's default active force-length curve (the OpenSim backend's muscle)."""
+FIBRE_DAMPING = 0.1
+"""Fibre damping as a fraction of max isometric force per max contraction velocity (Millard
+2012's default, the OpenSim backend's muscle): a tendon damping of
+``0.1 F_max / (v_max l_opt)`` N s/m. Without it a relaxed foot rattles on its passive springs."""
 CONTACT_GROUP = 1
 VISUAL_GROUP = 2
 WRAP_GROUP = 3
@@ -78,8 +84,6 @@ def _add_segments(spec: mujoco.MjSpec, body: Body) -> dict[str, mujoco.MjsBody]:
                 axis=list(dof.axis),
                 range=list(dof.limit.range if dof.limit else dof.range),
                 limited=mujoco.mjtLimited.mjLIMITED_TRUE if dof.limited else 0,
-                armature=0.01,
-                damping=0.05 if dof.type == "hinge" else 0.0,
             )
         if seg.length_hint > 0:
             mj_body.add_geom(
@@ -118,7 +122,14 @@ def _add_muscles(spec: mujoco.MjSpec, body: Body, bodies: dict[str, mujoco.MjsBo
     for wrap in body.wrap_objects:
         _add_wrap(bodies[wrap.segment], wrap)
     for muscle in body.muscles:
-        tendon = spec.add_tendon(name=muscle.name, width=0.006, rgba=[0.8, 0.2, 0.2, 1])
+        tendon = spec.add_tendon(
+            name=muscle.name,
+            width=0.006,
+            rgba=[0.8, 0.2, 0.2, 1],
+            damping=FIBRE_DAMPING
+            * muscle.max_isometric_force
+            / (muscle.max_contraction_velocity * muscle.optimal_fiber_length),
+        )
         for i, element in enumerate(muscle.path):
             if isinstance(element, PathPoint):
                 site = f"{muscle.name}_p{i}"
@@ -144,8 +155,11 @@ def _add_muscles(spec: mujoco.MjSpec, body: Body, bodies: dict[str, mujoco.MjsBo
             range=list(MUSCLE_RANGE),
             force=muscle.max_isometric_force * math.cos(muscle.pennation_angle),
             vmax=muscle.max_contraction_velocity,
-            lmax=1.0 + muscle.passive_fibre_strain,
-            fpmax=PASSIVE_AT_LMAX,
+            lmin=ACTIVE_RANGE[0],
+            lmax=ACTIVE_RANGE[1],
+            fpmax=fit_mujoco_fpmax(
+                muscle.passive_fibre_strain, muscle.passive_shape, ACTIVE_RANGE[1]
+            ),
         )
 
 

@@ -40,6 +40,7 @@ import opensim
 
 from workers.bodies.schema import GROUND, Body, Dof, Joint, PathPoint, WrapObject
 from workers.scenes.prune import PrunePlan
+from workers.sim.muscle_curves import thelen_passive, thelen_passive_stiffness_at_one
 
 logger = logging.getLogger(__name__)
 
@@ -214,6 +215,25 @@ def _add_wraps(body: Body, bodies: dict[str, opensim.Body], used: set[str]) -> d
     return objects
 
 
+def _fit_passive_curve(curve: opensim.FiberForceLengthCurve, strain: float, shape: float) -> None:
+    """Shape Millard's passive curve after Thelen 2003's: same strain at one norm force and
+    slope there; low-force stiffness and curviness picked on a small grid to follow it."""
+    curve.set_strain_at_one_norm_force(strain)
+    stiffness = thelen_passive_stiffness_at_one(strain, shape)
+    lengths = np.linspace(1.0, 1.0 + strain, 11)
+    target = thelen_passive(lengths, strain, shape)
+    best: tuple[float, float, float] | None = None
+    for low in (0.01, 0.02, 0.05, 0.1, 0.2):
+        low_stiffness = min(low * stiffness, 0.9 / strain)  # OpenSim requires < 1 / strain
+        for curviness in np.linspace(0.3, 1.0, 8):
+            curve.setOptionalProperties(low_stiffness, stiffness, float(curviness))
+            error = float(np.square([curve.calcValue(x) for x in lengths] - target).sum())
+            if best is None or error < best[0]:
+                best = (error, low_stiffness, float(curviness))
+    assert best is not None
+    curve.setOptionalProperties(best[1], stiffness, best[2])
+
+
 def _add_muscles(
     model: opensim.Model,
     body: Body,
@@ -240,7 +260,7 @@ def _add_muscles(
         om.set_default_activation(om.get_minimum_activation())
         om.set_ignore_tendon_compliance(tendon == "rigid")
         om.upd_TendonForceLengthCurve().set_strain_at_one_norm_force(m.tendon_strain_at_fmax)
-        om.upd_FiberForceLengthCurve().set_strain_at_one_norm_force(m.passive_fibre_strain)
+        _fit_passive_curve(om.upd_FiberForceLengthCurve(), m.passive_fibre_strain, m.passive_shape)
         n_points, path = 0, om.updGeometryPath()
         for element in m.path:  # a wrap acts between its neighbouring points (1-based)
             if isinstance(element, PathPoint):

@@ -1,0 +1,51 @@
+"""The passive fibre force of Thelen 2003 (the reference's muscle), which both backends fit.
+
+MuJoCo's and OpenSim-Millard's muscles have their own curve shapes; each builder picks its
+parameters so that its passive curve follows this one, so that the two simulators (and the
+2017 reference) agree on how hard a stretched, relaxed muscle pulls.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def thelen_passive(norm_length: np.ndarray, strain: float, shape: float) -> np.ndarray:
+    """Passive force / max isometric force at normalised fibre length(s).
+
+    ``strain``: fibre strain at which it equals 1 (Thelen's FmaxMuscleStrain); ``shape``:
+    Thelen's exponential shape factor (KshapePassive).
+    """
+    x = np.clip((np.asarray(norm_length, dtype=float) - 1.0) / strain, 0.0, None)
+    return (np.exp(shape * x) - 1.0) / (math.exp(shape) - 1.0)
+
+
+def thelen_passive_stiffness_at_one(strain: float, shape: float) -> float:
+    """Slope (per unit normalised length) of :func:`thelen_passive` where it reaches 1."""
+    return shape / strain * math.exp(shape) / (math.exp(shape) - 1.0)
+
+
+def mujoco_passive(norm_length: np.ndarray, lmax: float, fpmax: float) -> np.ndarray:
+    """MuJoCo's muscle passive force / peak force (engine_util_misc.c, ``mju_muscleBias``):
+    quadratic from 1 to the midpoint ``b = (1 + lmax) / 2``, then linear."""
+    length = np.asarray(norm_length, dtype=float)
+    b = 0.5 * (1.0 + lmax)
+    x = (length - 1.0) / (b - 1.0)
+    return fpmax * np.where(length <= 1.0, 0.0, np.where(length <= b, 0.5 * x**2, 0.5 + (x - 1.0)))
+
+
+FIT_UP_TO = 0.6
+"""Fraction of the strain at one norm force over which MuJoCo's curve is fitted: the range
+relaxed muscles reach in gait (gastrocnemius at standing is near 0.6). MuJoCo's curve turns
+linear where Thelen's keeps growing exponentially, so beyond it MuJoCo's is the softer."""
+
+
+def fit_mujoco_fpmax(strain: float, shape: float, lmax: float) -> float:
+    """Least-squares ``fpmax`` so that MuJoCo's passive curve follows Thelen's over fibre
+    strains from 0 to ``FIT_UP_TO * strain``."""
+    lengths = np.linspace(1.0, 1.0 + FIT_UP_TO * strain, 41)
+    unit = mujoco_passive(lengths, lmax, 1.0)
+    target = thelen_passive(lengths, strain, shape)
+    return float(unit @ target / (unit @ unit))
