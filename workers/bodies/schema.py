@@ -177,6 +177,14 @@ class ContactSphere(_Strict):
     radius: PositiveFloat
     part: Literal["foot", "body"] = "foot"
 
+    @property
+    def foot(self) -> str | None:
+        """``foot_right`` or ``foot_left`` for a foot sphere (``r_``/``_r`` names are right)."""
+        if self.part != "foot":
+            return None
+        right = self.name.startswith("r_") or self.name.endswith("_r")
+        return "foot_right" if right else "foot_left"
+
 
 class Marker(_Strict):
     name: str

@@ -43,9 +43,9 @@ def _neutral_topology(name: str) -> Topology:
     body = load_body(name)
     root = next(j for j in body.joints if j.parent == GROUND)
     feet: dict[str, list[str]] = {}
-    for sphere in (c for c in body.contact_spheres if c.part == "foot"):
-        side = "right" if sphere.name.startswith("r_") or sphere.name.endswith("_r") else "left"
-        feet.setdefault(f"foot_{side}", []).append(sphere.name)
+    for sphere in body.contact_spheres:
+        if sphere.foot is not None:
+            feet.setdefault(sphere.foot, []).append(sphere.name)
     return Topology(
         dof_defaults={
             d.name: d.default for j in body.ordered_joints() if j is not root for d in j.dofs

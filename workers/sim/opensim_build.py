@@ -310,9 +310,8 @@ def _add_contacts(
         force.setViscousFriction(0.0)
         force.setTransitionVelocity(TRANSITION_VELOCITY)
         model.addForce(force)
-        if sphere.part == "foot":
-            side = "right" if sphere.name.startswith("r_") or sphere.name.endswith("_r") else "left"
-            feet.setdefault(f"foot_{side}", []).append(force.getName())
+        if sphere.foot is not None:
+            feet.setdefault(sphere.foot, []).append(force.getName())
     return feet, obstacles
 
 
