@@ -119,6 +119,9 @@ class Scene(_Strict):
     tendon: Literal["rigid", "compliant"] = Field(
         default="rigid", description="OpenSim muscles' tendons (MuJoCo's are always rigid)"
     )
+    rebuild_every: Annotated[int, Field(ge=1)] = Field(
+        default=100, description="OpenSim: episodes between model rebuilds (a memory bound)"
+    )
     step_wall_limit_s: Annotated[float, Field(gt=0)] = Field(
         default=10.0, description="s of wall-clock time one control step may take (OpenSim)"
     )

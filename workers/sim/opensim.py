@@ -9,8 +9,8 @@ so a pickled env continues bit for bit; it cost nothing measurable (100 steps of
 
 Every SimTK exception ("Integrator step failed", "Unable to advance time", ...), a step
 slower than ``scene.step_wall_limit_s`` and a non-finite state end in a named
-:class:`Health`; nothing raises out of ``step``. OpenSim's own log is cut to errors. The
-model is rebuilt every ``rebuild_every`` episodes, a bound on the memory OpenSim
+:class:`Health`; nothing raises out of ``step``. OpenSim's own log is silenced. The
+model is rebuilt every ``scene.rebuild_every`` episodes, a bound on the memory OpenSim
 environments are reported to leak over long runs. A step that never returns (a hung
 integration) cannot be cut short from inside the process: the rollout pool's timeout is
 the guard there.
@@ -47,24 +47,24 @@ UP, FORWARD = 1, 0
 """Neutral bodies are Y-up and face +X."""
 MAX_SPEED = 200.0
 """rad/s or m/s: faster is divergence (as in the MuJoCo backend)."""
-REBUILD_EVERY = 100
-"""Episodes between model rebuilds (memory bound); ``OpenSimSimulator(rebuild_every=...)``."""
 
 
 def quiet_opensim_log() -> None:
-    """OpenSim logs to stdout at INFO by default; keep only errors (they also raise)."""
-    opensim.Logger.setLevelString("error")
+    """OpenSim logs to stdout at INFO by default, and its console sink cannot be detached:
+    silence it. Its errors also raise, and ``step`` logs those here (INFO) and names them in
+    ``Health``."""
+    opensim.Logger.setLevelString("off")
 
 
 class OpenSimSimulator:
     """A scene on OpenSim. Pickles as its scene plus its state vector."""
 
-    def __init__(self, scene: Scene, rebuild_every: int = REBUILD_EVERY) -> None:
+    def __init__(self, scene: Scene, rebuild_every: int | None = None) -> None:
         quiet_opensim_log()
         if scene.body not in _neutral_bodies():
             raise ValueError(f"body {scene.body!r}: OpenSim runs neutral bodies only")
         self.scene = scene
-        self.rebuild_every = rebuild_every
+        self.rebuild_every = rebuild_every or scene.rebuild_every
         self.up_axis, self.forward_axis = UP, FORWARD
         self._body = load_body(scene.body)
         topology = topology_for(scene.body)
@@ -181,7 +181,7 @@ class OpenSimSimulator:
             self._stepper = self._manager()  # owns the state that integrate() returns
             self.osim_state = self._stepper.integrate(self.osim_state.getTime() + duration)
         except RuntimeError as exc:
-            logger.debug("opensim integration failed: %s", exc)
+            logger.info("opensim integration failed: %s", str(exc).strip().splitlines()[-1])
             return Health("opensim_integrator_failed")
         if time.perf_counter() - start > self.scene.step_wall_limit_s:
             return Health("opensim_wall_time")
