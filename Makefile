@@ -15,6 +15,7 @@ $(STAMP): pyproject.toml
 
 run: $(STAMP)
 	$(BIN)/gaitforge scenes check --all --seconds 2
+	$(BIN)/gaitforge scenes check --all --seconds 2 --backend opensim
 
 test: $(STAMP)
 	$(BIN)/ruff check .
