@@ -102,6 +102,15 @@ class Task(_Strict):
         return self
 
 
+class FaultInjection(_Strict):
+    """Test-only: make the real simulator fail, per control step, with these probabilities."""
+
+    abort_prob: Annotated[float, Field(ge=0, le=1)] = 0.0
+    hang_prob: Annotated[float, Field(ge=0, le=1)] = 0.0
+    hang_s: Annotated[float, Field(gt=0)] = 3600.0
+    nan_prob: Annotated[float, Field(ge=0, le=1)] = 0.0
+
+
 class Scene(_Strict):
     """A scene: a body, what of it to keep, the world around it and the task."""
 
@@ -126,6 +135,9 @@ class Scene(_Strict):
         default=10.0, description="s of wall-clock time one control step may take (OpenSim)"
     )
     init_noise: NonNegative = Field(default=0.01, description="rad, m: uniform reset noise")
+    fault: FaultInjection | None = Field(
+        default=None, description="test-only: abort, hang or NaN the simulator on purpose"
+    )
 
     @model_validator(mode="after")
     def _check(self) -> Scene:
@@ -149,4 +161,13 @@ class Scene(_Strict):
         return resolve_profile(self.fidelity, backend)
 
 
-__all__ = ["BACKENDS", "Keep", "Obstacles", "RewardWeights", "Scene", "Task", "Terrain"]
+__all__ = [
+    "BACKENDS",
+    "FaultInjection",
+    "Keep",
+    "Obstacles",
+    "RewardWeights",
+    "Scene",
+    "Task",
+    "Terrain",
+]

@@ -21,7 +21,17 @@ __all__ = [
 
 
 def make_simulator(scene: Scene, backend: str = "mujoco") -> Simulator:
-    """Compile ``scene`` for ``backend`` and return its simulator."""
+    """Compile ``scene`` for ``backend`` and return its simulator (wrapped for fault
+    injection when the scene asks for it, in tests)."""
+    sim = _backend_simulator(scene, backend)
+    if scene.fault is not None:
+        from workers.sim.faults import FaultySimulator  # lazy: test-only
+
+        return FaultySimulator(sim, scene.fault)  # type: ignore[return-value]
+    return sim
+
+
+def _backend_simulator(scene: Scene, backend: str) -> Simulator:
     if backend == "mujoco":
         from workers.sim.mujoco import MujocoSimulator
 

@@ -109,3 +109,6 @@ class Simulator(Protocol):
         """Everything needed to continue the integration exactly (for pickling)."""
 
     def set_state(self, state: dict[str, np.ndarray]) -> None: ...
+
+    def poison(self) -> None:
+        """Write NaN into the simulator's state (fault injection in tests)."""

@@ -269,6 +269,9 @@ class MujocoSimulator:
         mujoco.mj_setState(m, d, state["physics"], mujoco.mjtState.mjSTATE_INTEGRATION)
         mujoco.mj_forward(m, d)
 
+    def poison(self) -> None:
+        self.data.qvel[:] = np.nan
+
     # ---- pickling: rebuild the model from the scene, then restore the state ----------
 
     def __getstate__(self) -> dict:

@@ -236,6 +236,11 @@ class OpenSimSimulator:
             control.setValue(float(value))
         self.osim_state = state
 
+    def poison(self) -> None:
+        speeds = self.osim_state.updU()
+        for i in range(speeds.size()):
+            speeds.set(i, float("nan"))
+
     def __getstate__(self) -> dict:
         return {"scene": self.scene, "rebuild_every": self.rebuild_every, "saved": self.get_state()}
 

@@ -1,0 +1,226 @@
+"""A pool of rollout actors on Ray that keeps every actor stepping and survives failures.
+
+Each actor always has one ``sample`` request in flight. ``next_fragment`` waits
+(``ray.wait``) for whichever fragment comes back first, immediately asks that actor for
+the next one with the newest weights, and hands the fragment over with the policy version
+that produced it: the learner never waits on the slowest simulator.
+
+Failures never end a run; each is counted in :class:`PoolStats`:
+* an actor that dies (simulator segfault, lost node, out of memory) is replaced and its
+  request re-issued on the new actor;
+* a fragment not back within ``timeout_s`` (a hung simulator) gets its actor killed and
+  replaced;
+* an actor past ``max_worker_rss_mib`` of memory or ``max_worker_steps`` env steps is
+  recycled after its fragment.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+
+import ray
+from ray.exceptions import RayActorError, RayError
+
+from workers.rollout import PolicyFactory, RolloutWorker
+from workers.scenes import Scene
+
+logger = logging.getLogger(__name__)
+
+POLL_S = 0.5
+"""How often (s) ``next_fragment`` looks at the clocks of in-flight requests."""
+
+
+@dataclass
+class PoolStats:
+    """Counters since the pool started."""
+
+    fragments: int = 0
+    env_steps: int = 0
+    actors_started: int = 0
+    actor_deaths: int = 0
+    timeouts: int = 0
+    recycled: int = 0
+    reissued: int = 0
+    health: Counter = field(default_factory=Counter)
+
+    def as_dict(self) -> dict:
+        out = {k: v for k, v in self.__dict__.items() if k != "health"}
+        out["health"] = dict(self.health)
+        return out
+
+
+@dataclass
+class _Slot:
+    """One actor and its request in flight. The request's clock starts only once the actor
+    is up (``started`` resolved): starting an actor takes seconds (imports, model compile)
+    and, while its node is missing, as long as the node takes to come back."""
+
+    actor: ray.actor.ActorHandle
+    worker_id: int
+    started: ray.ObjectRef | None = None
+    request: ray.ObjectRef | None = None
+    sent_at: float = 0.0
+
+    @property
+    def up(self) -> bool:
+        return self.started is None
+
+
+class WorkerPool:
+    """``num_workers`` Ray actors, each with ``envs_per_worker`` envs of ``scene``."""
+
+    def __init__(
+        self,
+        scene: Scene,
+        policy_factory: PolicyFactory,
+        *,
+        backend: str = "mujoco",
+        num_workers: int | None = None,
+        envs_per_worker: int = 4,
+        fragment_length: int = 64,
+        timeout_s: float = 300.0,
+        max_worker_steps: int | None = None,
+        max_worker_rss_mib: float | None = None,
+        seed: int = 0,
+    ) -> None:
+        if not ray.is_initialized():
+            ray.init(include_dashboard=False, logging_level=logging.WARNING)
+        self.scene = scene
+        self.backend = backend
+        self.timeout_s = timeout_s
+        self.max_worker_steps = max_worker_steps
+        self.max_worker_rss_mib = max_worker_rss_mib
+        self.stats = PoolStats()
+        self.version = -1
+        self._weights: ray.ObjectRef | None = None
+        self._seed = seed
+        self._next_id = 0
+        self._actor_class = ray.remote(num_cpus=1, max_restarts=0)(RolloutWorker)
+        self._actor_kwargs = {
+            "policy_factory": policy_factory,
+            "backend": backend,
+            "num_envs": envs_per_worker,
+            "fragment_length": fragment_length,
+        }
+        count = num_workers or default_num_workers()
+        self._slots = [self._new_slot() for _ in range(count)]
+        for slot in self._slots:
+            self._request(slot)
+
+    # ---- learner-facing API -------------------------------------------------------------
+
+    def set_weights(self, weights: dict) -> int:
+        """Put ``weights`` in the object store once; requests from now on carry them."""
+        self.version += 1
+        self._weights = ray.put(weights)
+        return self.version
+
+    def set_scene(self, scene: Scene) -> None:
+        """Push a new scene (curriculum stage) to the live actors without restarting them:
+        each switches after its in-flight fragment. Replacements start on it."""
+        self.scene = scene
+        for slot in self._slots:
+            slot.actor.set_scene.remote(scene)
+
+    def next_fragment(self, timeout_s: float | None = None) -> tuple[dict, int]:
+        """The first fragment back from any actor, and the policy version that made it."""
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        while deadline is None or time.monotonic() < deadline:
+            by_ref = {slot.request: slot for slot in self._slots if slot.request is not None}
+            ready, _ = ray.wait(list(by_ref), num_returns=1, timeout=POLL_S)
+            if ready:
+                slot = by_ref[ready[0]]
+                try:
+                    fragment = ray.get(ready[0])
+                except RayError as exc:
+                    self._on_death(slot, exc)
+                    continue
+                self._account(slot, fragment)
+                return fragment, int(fragment["policy_version"])
+            self._kill_overdue()
+        raise TimeoutError(f"no fragment within {timeout_s} s")
+
+    @property
+    def num_workers(self) -> int:
+        return len(self._slots)
+
+    def node_ids(self) -> list[str]:
+        """The Ray node of each live actor (blocks until all have started)."""
+        return ray.get([slot.actor.node_id.remote() for slot in self._slots], timeout=120)
+
+    def close(self) -> None:
+        for slot in self._slots:
+            ray.kill(slot.actor)
+        self._slots = []
+
+    # ---- actors -------------------------------------------------------------------------
+
+    def _new_slot(self) -> _Slot:
+        worker_id = self._next_id
+        self._next_id += 1
+        actor = self._actor_class.remote(
+            self.scene, seed=self._seed + worker_id, worker_id=worker_id, **self._actor_kwargs
+        )
+        self.stats.actors_started += 1
+        return _Slot(actor=actor, worker_id=worker_id, started=actor.node_id.remote())
+
+    def _request(self, slot: _Slot) -> None:
+        slot.request = slot.actor.sample.remote(self._weights, self.version)
+        slot.sent_at = time.monotonic()
+
+    def _replace(self, slot: _Slot) -> None:
+        """Kill ``slot``'s actor, start a new one in its place and re-issue the request."""
+        ray.kill(slot.actor, no_restart=True)
+        new = self._new_slot()
+        slot.actor, slot.worker_id, slot.started = new.actor, new.worker_id, new.started
+        self._request(slot)
+        self.stats.reissued += 1
+
+    def _on_death(self, slot: _Slot, exc: Exception) -> None:
+        kind = "died" if isinstance(exc, RayActorError) else "failed"
+        logger.warning("rollout actor %d %s: %s", slot.worker_id, kind, str(exc)[:200])
+        self.stats.actor_deaths += 1
+        self._replace(slot)
+
+    def _kill_overdue(self) -> None:
+        now = time.monotonic()
+        for slot in self._slots:
+            if not slot.up:
+                done, _ = ray.wait([slot.started], timeout=0)
+                if done:  # up now: the request's clock starts
+                    slot.started, slot.sent_at = None, now
+                continue
+            if slot.request is not None and now - slot.sent_at > self.timeout_s:
+                logger.warning(
+                    "rollout actor %d: no fragment in %.0f s, replacing it",
+                    slot.worker_id,
+                    self.timeout_s,
+                )
+                self.stats.timeouts += 1
+                self._replace(slot)
+
+    def _account(self, slot: _Slot, fragment: dict) -> None:
+        self.stats.fragments += 1
+        self.stats.env_steps += int(fragment["steps"])
+        self.stats.health.update(fragment["health"])
+        worn = (
+            self.max_worker_steps is not None
+            and fragment["worker_steps_total"] >= self.max_worker_steps
+        ) or (self.max_worker_rss_mib is not None and fragment["rss_mib"] > self.max_worker_rss_mib)
+        if worn:
+            self.stats.recycled += 1
+            self.stats.reissued -= 1  # a recycle is not a lost request
+            self._replace(slot)
+        else:
+            self._request(slot)
+
+
+def default_num_workers() -> int:
+    """The cluster's CPUs less one for the learner (at least one)."""
+    return max(1, int(ray.cluster_resources().get("CPU", 2)) - 1)
+
+
+__all__ = ["PoolStats", "WorkerPool", "default_num_workers"]

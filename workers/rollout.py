@@ -1,0 +1,176 @@
+"""A rollout worker: K envs of one scene and a CPU copy of the policy, stepped in lockstep.
+
+``RolloutWorker`` is a plain class (used in-process by learner tests) that the pool wraps
+with ``ray.remote``. Each ``sample`` call returns one fixed-length fragment: a dict of numpy
+arrays with leading dimensions ``[T, K]``:
+
+    obs [T, K, obs_dim] float32     observation the action was taken on
+    action [T, K, act_dim] float32  excitations in [0, 1]
+    logp [T, K], value [T, K]       policy log-probability and value estimate
+    reward [T, K] float32
+    terminated [T, K], truncated [T, K] bool
+    unhealthy [T, K] bool           the step was ended by a simulator failure
+    bootstrap_value [T, K]          value of the final observation where ``truncated`` (else 0)
+    last_obs [K, obs_dim], last_value [K]   to bootstrap the fragment's end
+    episode_return, episode_length, episode_distance, episode_fell [E]  episodes ended here
+
+plus ``health`` (cause -> count), ``policy_version``, ``worker`` and timing. Policy
+inference is batched over the K envs, one torch thread.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from workers.env import MuscleEnv
+from workers.policy_api import RolloutPolicy
+from workers.scenes import Scene
+
+logger = logging.getLogger(__name__)
+
+PolicyFactory = Callable[[], RolloutPolicy]
+
+
+@dataclass
+class _EpisodeTally:
+    ret: float = 0.0
+    length: int = 0
+
+
+def process_rss_mib() -> float:
+    """Resident memory of this process (Linux /proc), MiB."""
+    with open("/proc/self/statm") as statm:
+        return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+class RolloutWorker:
+    """Owns ``num_envs`` envs of ``scene`` on ``backend`` and a policy copy."""
+
+    def __init__(
+        self,
+        scene: Scene,
+        policy_factory: PolicyFactory,
+        *,
+        backend: str = "mujoco",
+        num_envs: int = 4,
+        fragment_length: int = 64,
+        seed: int = 0,
+        worker_id: int = 0,
+    ) -> None:
+        torch.set_num_threads(1)
+        torch.manual_seed(seed)
+        self.worker_id = worker_id
+        self.fragment_length = fragment_length
+        self.backend = backend
+        self.seed = seed
+        self.policy = policy_factory()
+        self.policy_version = -1
+        self.steps_total = 0
+        self._build_envs(scene, num_envs)
+
+    def _build_envs(self, scene: Scene, num_envs: int) -> None:
+        self.scene = scene
+        self.envs = [MuscleEnv(scene, self.backend) for _ in range(num_envs)]
+        self._obs = np.stack(
+            [env.reset(seed=self.seed * 10_000 + i)[0] for i, env in enumerate(self.envs)]
+        )
+        self._tally = [_EpisodeTally() for _ in self.envs]
+
+    # ---- remote API ---------------------------------------------------------------------
+
+    def set_scene(self, scene: Scene) -> None:
+        """Switch every env to ``scene`` (a curriculum stage); episodes restart."""
+        self._build_envs(scene, len(self.envs))
+
+    def set_weights(self, weights: dict[str, torch.Tensor], version: int) -> None:
+        if version != self.policy_version:
+            self.policy.load_state_dict(weights)
+            self.policy_version = version
+
+    def sample(self, weights: dict[str, torch.Tensor] | None = None, version: int = -1) -> dict:
+        """One fragment ``[T, K, ...]``; loads ``weights`` first if ``version`` is new."""
+        if weights is not None:
+            self.set_weights(weights, version)
+        start = time.perf_counter()
+        t_len, k = self.fragment_length, len(self.envs)
+        obs_dim = self._obs.shape[1]
+        act_dim = self.envs[0].action_space.shape[0]
+        out = {
+            "obs": np.zeros((t_len, k, obs_dim), np.float32),
+            "action": np.zeros((t_len, k, act_dim), np.float32),
+            "logp": np.zeros((t_len, k), np.float32),
+            "value": np.zeros((t_len, k), np.float32),
+            "reward": np.zeros((t_len, k), np.float32),
+            "terminated": np.zeros((t_len, k), bool),
+            "truncated": np.zeros((t_len, k), bool),
+            "unhealthy": np.zeros((t_len, k), bool),
+            "bootstrap_value": np.zeros((t_len, k), np.float32),
+        }
+        episodes: list[tuple[float, int, float, bool]] = []
+        health: Counter[str] = Counter()
+        for t in range(t_len):
+            with torch.no_grad():
+                action, logp, value = self.policy.act(torch.from_numpy(self._obs))
+            actions = action.numpy()
+            out["obs"][t], out["action"][t] = self._obs, actions
+            out["logp"][t], out["value"][t] = logp.numpy(), value.numpy()
+            final_obs: dict[int, np.ndarray] = {}
+            for i, env in enumerate(self.envs):
+                obs, reward, terminated, truncated, info = env.step(actions[i])
+                out["reward"][t, i] = reward
+                out["terminated"][t, i], out["truncated"][t, i] = terminated, truncated
+                tally = self._tally[i]
+                tally.ret += reward
+                tally.length += 1
+                if info["health"] != "ok":
+                    out["unhealthy"][t, i] = True
+                    health[info["health"]] += 1
+                if terminated or truncated:
+                    episodes.append(
+                        (tally.ret, tally.length, info["distance"], bool(info.get("fell")))
+                    )
+                    self._tally[i] = _EpisodeTally()
+                    if truncated and not terminated:
+                        final_obs[i] = obs
+                    obs, _ = env.reset()
+                self._obs[i] = obs
+            if final_obs:
+                with torch.no_grad():
+                    values = self.policy.value(torch.from_numpy(np.stack(list(final_obs.values()))))
+                for i, v in zip(final_obs, values.numpy(), strict=True):
+                    out["bootstrap_value"][t, i] = v
+        with torch.no_grad():
+            out["last_value"] = self.policy.value(torch.from_numpy(self._obs)).numpy()
+        out["last_obs"] = self._obs.copy()
+        stats = np.array(episodes, dtype=float).reshape(-1, 4)
+        out["episode_return"], out["episode_length"] = stats[:, 0], stats[:, 1].astype(int)
+        out["episode_distance"], out["episode_fell"] = stats[:, 2], stats[:, 3].astype(bool)
+        self.steps_total += t_len * k
+        out.update(
+            health=dict(health),
+            policy_version=self.policy_version,
+            worker=self.worker_id,
+            steps=t_len * k,
+            wall_s=time.perf_counter() - start,
+            worker_steps_total=self.steps_total,
+            rss_mib=process_rss_mib(),
+            pid=os.getpid(),
+        )
+        return out
+
+    def node_id(self) -> str:
+        """The Ray node this worker runs on ("local" outside Ray)."""
+        try:
+            import ray  # lazy: the in-process mode needs no Ray
+
+            return ray.get_runtime_context().get_node_id()
+        except Exception:  # no Ray runtime here
+            return "local"

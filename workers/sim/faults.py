@@ -1,0 +1,49 @@
+"""Fault injection (test-only scene setting): a real simulator made to crash, hang or NaN.
+
+``abort`` kills the process with ``os.abort`` (SIGABRT, as a segfaulting simulator would);
+``hang`` sleeps inside ``step`` (as a stuck integrator would); ``nan`` writes NaN into the
+simulator's own state and steps it, so the backend's health checks see a real failure.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+
+import numpy as np
+
+from workers.scenes.spec import FaultInjection
+from workers.sim.base import Health, Simulator
+
+logger = logging.getLogger(__name__)
+
+
+class FaultySimulator:
+    """Wraps a simulator; everything but ``step`` passes through."""
+
+    def __init__(self, sim: Simulator, fault: FaultInjection, seed: int = 0) -> None:
+        self._sim = sim
+        self._fault = fault
+        self._rng = np.random.default_rng(seed + os.getpid())
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._sim, name)
+
+    def step(self, excitations: np.ndarray, duration: float) -> Health:
+        draw = self._rng.uniform(size=3)
+        if draw[0] < self._fault.abort_prob:
+            logger.warning("fault injection: aborting process %d", os.getpid())
+            os.abort()
+        if draw[1] < self._fault.hang_prob:
+            logger.warning("fault injection: hanging for %.0f s", self._fault.hang_s)
+            time.sleep(self._fault.hang_s)
+        if draw[2] < self._fault.nan_prob:
+            self._sim.poison()
+        return self._sim.step(excitations, duration)
+
+    def __getstate__(self) -> dict:
+        return {"sim": self._sim, "fault": self._fault}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["sim"], state["fault"])  # type: ignore[misc]
