@@ -208,8 +208,8 @@ def main() -> None:
     columns = (TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True) as progress:
         raws = [raw_rate(args.scene, args.backend, args.seconds, progress)]
-        ray.init(num_cpus=n, include_dashboard=False, logging_level=logging.ERROR,
-                 log_to_driver=False)  # fmt: skip
+        ray.init(address="local", num_cpus=n, include_dashboard=False,
+                 logging_level=logging.ERROR, log_to_driver=False)  # fmt: skip
         try:
             for actors in range(1, n + 1):
                 rows.append(("pool", actors, pool_rate(args, actors, act_dim, progress)))
