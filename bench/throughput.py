@@ -4,10 +4,10 @@ Usage: python bench/throughput.py --scene walk-2d [--backend mujoco|opensim] [--
        [--seconds S] [--envs-per-worker K] [--fragment-length T] [--rllib]
 
 Rows, measured one after the other in one run:
-* raw: one MuscleEnv in this process stepping UniformExcitationPolicy's actions (the policy
-  the pool runs), resets included, for S seconds, once first and once last (mean reported);
-  the policy is called per step here but batched over K envs in an actor (on MuJoCo about
-  30 against 7 us per step, so raw is ~8 % slow there; nothing on OpenSim);
+* raw: one MuscleEnv in this process stepping uniform random excitations (numpy, no
+  policy: the env alone), resets included, for S seconds, once first and once last (mean
+  reported); the pool's rows also pay for their policy (batched over K envs), fragment
+  assembly and transport, which is what the efficiency measures;
 * pool n: a WorkerPool of n actors (n = 1..N, N the CPU count; ``ray.init(num_cpus=N)``)
   with K envs each and T-step fragments;
 * rllib (``--rllib``): RLlib's PPO env runners (new API stack), N of them with K envs each,
@@ -36,8 +36,8 @@ from collections.abc import Callable, Iterable
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import mujoco
+import numpy as np
 import ray
-import torch
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
@@ -106,20 +106,18 @@ def measure(
 
 
 def raw_rate(scene_name: str, backend: str, seconds: float, progress: Progress) -> float:
-    """One env in this process stepping the pool's policy; resets included."""
-    torch.set_num_threads(1)
+    """One env in this process, uniform random excitations drawn with numpy (no policy, no
+    torch: the env alone); resets included."""
     env = MuscleEnv(scene_name, backend)
-    policy = UniformExcitationPolicy(env.action_space.shape[0])
+    rng = np.random.default_rng(0)
     task = progress.add_task("raw: running", total=seconds)
-    obs, _ = env.reset(seed=0)
+    env.reset(seed=0)
     steps, start = 0, time.perf_counter()
     while (elapsed := time.perf_counter() - start) < seconds:
-        with torch.no_grad():
-            action = policy.act(torch.from_numpy(obs)[None])[0][0].numpy()
-        obs, _, terminated, truncated, _ = env.step(action)
+        _, _, terminated, truncated, _ = env.step(rng.uniform(0.0, 1.0, env.action_space.shape))
         steps += 1
         if terminated or truncated:
-            obs, _ = env.reset()
+            env.reset()
         if steps % 20 == 0:
             progress.update(task, completed=elapsed)
     progress.update(task, completed=seconds)

@@ -121,8 +121,9 @@ def test_worn_actors_are_recycled() -> None:
         load_scene("elbow-reach"), POLICY, num_workers=1, fragment_length=16, max_worker_steps=100
     )
     try:
-        _collect(pool, 8)  # 64 env steps a fragment: recycled after every second one
-        assert pool.stats.recycled >= 3
+        _collect(pool, 10)  # 64 env steps a fragment: worn after the second one
+        assert pool.stats.recycled >= 2
+        assert pool.stats.actors_started >= 2
         assert pool.stats.actor_deaths == 0 and pool.stats.reissued == 0
     finally:
         pool.close()
