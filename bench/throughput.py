@@ -191,7 +191,7 @@ def main() -> None:
     parser.add_argument("--max-actors", type=int, help="default: the CPU count")
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--envs-per-worker", type=int, default=4)
-    parser.add_argument("--fragment-length", type=int, default=64)
+    parser.add_argument("--fragment-length", type=int, default=256)
     parser.add_argument("--rllib", action="store_true", help="add RLlib's env runners")
     args = parser.parse_args()
     if args.rllib:
