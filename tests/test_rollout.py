@@ -59,7 +59,7 @@ def test_new_weights_change_the_actions_and_set_the_version() -> None:
 
 
 def test_unhealthy_steps_are_flagged_and_counted_and_never_nan() -> None:
-    scene = load_scene("walk-2d").model_copy(update={"fault": FaultInjection(nan_prob=0.05)})
+    scene = load_scene("walk-2d").model_copy(update={"fault": FaultInjection(nan_prob=0.1)})
     worker = _worker("walk-2d", scene=scene, num_envs=2, fragment_length=100)
     frag = worker.sample()
     assert frag["unhealthy"].any()

@@ -22,13 +22,18 @@ logger = logging.getLogger(__name__)
 class FaultySimulator:
     """Wraps a simulator; everything but ``step`` passes through."""
 
-    def __init__(self, sim: Simulator, fault: FaultInjection, seed: int = 0) -> None:
+    def __init__(self, sim: Simulator, fault: FaultInjection) -> None:
         self._sim = sim
         self._fault = fault
-        self._rng = np.random.default_rng(seed + os.getpid())
+        self._rng = np.random.default_rng(0)
 
     def __getattr__(self, name: str) -> object:
         return getattr(self._sim, name)
+
+    def reset(self, seed: int) -> None:
+        """Reset the simulator; the faults of the episode follow from ``seed`` too."""
+        self._rng = np.random.default_rng([seed, 0xFA17])
+        self._sim.reset(seed)
 
     def step(self, excitations: np.ndarray, duration: float) -> Health:
         draw = self._rng.uniform(size=3)
