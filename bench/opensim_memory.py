@@ -22,17 +22,11 @@ from rich.progress import track
 from rich.table import Table
 
 from workers.env import MuscleEnv
+from workers.rollout import process_rss_mib
 from workers.scenes import load_scene
 from workers.sim.opensim import OpenSimSimulator
 
 console = Console()
-
-
-def rss_mib() -> float:
-    """Current resident set size of this process (Linux /proc), MiB."""
-    with open("/proc/self/statm") as statm:
-        pages = int(statm.read().split()[1])
-    return pages * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
 def run(scene: str, episodes: int, steps: int, rebuild_every: int) -> np.ndarray:
@@ -48,7 +42,7 @@ def run(scene: str, episodes: int, steps: int, rebuild_every: int) -> np.ndarray
             if terminated or truncated:
                 break
         gc.collect()
-        samples.append(rss_mib())
+        samples.append(process_rss_mib())
     return np.array(samples)
 
 

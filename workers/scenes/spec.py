@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from workers.scenes.profiles import BACKENDS, Backend, Fidelity, FidelityProfile, resolve_profile
@@ -67,6 +68,13 @@ class Obstacles(_Strict):
         if self.radius_range[0] <= 0:
             raise ValueError("radius_range must be positive")
         return self
+
+    def draw(self, rng: np.random.Generator) -> np.ndarray:
+        """[count, 3]: forward position (m, sorted), centre height (m) and radius (m)."""
+        radius = rng.uniform(*self.radius_range, self.count)
+        ahead = np.sort(rng.uniform(*self.x_range, self.count))
+        height = radius * rng.uniform(*self.height_range, self.count)
+        return np.column_stack([ahead, height, radius])
 
 
 class RewardWeights(_Strict):

@@ -11,6 +11,9 @@ from workers.scenes.profiles import FidelityProfile
 from workers.scenes.prune import PrunePlan
 
 HEALTHY = "ok"
+MAX_SPEED = 200.0
+"""Any joint speed above this (rad/s or m/s) is divergence, not motion: a human joint peaks
+near 50 rad/s. MuJoCo only flags accelerations above 1e10, long after a blow-up starts."""
 
 
 @dataclass(frozen=True)

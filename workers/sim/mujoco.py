@@ -17,7 +17,7 @@ import numpy as np
 from workers.bodies import load_body
 from workers.scenes import PrunePlan, Scene, plan_pruning
 from workers.scenes.topology import Topology, topology_for
-from workers.sim.base import HEALTHY, CompileReport, Health, SimState
+from workers.sim.base import HEALTHY, MAX_SPEED, CompileReport, Health, SimState
 from workers.sim.mjcf_contacts import model_size, restrict_contacts
 from workers.sim.mjcf_lock import lock_joints
 from workers.sim.mjcf_moment_arms import planar_muscles
@@ -46,9 +46,6 @@ PELVIS_UP = 1
 """The pelvis frame's up axis (Y in OpenSim-derived bodies, MyoLeg's included)."""
 STAND_KEY = "stand"
 """Keyframe that, where a model has it, is the reset pose (MyoLeg)."""
-MAX_SPEED = 200.0
-"""Any joint speed above this (rad/s or m/s) is divergence, not motion: a human joint peaks
-near 50 rad/s. MuJoCo only flags accelerations above 1e10, long after a blow-up starts."""
 OBSTACLE_PREFIX = "obstacle_"
 PARKED = -100.0
 """Forward position (m) of obstacle geoms until the first reset places them."""
@@ -312,11 +309,8 @@ class MujocoSimulator:
         spec = self.scene.obstacles
         if spec is None or not len(self._obstacle_ids):
             return
-        n = len(self._obstacle_ids)
-        radius = self._rng.uniform(*spec.radius_range, n)
-        ahead = np.sort(self._rng.uniform(*spec.x_range, n))
-        height = radius * self._rng.uniform(*spec.height_range, n)
-        pos = np.zeros((n, 3))
+        ahead, height, radius = spec.draw(self._rng).T
+        pos = np.zeros((len(radius), 3))
         pos[:, self.forward_axis] = ahead
         pos[:, self.up_axis] = height
         self._set_obstacles(pos, radius)

@@ -27,7 +27,7 @@ import opensim
 from workers.bodies import load_body
 from workers.scenes import Scene, plan_pruning
 from workers.scenes.topology import topology_for
-from workers.sim.base import HEALTHY, CompileReport, Health, SimState
+from workers.sim.base import HEALTHY, MAX_SPEED, CompileReport, Health, SimState
 from workers.sim.opensim_build import build_model
 from workers.sim.opensim_size import full_plan, model_size
 
@@ -45,8 +45,6 @@ INTEGRATORS = {
 }
 UP, FORWARD = 1, 0
 """Neutral bodies are Y-up and face +X."""
-MAX_SPEED = 200.0
-"""rad/s or m/s: faster is divergence (as in the MuJoCo backend)."""
 
 
 def quiet_opensim_log() -> None:
@@ -264,13 +262,8 @@ class OpenSimSimulator:
 
     def _place_obstacles(self) -> None:
         spec = self.scene.obstacles
-        if spec is None or not self._obstacle_geometry:
-            return
-        n = len(self._obstacle_geometry)
-        radius = self._rng.uniform(*spec.radius_range, n)
-        ahead = np.sort(self._rng.uniform(*spec.x_range, n))
-        height = radius * self._rng.uniform(*spec.height_range, n)
-        self._set_obstacles(np.column_stack([ahead, height, radius]))
+        if spec is not None and self._obstacle_geometry:
+            self._set_obstacles(spec.draw(self._rng))
 
     def _set_obstacles(self, obstacles: np.ndarray) -> None:
         """Move the obstacle spheres ([n, 3]: forward, height, radius, m); re-inits the system."""
