@@ -22,7 +22,7 @@ from rich.progress import track
 from rich.table import Table
 
 from workers.env import MuscleEnv
-from workers.rollout import process_rss_mib
+from workers.probe import process_rss_mib
 from workers.scenes import load_scene
 from workers.sim.opensim import OpenSimSimulator
 
@@ -62,7 +62,7 @@ def main() -> None:
     for rebuild_every in (args.episodes + 1, 25):
         rss = run(args.scene, args.episodes, args.steps, rebuild_every)
         slope = np.polyfit(np.arange(10, len(rss)), rss[10:], 1)[0] * 100
-        label = "never" if rebuild_every > args.episodes else str(rebuild_every)
+        label = "never" if rebuild_every > args.episodes else f"every {rebuild_every}"
         table.add_row(label, f"{rss[9]:.1f}", f"{rss[-1]:.1f}", f"{slope:+.2f}")
     console.print(table)
 

@@ -1,7 +1,9 @@
-"""Step an env with random excitations and count what happens: speed and numerical health."""
+"""Probes: step an env with random excitations and count what happens (speed and numerical
+health); this process's resident memory."""
 
 from __future__ import annotations
 
+import os
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -69,3 +71,9 @@ def random_excitations(
             on_step(result)
     result.wall_s = time.perf_counter() - start
     return result
+
+
+def process_rss_mib() -> float:
+    """Resident memory of this process (Linux /proc), MiB."""
+    with open("/proc/self/statm") as statm:
+        return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20

@@ -32,6 +32,7 @@ import torch
 
 from workers.env import MuscleEnv
 from workers.policy_api import RolloutPolicy
+from workers.probe import process_rss_mib
 from workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
@@ -43,12 +44,6 @@ PolicyFactory = Callable[[], RolloutPolicy]
 class _EpisodeTally:
     ret: float = 0.0
     length: int = 0
-
-
-def process_rss_mib() -> float:
-    """Resident memory of this process (Linux /proc), MiB."""
-    with open("/proc/self/statm") as statm:
-        return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
 class RolloutWorker:
