@@ -16,7 +16,8 @@ class RolloutPolicy(Protocol):
     """A torch module that acts for a batch of envs (excitations in [0, 1])."""
 
     def act(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """obs [K, obs_dim] -> action [K, act_dim] in [0, 1], log-probability [K], value [K]."""
+        """obs [K, obs_dim] -> action [K, act_dim] (excitations; the env clips them to [0, 1]),
+        log-probability [K] of that action, value [K]."""
 
     def value(self, obs: torch.Tensor) -> torch.Tensor:
         """obs [K, obs_dim] -> value [K] (to bootstrap truncated episodes)."""
