@@ -5,7 +5,7 @@ with ``ray.remote``. Each ``sample`` call returns one fixed-length fragment: a d
 arrays with leading dimensions ``[T, K]``:
 
     obs [T, K, obs_dim] float32     observation the action was taken on
-    action [T, K, act_dim] float32  excitations in [0, 1]
+    action [T, K, act_dim] float32  as the policy drew it (the env clips it to [0, 1])
     logp [T, K], value [T, K]       policy log-probability and value estimate
     reward [T, K] float32
     terminated [T, K], truncated [T, K] bool
