@@ -28,7 +28,7 @@ from workers.bodies import load_body
 from workers.scenes import Scene, plan_pruning
 from workers.scenes.topology import topology_for
 from workers.sim.base import HEALTHY, MAX_SPEED, CompileReport, Health, SimState
-from workers.sim.opensim_build import build_model
+from workers.sim.opensim_build import PARKED, build_model
 from workers.sim.opensim_size import full_plan, model_size
 
 logger = logging.getLogger(__name__)
@@ -104,7 +104,7 @@ class OpenSimSimulator:
         self._foot_forces = built.foot_forces
         self._obstacle_geometry = built.obstacle_geometry
         self._obstacles = np.zeros((len(built.obstacle_geometry), 3))
-        self._obstacles[:, 0] = -100.0
+        self._obstacles[:, 0] = PARKED
         self.osim_state = self.model.initSystem()
         self._bind()
 
