@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import functools
 import logging
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -25,6 +27,9 @@ from learner.ppo import PPOConfig, batch_from_fragments, ppo_update
 from workers.env import MuscleEnv
 from workers.rollout import RolloutWorker
 from workers.scenes import load_scene
+
+if TYPE_CHECKING:
+    from workers.pool import WorkerPool
 
 logger = logging.getLogger(__name__)
 
@@ -81,8 +86,8 @@ class Trainer:
         self.iteration, self.env_steps = int(meta["iteration"]), int(meta["env_steps"])
         logger.info("resumed from %s at iteration %d", latest, self.iteration)
 
-    def _sampler(self):
-        """A function returning the next fragment made with the current weights."""
+    def _sampler(self) -> tuple[Callable[[], dict], WorkerPool | None]:
+        """A function returning the next fragment, and the pool behind it (None in-process)."""
         cfg = self.config
         if cfg.num_workers == 0:
             worker = RolloutWorker(
