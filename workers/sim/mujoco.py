@@ -83,10 +83,9 @@ def _add_obstacles(spec: mujoco.MjSpec, count: int) -> list[str]:
 def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology]:
     """Compile ``scene`` to a pruned model, with the report of what was removed."""
     topology = topology_for(scene.body)
-    plan0 = plan_pruning(scene, topology)
-    size_full, planar = _full_model_facts(
-        scene.body, tuple(plan0.kept_dofs) if scene.keep.planar else ()
-    )
+    # kept dofs do not depend on the planar muscle set, so that plan is needed only for it
+    sagittal = tuple(plan_pruning(scene, topology).kept_dofs) if scene.keep.planar else ()
+    size_full, planar = _full_model_facts(scene.body, sagittal)
     plan: PrunePlan = plan_pruning(scene, topology, planar if scene.keep.planar else None)
     spec = source_spec(scene.body)
     dropped = lock_joints(spec, plan.locked_dofs)

@@ -24,7 +24,7 @@ import time
 import numpy as np
 import opensim
 
-from workers.bodies import load_body
+from workers.bodies import available_bodies, load_body
 from workers.scenes import Scene, plan_pruning
 from workers.scenes.topology import topology_for
 from workers.sim.base import HEALTHY, MAX_SPEED, CompileReport, Health, SimState
@@ -59,7 +59,7 @@ class OpenSimSimulator:
 
     def __init__(self, scene: Scene, rebuild_every: int | None = None) -> None:
         quiet_opensim_log()
-        if scene.body not in _neutral_bodies():
+        if scene.body not in available_bodies():
             raise ValueError(f"body {scene.body!r}: OpenSim runs neutral bodies only")
         self.scene = scene
         self.rebuild_every = rebuild_every or scene.rebuild_every
@@ -67,7 +67,6 @@ class OpenSimSimulator:
         self._body = load_body(scene.body)
         topology = topology_for(scene.body)
         self._plan = plan_pruning(scene, topology)
-        self._feet_topology = topology.feet
         self.dof_names = list(self._plan.kept_dofs)
         self.muscle_names = list(self._plan.kept_muscles)
         self.foot_names = sorted(topology.feet)
@@ -183,10 +182,10 @@ class OpenSimSimulator:
             return Health("opensim_integrator_failed")
         if time.perf_counter() - start > self.scene.step_wall_limit_s:
             return Health("opensim_wall_time")
-        y = _to_numpy(self.osim_state.getY())
+        y = self.osim_state.getY().to_numpy()
         if not np.isfinite(y).all():
             return Health("nan_state")
-        if np.abs(_to_numpy(self.osim_state.getU())).max(initial=0.0) > MAX_SPEED:
+        if np.abs(self.osim_state.getU().to_numpy()).max(initial=0.0) > MAX_SPEED:
             return Health("diverged_speed")
         return Health(HEALTHY)
 
@@ -218,7 +217,7 @@ class OpenSimSimulator:
         s = self.osim_state
         return {
             "time": np.array([s.getTime()]),
-            "y": _to_numpy(s.getY()),
+            "y": s.getY().to_numpy(),
             "controls": np.array([c.getValue() for c in self._controls]),
             "obstacles": self._obstacles.copy(),
             "episodes": np.array([self._episodes]),
@@ -279,18 +278,8 @@ class OpenSimSimulator:
         self._bind()
 
 
-def _neutral_bodies() -> list[str]:
-    from workers.bodies import available_bodies  # lazy: avoids a cycle at import
-
-    return available_bodies()
-
-
 def _vec3(v: opensim.Vec3) -> np.ndarray:
     return np.array([v.get(0), v.get(1), v.get(2)])
-
-
-def _to_numpy(vector: opensim.Vector) -> np.ndarray:
-    return np.array([vector.get(i) for i in range(vector.size())])
 
 
 def _ground_normal(force: opensim.Force, state: opensim.State) -> float:
