@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import time
+from collections import Counter
 from collections.abc import Iterator
 
 import pytest
@@ -32,12 +33,12 @@ def cluster() -> Iterator[Cluster]:
     local.shutdown()
 
 
-def _workers_seen(pool: WorkerPool, seconds: float) -> set[int]:
-    """Worker ids that delivered a fragment within ``seconds``."""
-    seen: set[int] = set()
+def _fragments_by_worker(pool: WorkerPool, seconds: float) -> Counter[int]:
+    """Fragments each worker id delivered within ``seconds``."""
+    seen: Counter[int] = Counter()
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
-        seen.add(pool.next_fragment(timeout_s=seconds)[0]["worker"])
+        seen[pool.next_fragment(timeout_s=seconds)[0]["worker"]] += 1
     return seen
 
 
@@ -46,14 +47,16 @@ def test_actors_spread_and_survive_a_node_leaving_and_returning(cluster: Cluster
     try:
         nodes = pool.node_ids()
         assert len(set(nodes)) == 2, "one actor per worker node"
-        assert _workers_seen(pool, 5) == {0, 1}
+        assert set(_fragments_by_worker(pool, 5)) == {0, 1}
 
         leaving = next(n for n in cluster.worker_nodes if n.node_id == nodes[1])
         cluster.remove_node(leaving)
-        survivors = _workers_seen(pool, 10)
-        assert survivors == {0}, "the other node's actor carries on alone"
+        after = _fragments_by_worker(pool, 10)
+        assert after[0] > 0, "the other node's actor carries on"
+        # fragments worker 1 finished before its node went may still arrive, no new ones
+        assert after[1] <= pool.queue_depth and set(after) <= {0, 1}
         assert pool.stats.actor_deaths == 1, "only the lost node's queued requests are lost"
-        assert pool.stats.reissued == pool.queue_depth
+        assert 1 <= pool.stats.reissued <= pool.queue_depth
 
         cluster.add_node(num_cpus=1)
         cluster.wait_for_nodes()
