@@ -4,6 +4,8 @@ Layout of ``<root>/ckpt-<env steps, 12 digits>/``:
 
     policy.safetensors       the policy's parameters (and buffers other than the normaliser)
     normalizer.safetensors   the observation normaliser's statistics (``norm.*``)
+    optimizer.safetensors    the optimizer's state (Adam moments), when given; its
+                             param groups go into meta.json under "optimizer_param_groups"
     meta.json                caller's metadata (job and scene spec, stage, env steps,
                              metrics, blending lineage, network config) + package versions
     manifest.json            sha256 of each file above
@@ -29,11 +31,14 @@ import torch
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
 
+from learner.policy import ActorCritic, build_policy
+
 logger = logging.getLogger(__name__)
 
 PREFIX = "ckpt-"
 NORM_PREFIX = "norm."
 FILES = ("policy.safetensors", "normalizer.safetensors", "meta.json")
+OPTIMIZER_FILE = "optimizer.safetensors"
 PACKAGES = ("gaitforge", "torch", "mujoco", "opensim", "ray", "gymnasium")
 
 
@@ -70,8 +75,10 @@ def save_checkpoint(
     meta: dict,
     keep_last: int = 3,
     best_metric: str | None = None,
+    optimizer_state: dict | None = None,
 ) -> Path:
-    """Write ``state`` (a policy ``state_dict``) and ``meta`` as a checkpoint under ``root``."""
+    """Write ``state`` (a policy ``state_dict``), ``meta`` and, if given, an optimizer's
+    ``state_dict`` as a checkpoint under ``root``."""
     root.mkdir(parents=True, exist_ok=True)
     target = root / f"{PREFIX}{env_steps:012d}"
     tmp = Path(tempfile.mkdtemp(prefix=".tmp-", dir=root))
@@ -81,10 +88,15 @@ def save_checkpoint(
                   tmp / FILES[0])  # fmt: skip
         save_file({k: v for k, v in tensors.items() if k.startswith(NORM_PREFIX)}, tmp / FILES[1])
         full_meta = {**meta, "env_steps": env_steps, "versions": _versions()}
+        files = list(FILES)
+        if optimizer_state is not None:
+            save_file(_flatten_optimizer(optimizer_state), tmp / OPTIMIZER_FILE)
+            full_meta["optimizer_param_groups"] = optimizer_state["param_groups"]
+            files.append(OPTIMIZER_FILE)
         (tmp / FILES[2]).write_text(json.dumps(full_meta, indent=2, sort_keys=True, default=str))
-        manifest = {name: _sha256(tmp / name) for name in FILES}
+        manifest = {name: _sha256(tmp / name) for name in files}
         (tmp / "manifest.json").write_text(json.dumps(manifest, indent=2))
-        for name in (*FILES, "manifest.json"):
+        for name in (*files, "manifest.json"):
             _fsync(tmp / name)
         if target.exists():
             shutil.rmtree(target)
@@ -111,7 +123,7 @@ def load_checkpoint(path: Path) -> tuple[dict[str, torch.Tensor], dict]:
         raise CheckpointError(f"{manifest_path}: missing; {path} is not a checkpoint") from None
     except json.JSONDecodeError as exc:
         raise CheckpointError(f"{manifest_path}: not valid JSON ({exc})") from None
-    for name in FILES:
+    for name in FILES + ((OPTIMIZER_FILE,) if OPTIMIZER_FILE in manifest else ()):
         file = path / name
         if not file.exists():
             raise CheckpointError(f"{file}: missing")
@@ -122,6 +134,49 @@ def load_checkpoint(path: Path) -> tuple[dict[str, torch.Tensor], dict]:
     except SafetensorError as exc:
         raise CheckpointError(f"{path}: unreadable safetensors ({exc})") from None
     return state, json.loads((path / FILES[2]).read_text())
+
+
+def load_optimizer_state(path: Path) -> dict | None:
+    """The optimizer ``state_dict`` saved in checkpoint ``path`` (already verified by
+    :func:`load_checkpoint`), or None if it holds none."""
+    file = path / OPTIMIZER_FILE
+    if not file.exists():
+        return None
+    meta = json.loads((path / FILES[2]).read_text())
+    state: dict[int, dict[str, torch.Tensor]] = {}
+    try:
+        flat = load_file(file)
+    except SafetensorError as exc:
+        raise CheckpointError(f"{file}: unreadable safetensors ({exc})") from None
+    for key, tensor in flat.items():
+        index, name = key.split(".", 1)
+        state.setdefault(int(index), {})[name] = tensor
+    return {"state": state, "param_groups": meta["optimizer_param_groups"]}
+
+
+def _flatten_optimizer(optimizer_state: dict) -> dict[str, torch.Tensor]:
+    """``{"<param index>.<name>": tensor}``; scalars (Adam's ``step``) as 0-d tensors."""
+    flat = {}
+    for index, entries in optimizer_state["state"].items():
+        for name, value in entries.items():
+            tensor = value if isinstance(value, torch.Tensor) else torch.tensor(value)
+            flat[f"{index}.{name}"] = tensor.detach().contiguous().cpu()
+    return flat
+
+
+def load_policy(path: Path) -> tuple[ActorCritic, dict]:
+    """The policy of checkpoint ``path``, rebuilt from ``meta["network"]`` and loaded (eval
+    mode), and the checkpoint's metadata."""
+    state, meta = load_checkpoint(path)
+    if "network" not in meta:
+        raise CheckpointError(f"{path / FILES[2]}: no 'network' description to rebuild from")
+    try:
+        policy = build_policy(meta["network"])
+        policy.load_state_dict(state)
+    except (KeyError, ValueError, RuntimeError) as exc:
+        raise CheckpointError(f"{path}: weights do not fit meta.json's network ({exc})") from None
+    policy.eval()
+    return policy, meta
 
 
 def checkpoints(root: Path) -> list[Path]:

@@ -145,7 +145,7 @@ class Trainer:
             "scene": self.scene.model_dump(mode="json"),
             "config": {**asdict(self.config), "run_dir": str(self.config.run_dir)},
             "metrics": stats,
-            "network": {"class": "GaussianPolicy", "hidden": list(self.config.hidden)},
+            "network": self.policy.describe(),
         }
         save_checkpoint(self.checkpoint_dir, self.env_steps, self.policy.state_dict(), meta,
                         best_metric="episode_return")  # fmt: skip
