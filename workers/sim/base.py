@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
@@ -63,6 +63,21 @@ class SimState:
         return bool(np.isfinite(self.time)) and all(np.isfinite(a).all() for a in self.arrays())
 
 
+class BodyPose(NamedTuple):
+    """World pose of one body (for drawing), in the simulator's world frame (its up and
+    forward axes: ``Simulator.up_axis``, ``Simulator.forward_axis``).
+
+    Attributes:
+        position: [3] body origin in the world, m.
+        quaternion: [4] orientation in the world, scalar first (w, x, y, z), unit.
+        parent: name of the parent body; "" for a body attached to the world (ground).
+    """
+
+    position: np.ndarray
+    quaternion: np.ndarray
+    parent: str
+
+
 @dataclass
 class CompileReport:
     """What compiling a scene kept and dropped, and the model's size before and after.
@@ -115,3 +130,16 @@ class Simulator(Protocol):
 
     def poison(self) -> None:
         """Write NaN into the simulator's state (fault injection in tests)."""
+
+    # ---- read-outs for drawing (recordings, video) -------------------------------------
+
+    def body_frames(self) -> dict[str, BodyPose]:
+        """World pose of every body (the world/ground itself excluded), parents first."""
+
+    def muscle_paths(self) -> dict[str, np.ndarray]:
+        """Each muscle's path, by muscle name (``muscle_names``): [P, 3] points in the world
+        from origin to insertion (via points and wrap points included), m."""
+
+    def coordinates(self) -> dict[str, float]:
+        """Every scalar joint coordinate by name (root dofs and locked dofs included), rad
+        or m; ball and free joints are left out."""

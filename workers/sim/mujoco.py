@@ -17,7 +17,7 @@ import numpy as np
 from workers.bodies import load_body
 from workers.scenes import PrunePlan, Scene, plan_pruning
 from workers.scenes.topology import Topology, topology_for
-from workers.sim.base import HEALTHY, MAX_SPEED, CompileReport, Health, SimState
+from workers.sim.base import HEALTHY, MAX_SPEED, BodyPose, CompileReport, Health, SimState
 from workers.sim.mjcf_contacts import model_size, restrict_contacts
 from workers.sim.mjcf_lock import lock_joints
 from workers.sim.mjcf_moment_arms import planar_muscles
@@ -267,6 +267,43 @@ class MujocoSimulator:
 
     def poison(self) -> None:
         self.data.qvel[:] = np.nan
+
+    # ---- read-outs for drawing (positions as of the last kinematics pass: mj_step computes
+    # them at the start of its last substep, so they lag the state by one timestep at most)
+
+    def body_frames(self) -> dict[str, BodyPose]:
+        m, d = self.model, self.data
+        names = [m.body(i).name for i in range(m.nbody)]
+        return {
+            names[i]: BodyPose(
+                d.xpos[i].copy(), d.xquat[i].copy(), names[p] if (p := m.body_parentid[i]) else ""
+            )
+            for i in range(1, m.nbody)
+        }
+
+    def muscle_paths(self) -> dict[str, np.ndarray]:
+        """Tendon path points (sites and wrap tangent points; pulley markers dropped)."""
+        m, d = self.model, self.data
+        points = d.wrap_xpos.reshape(-1, 3)
+        kinds = d.wrap_obj.ravel()
+        paths = {}
+        for i, name in enumerate(self.muscle_names):
+            if int(m.actuator_trntype[i]) != int(mujoco.mjtTrn.mjTRN_TENDON):
+                paths[name] = np.zeros((0, 3))
+                continue
+            tendon = m.actuator_trnid[i, 0]
+            span = slice(d.ten_wrapadr[tendon], d.ten_wrapadr[tendon] + d.ten_wrapnum[tendon])
+            paths[name] = points[span][kinds[span] != -2].copy()
+        return paths
+
+    def coordinates(self) -> dict[str, float]:
+        m, d = self.model, self.data
+        scalar = {int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)}
+        return {
+            m.joint(j).name: float(d.qpos[m.jnt_qposadr[j]])
+            for j in range(m.njnt)
+            if int(m.jnt_type[j]) in scalar
+        }
 
     # ---- pickling: rebuild the model from the scene, then restore the state ----------
 

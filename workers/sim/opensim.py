@@ -27,7 +27,7 @@ import opensim
 from workers.bodies import available_bodies, load_body
 from workers.scenes import Scene, plan_pruning
 from workers.scenes.topology import topology_for
-from workers.sim.base import HEALTHY, MAX_SPEED, CompileReport, Health, SimState
+from workers.sim.base import HEALTHY, MAX_SPEED, BodyPose, CompileReport, Health, SimState
 from workers.sim.opensim_build import PARKED, build_model
 from workers.sim.opensim_size import full_plan, model_size
 
@@ -237,6 +237,55 @@ class OpenSimSimulator:
         speeds = self.osim_state.updU()
         for i in range(speeds.size()):
             speeds.set(i, float("nan"))
+
+    # ---- read-outs for drawing ----------------------------------------------------------
+
+    def body_frames(self) -> dict[str, BodyPose]:
+        state = self.osim_state
+        self.model.realizePosition(state)
+        parents = {}
+        joints = self.model.getJointSet()
+        for i in range(joints.getSize()):
+            joint = joints.get(i)
+            parent = joint.getParentFrame().findBaseFrame().getName()
+            parents[joint.getChildFrame().findBaseFrame().getName()] = (
+                "" if parent == "ground" else parent
+            )
+        frames = {}
+        bodies = self.model.getBodySet()
+        for i in range(bodies.getSize()):
+            body = bodies.get(i)
+            pose = body.getTransformInGround(state)
+            q = pose.R().convertRotationToQuaternion()
+            frames[body.getName()] = BodyPose(
+                _vec3(pose.p()),
+                np.array([q.get(k) for k in range(4)]),
+                parents.get(body.getName(), ""),
+            )
+        return frames
+
+    def muscle_paths(self) -> dict[str, np.ndarray]:
+        """``GeometryPath.getCurrentPath``: path points active now, wrap points included."""
+        state = self.osim_state
+        self.model.realizePosition(state)
+        paths = {}
+        for name, muscle in zip(self.muscle_names, self._muscles, strict=True):
+            geometry = opensim.GeometryPath.safeDownCast(muscle.getPath())
+            if geometry is None:  # a function-based path has no points
+                paths[name] = np.zeros((0, 3))
+                continue
+            points = geometry.getCurrentPath(state)
+            paths[name] = np.array(
+                [_vec3(points.get(k).getLocationInGround(state)) for k in range(points.getSize())]
+            ).reshape(-1, 3)
+        return paths
+
+    def coordinates(self) -> dict[str, float]:
+        state = self.osim_state
+        coords = self.model.getCoordinateSet()
+        return {
+            coords.get(i).getName(): coords.get(i).getValue(state) for i in range(coords.getSize())
+        }
 
     def __getstate__(self) -> dict:
         return {"scene": self.scene, "rebuild_every": self.rebuild_every, "saved": self.get_state()}
