@@ -7,6 +7,7 @@ import logging
 import typer
 from rich.console import Console
 
+from service.evaluate_commands import evaluate
 from service.scene_commands import scenes_app
 
 app = typer.Typer(
@@ -15,6 +16,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 app.add_typer(scenes_app, name="scenes")
+app.command("evaluate")(evaluate)
 console = Console()
 
 
