@@ -1,151 +1,436 @@
-"""A single-stage PPO training loop over rollout fragments, with checkpoints and resume.
+"""The training loop: PPO through a job's curriculum of stages, with policy blending,
+checkpoints, resume after SIGKILL, TensorBoard scalars and a callback for progress displays.
 
-Groundwork for the learner issue: one scene (no curriculum or blending yet). Fragments come
-from a Ray ``WorkerPool`` (``num_workers >= 1``) or, with ``num_workers = 0``, from one
-in-process ``RolloutWorker`` (tests, debugging). Each iteration gathers
-``fragments_per_update`` fragments, updates the observation normaliser, runs PPO and
-publishes the new weights. A checkpoint is written every ``checkpoint_every`` iterations;
-``run`` resumes from the newest checkpoint in ``run_dir``, so a learner killed with SIGKILL
-restarts from its last checkpoint with a monotonic env-step count.
+Each iteration gathers at least ``ppo.batch_env_steps`` env steps of fragments, updates the
+observation normaliser, runs PPO (on the mirrored batch too with ``ppo.mirror``) and
+publishes the new weights. After each update the curriculum decides whether the stage is
+over (its promotion rule passed or its budget is spent); the next stage's scene is pushed to
+the live workers and, where the stage asks for it, a new network is built:
+
+- ``continue``: the same network (widened with zero weights if the observation grew);
+- ``blend``: pi_new trained in blend with the frozen pi_old, alpha ramped 0 -> 1 over
+  ``blend.ramp_env_steps``; its critic is first fitted to pi_old's GAE returns; once alpha
+  is 1 the blend collapses to pi_new;
+- ``distil``: pi_new's actor fitted to pi_old's actions (behavioural cloning) and its critic
+  to the returns, then PPO;
+- ``scratch``: a fresh network.
+
+Warm-up rollouts count as env steps of the stage, so the three compare at equal env steps.
+A checkpoint is written every ``checkpoint.every_iters`` iterations and at each stage end;
+``Trainer`` resumes from the newest one in ``run_dir/checkpoints``.
 """
 
 from __future__ import annotations
 
 import functools
 import logging
+import time
+from collections import Counter
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
-from learner.checkpoint import latest_checkpoint, load_checkpoint, save_checkpoint
-from learner.policy import GaussianPolicy
-from learner.ppo import PPOConfig, batch_from_fragments, ppo_update
+from learner.checkpoint import (
+    latest_checkpoint,
+    load_checkpoint,
+    load_optimizer_state,
+    save_checkpoint,
+)
+from learner.curriculum import CurriculumState
+from learner.distil import fit_student
+from learner.job import Job, Stage, resolve_scenes
+from learner.policy import (
+    ActorCritic,
+    BlendedPolicy,
+    GaussianPolicy,
+    build_policy,
+    widen_inputs,
+)
+from learner.ppo import batch_from_fragments, ppo_update
+from learner.sampling import LocalSampler, Sampler
+from learner.symmetry import MirrorMap, add_mirrored
 from workers.env import MuscleEnv
-from workers.rollout import RolloutWorker
-from workers.scenes import load_scene
+from workers.scenes import Scene
 
 if TYPE_CHECKING:
-    from workers.pool import WorkerPool
+    from torch.utils.tensorboard import SummaryWriter
 
 logger = logging.getLogger(__name__)
 
+IterationCallback = Callable[[dict], None]
 
-@dataclass(frozen=True)
-class TrainConfig:
-    """One training run on one scene."""
 
-    scene: str
-    """catalogue name or scene YAML path"""
-    run_dir: Path
-    """checkpoints go to ``run_dir/checkpoints``"""
-    backend: str = "mujoco"
-    iterations: int = 100
-    """PPO updates in the run (a resumed run counts the ones already done)"""
-    num_workers: int = 0
-    """Ray rollout actors; 0: one in-process worker"""
-    envs_per_worker: int = 8
-    fragment_length: int = 100
-    fragments_per_update: int = 1
-    hidden: tuple[int, ...] = (64, 64)
-    checkpoint_every: int = 10
-    seed: int = 0
-    ppo: PPOConfig = field(default_factory=PPOConfig)
+class StageIO:
+    """Observation and muscle names of a stage's scene (from one probe env)."""
+
+    def __init__(self, scene: Scene, backend: str) -> None:
+        env = MuscleEnv(scene, backend)
+        self.obs_names: list[str] = list(env.obs_names)
+        self.act_names: list[str] = list(env.sim.muscle_names)
+        self.lateral_axis = 3 - env.sim.up_axis - env.sim.forward_axis
+        env.close()
 
 
 class Trainer:
-    """Runs :class:`TrainConfig`; ``history`` holds one metrics dict per iteration."""
+    """Runs ``job`` in ``run_dir``; ``history`` holds one metrics dict per iteration.
 
-    def __init__(self, config: TrainConfig) -> None:
-        self.config = config
-        self.scene = load_scene(config.scene)
-        probe = MuscleEnv(self.scene, config.backend)
-        dims = (probe.observation_space.shape[0], probe.action_space.shape[0])
-        self.policy_factory = functools.partial(GaussianPolicy, *dims, hidden=config.hidden)
-        torch.manual_seed(config.seed)
-        self.policy = self.policy_factory()
-        self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=config.ppo.lr)
+    Args:
+        job: the validated job.
+        run_dir: checkpoints go to ``run_dir/checkpoints``, TensorBoard to ``run_dir/tb``.
+        scenes: each stage's resolved scene (``learner.job.load_job`` gives them); None
+            resolves them relative to the working directory.
+        on_iteration: called with each iteration's metrics (a progress display).
+        tensorboard: write TensorBoard scalars.
+    """
+
+    def __init__(
+        self,
+        job: Job,
+        run_dir: Path,
+        scenes: list[Scene] | None = None,
+        on_iteration: IterationCallback | None = None,
+        tensorboard: bool = True,
+    ) -> None:
+        self.job = job
+        self.run_dir = run_dir
+        self.scenes = scenes if scenes is not None else resolve_scenes(job)
+        self.on_iteration = on_iteration
+        self.tensorboard = tensorboard
+        self.io = [StageIO(scene, job.backend) for scene in self.scenes]
+        self._check_stages()
+        torch.manual_seed(job.seed)
+        first = self.io[0]
+        self.policy: ActorCritic = GaussianPolicy(
+            len(first.obs_names), len(first.act_names), tuple(job.network.hidden),
+            job.network.init_std,
+        )  # fmt: skip
+        self.obs_names = first.obs_names
+        self.optimizer = self._new_optimizer()
+        self.curriculum = CurriculumState()
         self.iteration = 0
         self.env_steps = 0
+        self.blend_start = 0
+        self.lineage: list[dict] = [
+            {"stage": 0, "transition": "initial", "network": self.policy.describe(),
+             "env_steps": 0}
+        ]  # fmt: skip
         self.history: list[dict] = []
+        self._min_version = 0
+        self._checkpointed_at = 0
+        self._writer: SummaryWriter | None = None
         self._resume()
+
+    # ---- set-up ---------------------------------------------------------------------------
 
     @property
     def checkpoint_dir(self) -> Path:
-        return self.config.run_dir / "checkpoints"
+        return self.run_dir / "checkpoints"
+
+    @property
+    def stage(self) -> Stage:
+        return self.job.stages[self.curriculum.stage]
+
+    @property
+    def scene(self) -> Scene:
+        return self.scenes[min(self.curriculum.stage, len(self.scenes) - 1)]
+
+    @property
+    def done(self) -> bool:
+        return self.curriculum.stage >= len(self.job.stages)
+
+    def _check_stages(self) -> None:
+        acts = self.io[0].act_names
+        for i, io in enumerate(self.io):
+            if io.act_names != acts:
+                raise ValueError(f"stages.{i}: muscles differ from stage 0's; one job, one body")
+            previous = self.io[i - 1].obs_names if i else io.obs_names
+            lost = [n for n in previous if n not in io.obs_names]
+            if lost:
+                raise ValueError(f"stages.{i}: observations of stage {i - 1} missing: {lost[:4]}")
+            if self.job.ppo.mirror:
+                MirrorMap.from_names(io.obs_names, io.act_names, io.lateral_axis)
+
+    def _new_optimizer(self) -> torch.optim.Adam:
+        return torch.optim.Adam(self.policy.trainable_parameters(), lr=self.job.ppo.lr)
+
+    def _policy_factory(self) -> Callable[[], ActorCritic]:
+        return functools.partial(build_policy, self.policy.describe())
 
     def _resume(self) -> None:
         latest = latest_checkpoint(self.checkpoint_dir)
         if latest is None:
             return
         state, meta = load_checkpoint(latest)
+        self.policy = build_policy(meta["network"])
         self.policy.load_state_dict(state)
+        self.optimizer = self._new_optimizer()
+        optimizer_state = load_optimizer_state(latest)
+        if optimizer_state is not None:
+            self.optimizer.load_state_dict(optimizer_state)
+        self.obs_names = meta["obs_names"]
         self.iteration, self.env_steps = int(meta["iteration"]), int(meta["env_steps"])
-        logger.info("resumed from %s at iteration %d", latest, self.iteration)
-
-    def _sampler(self) -> tuple[Callable[[], dict], WorkerPool | None]:
-        """A function returning the next fragment, and the pool behind it (None in-process)."""
-        cfg = self.config
-        if cfg.num_workers == 0:
-            worker = RolloutWorker(
-                self.scene, self.policy_factory, backend=cfg.backend,
-                num_envs=cfg.envs_per_worker, fragment_length=cfg.fragment_length,
-                seed=cfg.seed + self.iteration,
-            )  # fmt: skip
-            return lambda: worker.sample(self.policy.state_dict(), self.iteration), None
-        from workers.pool import WorkerPool  # lazy: imports Ray
-
-        pool = WorkerPool(
-            self.scene, self.policy_factory, backend=cfg.backend, num_workers=cfg.num_workers,
-            envs_per_worker=cfg.envs_per_worker, fragment_length=cfg.fragment_length,
-            seed=cfg.seed + self.iteration,
+        self.curriculum = CurriculumState.from_json(meta["curriculum"])
+        self.blend_start = int(meta.get("blend_start", 0))
+        self.lineage = meta["lineage"]
+        if meta["metrics"].get("verdict"):  # written at a stage's end, before moving on
+            self.curriculum.advance()
+        logger.info(
+            "resumed from %s: stage %d, iteration %d, %d env steps",
+            latest, self.curriculum.stage, self.iteration, self.env_steps,
         )  # fmt: skip
-        pool.set_weights(self.policy.state_dict())
 
-        def sample() -> dict:
-            return pool.next_fragment(timeout_s=600)[0]
+    def _make_sampler(self) -> Sampler:
+        workers = self.job.workers
+        kwargs = {
+            "backend": self.job.backend,
+            "fragment_length": workers.fragment_length,
+            "seed": self.job.seed * 1000 + self.iteration,
+        }
+        if workers.num_workers == 0:
+            sampler: Sampler = LocalSampler(
+                self.scene, self._policy_factory(), num_envs=workers.envs_per_worker, **kwargs
+            )
+        else:
+            import ray  # lazy: the in-process mode needs no Ray
 
-        return sample, pool
+            from workers.pool import WorkerPool
 
-    def run(self) -> list[dict]:
-        cfg = self.config
-        sample, pool = self._sampler()
+            if not ray.is_initialized() and workers.ray_address is not None:
+                ray.init(address=workers.ray_address, logging_level=logging.WARNING)
+            sampler = WorkerPool(
+                self.scene, self._policy_factory(), num_workers=workers.num_workers,
+                envs_per_worker=workers.envs_per_worker, timeout_s=workers.timeout_s, **kwargs,
+            )  # fmt: skip
+        self._min_version = sampler.set_weights(self.policy.state_dict())
+        return sampler
+
+    # ---- the loop -------------------------------------------------------------------------
+
+    def run(self, max_iterations: int | None = None) -> list[dict]:
+        """Train until the last stage ends (or ``max_iterations`` more iterations)."""
+        if self.done:
+            return self.history
+        sampler = self._make_sampler()
+        stop_at = None if max_iterations is None else self.iteration + max_iterations
         try:
-            while self.iteration < cfg.iterations:
-                fragments = [sample() for _ in range(cfg.fragments_per_update)]
-                obs = np.concatenate([f["obs"].reshape(-1, f["obs"].shape[-1]) for f in fragments])
-                self.policy.norm.update(torch.from_numpy(obs))
-                stats = ppo_update(
-                    self.policy, self.optimizer, batch_from_fragments(fragments, cfg.ppo), cfg.ppo
-                )
-                if pool is not None:
-                    pool.set_weights(self.policy.state_dict())
-                self.iteration += 1
-                self.env_steps += sum(int(f["steps"]) for f in fragments)
-                returns = np.concatenate([f["episode_return"] for f in fragments])
-                stats.update(
-                    iteration=self.iteration,
-                    env_steps=self.env_steps,
-                    episode_return=float(returns.mean()) if returns.size else float("nan"),
-                )
-                self.history.append(stats)
-                if self.iteration % cfg.checkpoint_every == 0 or self.iteration == cfg.iterations:
-                    self._checkpoint(stats)
+            while not self.done and (stop_at is None or self.iteration < stop_at):
+                if not self.curriculum.entered:
+                    self._enter_stage(sampler)
+                self._iterate(sampler)
+            if self.history and self.history[-1]["iteration"] > self._checkpointed_at:
+                self._checkpoint(self.history[-1])
         finally:
-            if pool is not None:
-                pool.close()
+            sampler.close()
+            if self._writer is not None:
+                self._writer.close()
         return self.history
 
-    def _checkpoint(self, stats: dict) -> None:
+    def _gather(self, sampler: Sampler, env_steps: int) -> list[dict]:
+        """Fragments of the current policy version or newer, at least ``env_steps`` steps;
+        every one counts in the stage's episodes and the run's env steps."""
+        fragments: list[dict] = []
+        while sum(int(f["steps"]) for f in fragments) < env_steps:
+            fragment, version = sampler.next_fragment(timeout_s=self.job.workers.timeout_s)
+            if version < self._min_version:
+                continue  # made before a scene or network switch
+            fragments.append(fragment)
+            self.curriculum.add(fragment, self.scene)
+            self.env_steps += int(fragment["steps"])
+        return fragments
+
+    def _iterate(self, sampler: Sampler) -> None:
+        stage, ppo = self.stage, self.job.ppo
+        start = time.perf_counter()
+        fragments = self._gather(sampler, ppo.batch_env_steps)
+        gathered_s = time.perf_counter() - start
+        obs = np.concatenate([f["obs"].reshape(-1, f["obs"].shape[-1]) for f in fragments])
+        self.policy.norm.update(torch.from_numpy(obs))
+        progress = min(1.0, self.curriculum.stage_env_steps / stage.env_steps)
+        cfg = ppo.config(batch_size=len(obs) * (2 if ppo.mirror else 1), progress=progress)
+        for group in self.optimizer.param_groups:
+            group["lr"] = cfg.lr
+        batch = batch_from_fragments(fragments, cfg)
+        if ppo.mirror:
+            io = self.io[self.curriculum.stage]
+            mirror = MirrorMap.from_names(io.obs_names, io.act_names, io.lateral_axis)
+            batch = add_mirrored(batch, mirror, self.policy)
+        losses = ppo_update(self.policy, self.optimizer, batch, cfg)
+        self._ramp_blend(sampler)
+        self.iteration += 1
+        sampler.set_weights(self.policy.state_dict())
+        verdict = self.curriculum.verdict(stage)
+        metrics = self._metrics(fragments, losses, cfg.lr, cfg.entropy_coef, gathered_s, start)
+        metrics["verdict"] = verdict
+        self.history.append(metrics)
+        self._log_scalars(metrics)
+        if self.on_iteration is not None:
+            self.on_iteration(metrics)
+        if verdict is not None or self.iteration % self.job.checkpoint.every_iters == 0:
+            self._checkpoint(metrics)
+        if verdict is not None:
+            logger.info("stage %d (%s) ends: %s", self.curriculum.stage, self.scene.name, verdict)
+            self.curriculum.advance()
+            if not self.done:
+                sampler.set_scene(self.scene)
+                self._min_version = sampler.set_weights(self.policy.state_dict())
+
+    # ---- stage transitions ----------------------------------------------------------------
+
+    def _enter_stage(self, sampler: Sampler) -> None:
+        """Build the stage's network (if it asks for one) and mark the stage entered."""
+        index, stage = self.curriculum.stage, self.stage
+        io = self.io[index]
+        if index == 0:
+            self.curriculum.entered = True
+            return
+        if stage.transition == "continue":
+            if io.obs_names != self.obs_names:
+                teacher = self._collapsed()
+                self.policy = widen_inputs(teacher, self.obs_names, io.obs_names)
+                self._switch_policy(sampler, io)
+        elif stage.transition == "scratch":
+            net = stage.network or self.job.network
+            self.policy = GaussianPolicy(
+                len(io.obs_names), len(io.act_names), tuple(net.hidden), net.init_std
+            )
+            self._switch_policy(sampler, io)
+        else:
+            self._warm_start(sampler, stage, io)
+        self.curriculum.entered = True
+        self.blend_start = self.curriculum.stage_env_steps
+        self.lineage.append(
+            {"stage": index, "transition": stage.transition, "network": self.policy.describe(),
+             "env_steps": self.env_steps}
+        )  # fmt: skip
+        logger.info("stage %d (%s): %s", index, self.scene.name, stage.transition)
+
+    def _collapsed(self) -> GaussianPolicy:
+        """The current policy as one network (a finished blend is its new network)."""
+        policy = self.policy
+        while isinstance(policy, BlendedPolicy):
+            policy = policy.new
+        assert isinstance(policy, GaussianPolicy)
+        return policy
+
+    def _switch_policy(self, sampler: Sampler, io: StageIO) -> None:
+        self.obs_names = io.obs_names
+        self.optimizer = self._new_optimizer()
+        self._min_version = sampler.set_policy(self._policy_factory(), self.policy.state_dict())
+
+    def _warm_start(self, sampler: Sampler, stage: Stage, io: StageIO) -> None:
+        """``blend`` and ``distil``: roll pi_old out on the new stage (as a blend at alpha 0),
+        fit pi_new's critic (and for distil its actor) to that data, then train."""
+        teacher = self.policy
+        net = stage.network or self.job.network
+        student = GaussianPolicy(
+            len(io.obs_names), len(io.act_names), tuple(net.hidden), net.init_std
+        )
+        old_inputs = [io.obs_names.index(n) for n in self.obs_names]
+        blended = BlendedPolicy(teacher.describe(), student.describe(), old_inputs)
+        blended.old.load_state_dict(teacher.state_dict())
+        blended.new.load_state_dict(student.state_dict())
+        self.policy = blended
+        self._switch_policy(sampler, io)
+        fragments = self._gather(sampler, max(1, stage.blend.critic_warmup_env_steps))
+        batch = batch_from_fragments(fragments, self.job.ppo.config(1, 0.0))
+        student.norm.update(batch["obs"])
+        with torch.no_grad():
+            student.log_std.copy_(blended.distribution(batch["obs"][:1]).stddev.log()[0])
+            teacher_mean = blended.distribution(batch["obs"]).mean
+        fit = fit_student(
+            student, batch["obs"], batch["return"],
+            teacher_mean if stage.transition == "distil" else None,
+            epochs=stage.blend.fit_epochs, seed=self.job.seed,
+        )  # fmt: skip
+        logger.info("warm start (%s): %s", stage.transition, fit)
+        if stage.transition == "distil":
+            self.policy = student
+        else:
+            blended.new.load_state_dict(student.state_dict())
+        self._switch_policy(sampler, io)
+
+    def _ramp_blend(self, sampler: Sampler) -> None:
+        if not isinstance(self.policy, BlendedPolicy):
+            return
+        ramp = self.stage.blend.ramp_env_steps
+        alpha = (self.curriculum.stage_env_steps - self.blend_start) / ramp
+        self.policy.set_alpha(alpha)
+        if alpha >= 1.0:  # pi_old no longer acts: drop it
+            self.policy = self.policy.new
+            self._min_version = sampler.set_policy(self._policy_factory(), self.policy.state_dict())
+
+    # ---- metrics and checkpoints ----------------------------------------------------------
+
+    def _metrics(
+        self, fragments: list[dict], losses: dict, lr: float, entropy_coef: float,
+        gathered_s: float, start: float,
+    ) -> dict:  # fmt: skip
+        steps = sum(int(f["steps"]) for f in fragments)
+        health: Counter[str] = Counter()
+        terms: Counter[str] = Counter()
+        for f in fragments:
+            health.update(f["health"])
+            terms.update({k: v * int(f["steps"]) / steps for k, v in f["reward_terms"].items()})
+        alpha = float(self.policy.alpha) if isinstance(self.policy, BlendedPolicy) else None
+        return {
+            "iteration": self.iteration,
+            "env_steps": self.env_steps,
+            "stage": self.curriculum.stage,
+            "stage_name": self.job.stages[self.curriculum.stage].name or self.scene.name,
+            "scene": self.scene.name,
+            "stage_env_steps": self.curriculum.stage_env_steps,
+            "alpha": alpha,
+            "steps_per_s": steps / max(time.perf_counter() - start, 1e-9),
+            "sample_steps_per_s": steps / max(gathered_s, 1e-9),
+            "episodes": sum(len(f["episode_return"]) for f in fragments),
+            **self.curriculum.summary(),
+            "lr": lr,
+            "entropy_coef": entropy_coef,
+            **losses,
+            "health": dict(health),
+            "reward_terms": dict(terms),
+        }
+
+    def _log_scalars(self, metrics: dict) -> None:
+        if not self.tensorboard:
+            return
+        if self._writer is None:
+            from torch.utils.tensorboard import SummaryWriter  # lazy: imports tensorboard
+
+            self._writer = SummaryWriter(str(self.run_dir / "tb"))
+        step = metrics["env_steps"]
+        for key, value in metrics.items():
+            if isinstance(value, int | float) and value is not None and np.isfinite(value):
+                self._writer.add_scalar(f"train/{key}", value, step)
+        for group in ("reward_terms", "health"):
+            for key, value in metrics[group].items():
+                self._writer.add_scalar(f"{group}/{key}", value, step)
+
+    def _checkpoint(self, metrics: dict) -> Path:
+        self._checkpointed_at = self.iteration
+        flat = {k: v for k, v in metrics.items() if not isinstance(v, dict)}
         meta = {
             "iteration": self.iteration,
+            "job": self.job.model_dump(mode="json"),
+            "config": {"backend": self.job.backend},
             "scene": self.scene.model_dump(mode="json"),
-            "config": {**asdict(self.config), "run_dir": str(self.config.run_dir)},
-            "metrics": stats,
+            "stage": {
+                "index": self.curriculum.stage,
+                "name": flat["stage_name"],
+                "env_steps": self.curriculum.stage_env_steps,
+            },
+            "curriculum": self.curriculum.to_json(),
+            "blend_start": self.blend_start,
+            "lineage": self.lineage,
             "network": self.policy.describe(),
+            "obs_names": self.obs_names,
+            "metrics": flat,
         }
-        save_checkpoint(self.checkpoint_dir, self.env_steps, self.policy.state_dict(), meta,
-                        best_metric="episode_return")  # fmt: skip
+        return save_checkpoint(
+            self.checkpoint_dir, self.env_steps, self.policy.state_dict(), meta,
+            keep_last=self.job.checkpoint.keep_last, best_metric="return",
+            optimizer_state=self.optimizer.state_dict(),
+        )  # fmt: skip

@@ -131,6 +131,14 @@ class WorkerPool:
         for slot in self._slots:
             slot.actor.set_scene.remote(scene)
 
+    def set_policy(self, policy_factory: PolicyFactory, weights: dict) -> int:
+        """Give every actor a new policy structure and its weights; returns the version from
+        which fragments come from it (requests queued before it finish on the old one)."""
+        self._actor_kwargs["policy_factory"] = policy_factory
+        for slot in self._slots:
+            slot.actor.set_policy.remote(policy_factory)
+        return self.set_weights(weights)
+
     def next_fragment(self, timeout_s: float | None = None) -> tuple[dict, int]:
         """The first fragment back from any actor, and the policy version that made it."""
         deadline = None if timeout_s is None else time.monotonic() + timeout_s

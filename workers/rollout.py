@@ -14,7 +14,8 @@ arrays with leading dimensions ``[T, K]``:
     last_obs [K, obs_dim], last_value [K]   to bootstrap the fragment's end
     episode_return, episode_length, episode_distance, episode_fell [E]  episodes ended here
 
-plus ``health`` (cause -> count), ``policy_version``, ``worker`` and timing. Policy
+plus ``health`` (cause -> count), ``reward_terms`` (term -> mean per env step, weighted),
+``policy_version``, ``worker`` and timing. Policy
 inference is batched over the K envs, one torch thread.
 """
 
@@ -85,6 +86,12 @@ class RolloutWorker:
         """Switch every env to ``scene`` (a curriculum stage); episodes restart."""
         self._build_envs(scene, len(self.envs))
 
+    def set_policy(self, policy_factory: PolicyFactory) -> None:
+        """Replace the policy's structure (a new network at a curriculum stage); weights
+        follow with the next request."""
+        self.policy = policy_factory()
+        self.policy_version = -1
+
     def set_weights(self, weights: dict[str, torch.Tensor], version: int) -> None:
         if version != self.policy_version:
             self.policy.load_state_dict(weights)
@@ -111,6 +118,7 @@ class RolloutWorker:
         }
         episodes: list[tuple[float, int, float, bool]] = []
         health: Counter[str] = Counter()
+        term_sums: Counter[str] = Counter()
         for t in range(t_len):
             with torch.no_grad():
                 action, logp, value = self.policy.act(torch.from_numpy(self._obs))
@@ -125,6 +133,7 @@ class RolloutWorker:
                 tally = self._tally[i]
                 tally.ret += reward
                 tally.length += 1
+                term_sums.update(info["reward_terms"])
                 if info["health"] != "ok":
                     out["unhealthy"][t, i] = True
                     health[info["health"]] += 1
@@ -151,6 +160,7 @@ class RolloutWorker:
         self.steps_total += t_len * k
         out.update(
             health=dict(health),
+            reward_terms={name: total / (t_len * k) for name, total in term_sums.items()},
             policy_version=self.policy_version,
             worker=self.worker_id,
             steps=t_len * k,

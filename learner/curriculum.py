@@ -1,0 +1,123 @@
+"""Curriculum bookkeeping: where a run is in its stages, the episodes behind each promotion
+rule, and the decision to move on.
+
+The trainer feeds every fragment's finished episodes to :class:`CurriculumState`; after each
+update it asks :meth:`CurriculumState.verdict` whether the stage is over: its promotion rule
+passed (over a full window of episodes) or its env-step budget is spent. The state is plain
+data, saved in each checkpoint's ``meta.json`` so that a resumed run keeps its window.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from learner.job import Stage
+from workers.scenes import Scene
+
+WINDOW_MAX = 10_000
+
+
+@dataclass
+class EpisodeStats:
+    """One finished episode: return, distance (m), length (s), fell."""
+
+    ret: float
+    distance: float
+    length_s: float
+    fell: bool
+    full: bool
+    """lasted the whole episode"""
+
+    def metric(self, name: str) -> float:
+        return {
+            "return": self.ret,
+            "distance": self.distance,
+            "speed": self.distance / max(self.length_s, 1e-9),
+            "fall_rate": float(self.fell),
+            "survival": float(self.full and not self.fell),
+            "length": self.length_s,
+        }[name]
+
+
+def episodes_of(fragment: dict, scene: Scene) -> list[EpisodeStats]:
+    """The episodes that ended in ``fragment`` (a rollout fragment of ``scene``)."""
+    lengths = fragment["episode_length"]
+    return [
+        EpisodeStats(
+            float(r),
+            float(d),
+            int(n) / scene.control_hz,
+            bool(f),
+            int(n) >= scene.steps_per_episode,
+        )
+        for r, d, n, f in zip(
+            fragment["episode_return"],
+            fragment["episode_distance"],
+            lengths,
+            fragment["episode_fell"],
+            strict=True,
+        )
+    ]
+
+
+@dataclass
+class CurriculumState:
+    """The stage a run is in, its env steps there, and its recent episodes."""
+
+    stage: int = 0
+    stage_env_steps: int = 0
+    entered: bool = False
+    """the stage's transition (scene push, new network) is done"""
+    episodes: deque[EpisodeStats] = field(default_factory=lambda: deque(maxlen=WINDOW_MAX))
+
+    def add(self, fragment: dict, scene: Scene) -> None:
+        self.stage_env_steps += int(fragment["steps"])
+        self.episodes.extend(episodes_of(fragment, scene))
+
+    def window_mean(self, metric: str, window: int) -> float:
+        """Mean of ``metric`` over the last ``window`` episodes (NaN with none)."""
+        recent = list(self.episodes)[-window:]
+        return float(np.mean([e.metric(metric) for e in recent])) if recent else float("nan")
+
+    def summary(self, window: int = 100) -> dict[str, float]:
+        """Every metric's mean over the last ``window`` episodes."""
+        return {
+            m: self.window_mean(m, window)
+            for m in ("return", "distance", "speed", "fall_rate", "survival", "length")
+        }
+
+    def verdict(self, stage: Stage) -> str | None:
+        """Why the stage ends now (``"promoted: ..."`` or ``"budget spent"``), or None."""
+        rule = stage.promote
+        if rule is not None and len(self.episodes) >= rule.window:
+            mean = self.window_mean(rule.metric, rule.window)
+            if rule.passes(mean):
+                return f"promoted: {rule.metric} {mean:.3g} {rule.op} {rule.value:g}"
+        if self.stage_env_steps >= stage.env_steps:
+            return "budget spent"
+        return None
+
+    def advance(self) -> None:
+        self.stage += 1
+        self.stage_env_steps = 0
+        self.entered = False
+        self.episodes.clear()
+
+    def to_json(self) -> dict:
+        return {
+            "stage": self.stage,
+            "stage_env_steps": self.stage_env_steps,
+            "entered": self.entered,
+            "episodes": [
+                [e.ret, e.distance, e.length_s, e.fell, e.full] for e in list(self.episodes)[-1000:]
+            ],
+        }
+
+    @classmethod
+    def from_json(cls, raw: dict) -> CurriculumState:
+        state = cls(int(raw["stage"]), int(raw["stage_env_steps"]), bool(raw["entered"]))
+        state.episodes.extend(EpisodeStats(*e) for e in raw["episodes"])
+        return state

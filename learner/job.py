@@ -1,0 +1,222 @@
+"""The job file: a body's curriculum of stages, PPO settings, workers and checkpoints.
+
+Validated once, early (``load_job``): every scene must load, each stage's scene must run on
+the job's backend, and a network change between stages needs a transition that builds a new
+network (``blend``, ``distil`` or ``scratch``). Errors are one line naming the file and field.
+
+    name: walk-2d
+    backend: mujoco
+    network: {hidden: [64, 64]}
+    ppo: {batch_env_steps: 8192, lr: 3.0e-4, lr_end: 1.0e-4, entropy_coef: 0.001}
+    stages:
+      - scene: stand-2d
+        env_steps: 300000
+        promote: "survival >= 0.95 over 50"
+      - scene: walk-2d
+        env_steps: 2000000
+        network: {hidden: [128, 128]}
+        transition: blend
+        blend: {ramp_env_steps: 200000}
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from learner.ppo import PPOConfig
+from workers.scenes import Scene, load_scene
+from workers.scenes.profiles import Fidelity
+from workers.spec_io import SpecError, load_yaml_model
+
+METRICS = ("return", "distance", "speed", "fall_rate", "survival", "length")
+"""Episode statistics a promotion rule can test, each averaged over its window: return;
+distance covered (m); mean speed (m/s); fall rate (fraction of episodes that fell);
+survival (fraction that lasted the whole episode without falling); length (s)."""
+
+_RULE = re.compile(
+    r"^\s*(?P<metric>[a-z_]+)\s*(?P<op>>=|<=)\s*(?P<value>[-+0-9.eE]+)\s*"
+    r"(?:over\s+(?P<window>\d+))?\s*$"
+)
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class PromotionRule(_Strict):
+    """Promote when the mean of ``metric`` over the last ``window`` episodes passes
+    ``value``. Written as a mapping or a string: ``"distance >= 5 over 100"``."""
+
+    metric: Literal["return", "distance", "speed", "fall_rate", "survival", "length"]
+    op: Literal[">=", "<="]
+    value: float
+    window: Annotated[int, Field(ge=1, le=10_000)] = 100
+
+    def __str__(self) -> str:
+        return f"{self.metric} {self.op} {self.value:g} over {self.window} episodes"
+
+    def passes(self, mean: float) -> bool:
+        return mean >= self.value if self.op == ">=" else mean <= self.value
+
+
+class NetworkSpec(_Strict):
+    hidden: list[Annotated[int, Field(ge=1, le=4096)]] = Field(
+        default_factory=lambda: [64, 64], min_length=1, max_length=8
+    )
+    init_std: Annotated[float, Field(gt=0, le=2)] = 0.3
+    """initial standard deviation of the excitations"""
+
+
+class BlendSpec(_Strict):
+    ramp_env_steps: Annotated[int, Field(ge=1)] = 200_000
+    """alpha goes linearly from 0 to 1 over this many env steps of the stage"""
+    critic_warmup_env_steps: Annotated[int, Field(ge=0)] = 8192
+    """env steps of pi_old's rollouts the new critic (and, for distil, actor) is fitted to"""
+    fit_epochs: Annotated[int, Field(ge=1, le=1000)] = 50
+    """passes of the fit over that data"""
+
+
+class Stage(_Strict):
+    """One curriculum stage: a scene, a budget and a rule to leave early."""
+
+    scene: str
+    """catalogue name or scene YAML path (relative to the job file)"""
+    name: str | None = None
+    """defaults to the scene's name"""
+    fidelity: Fidelity | None = None
+    """overrides the scene's fidelity profile (a fidelity curriculum changes only this)"""
+    env_steps: Annotated[int, Field(ge=1)]
+    """the stage's budget; it ends at the budget even if the rule never passed"""
+    promote: PromotionRule | None = None
+    network: NetworkSpec | None = None
+    """a new network for this stage (needs a building transition); None keeps the current"""
+    transition: Literal["continue", "blend", "distil", "scratch"] = "continue"
+    blend: BlendSpec = BlendSpec()
+
+    @field_validator("promote", mode="before")
+    @classmethod
+    def _parse_rule(cls, raw: object) -> object:
+        if not isinstance(raw, str):
+            return raw
+        match = _RULE.match(raw)
+        if match is None:
+            raise ValueError(
+                f"expected '<metric> >=|<= <value> [over <episodes>]', metric one of {METRICS}"
+            )
+        return {k: v for k, v in match.groupdict().items() if v is not None}
+
+    @model_validator(mode="after")
+    def _transition_fits(self) -> Stage:
+        if self.network is not None and self.transition == "continue":
+            raise ValueError(
+                "network: a new network needs transition blend, distil or scratch (not continue)"
+            )
+        return self
+
+
+class PPOSpec(_Strict):
+    """PPO settings (``learner.ppo.PPOConfig``) plus schedules and batch size."""
+
+    gamma: Annotated[float, Field(gt=0, le=1)] = 0.99
+    lam: Annotated[float, Field(ge=0, le=1)] = 0.95
+    clip: Annotated[float, Field(gt=0, le=1)] = 0.2
+    value_coef: Annotated[float, Field(ge=0)] = 0.5
+    entropy_coef: Annotated[float, Field(ge=0)] = 0.0
+    entropy_coef_end: Annotated[float, Field(ge=0)] | None = None
+    """entropy weight at the end of each stage (linear schedule); None: constant"""
+    lr: Annotated[float, Field(gt=0, le=1)] = 3e-4
+    lr_end: Annotated[float, Field(gt=0, le=1)] | None = None
+    """learning rate at the end of each stage (linear schedule); None: constant"""
+    epochs: Annotated[int, Field(ge=1, le=100)] = 5
+    minibatch_size: Annotated[int, Field(ge=1)] = 2048
+    max_grad_norm: Annotated[float, Field(gt=0)] = 0.5
+    target_kl: Annotated[float, Field(gt=0)] | None = 0.03
+    batch_env_steps: Annotated[int, Field(ge=1)] = 8192
+    """env steps gathered per update (whole fragments: at least this many)"""
+    mirror: bool = False
+    """add each sample's left-right mirror image to the batch (bilateral bodies)"""
+
+    def config(self, batch_size: int, progress: float) -> PPOConfig:
+        """The PPO update's settings ``progress`` (0..1) through a stage."""
+        lr_end = self.lr if self.lr_end is None else self.lr_end
+        ent_end = self.entropy_coef if self.entropy_coef_end is None else self.entropy_coef_end
+        return PPOConfig(
+            gamma=self.gamma, lam=self.lam, clip=self.clip, value_coef=self.value_coef,
+            entropy_coef=self.entropy_coef + (ent_end - self.entropy_coef) * progress,
+            lr=self.lr + (lr_end - self.lr) * progress, epochs=self.epochs,
+            minibatches=max(1, round(batch_size / self.minibatch_size)),
+            max_grad_norm=self.max_grad_norm, target_kl=self.target_kl,
+        )  # fmt: skip
+
+
+class WorkersSpec(_Strict):
+    num_workers: Annotated[int, Field(ge=0, le=4096)] | None = None
+    """Ray rollout actors (None: the cluster's CPUs less one; 0: one in-process worker)"""
+    envs_per_worker: Annotated[int, Field(ge=1, le=1024)] = 8
+    fragment_length: Annotated[int, Field(ge=8, le=100_000)] = 128
+    ray_address: str | None = None
+    """a Ray cluster to join ("auto", "ray://host:10001"); None: start a local one"""
+    timeout_s: Annotated[float, Field(gt=0)] = 600.0
+    """an actor with no fragment for this long is replaced"""
+
+
+class CheckpointSpec(_Strict):
+    every_iters: Annotated[int, Field(ge=1)] = 10
+    keep_last: Annotated[int, Field(ge=1)] = 3
+    record_every_iters: Annotated[int, Field(ge=0)] = 0
+    """an MCAP recording of one deterministic episode every N iterations (0: at stage ends
+    only)"""
+
+
+class Job(_Strict):
+    name: str = Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+    backend: Literal["mujoco", "opensim"] = "mujoco"
+    seed: int = 0
+    network: NetworkSpec = NetworkSpec()
+    ppo: PPOSpec = PPOSpec()
+    workers: WorkersSpec = WorkersSpec()
+    checkpoint: CheckpointSpec = CheckpointSpec()
+    stages: list[Stage] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _first_stage(self) -> Job:
+        if self.stages[0].transition != "continue" or self.stages[0].network is not None:
+            raise ValueError("stages.0: the first stage uses the job's network (no transition)")
+        return self
+
+
+def load_job(path: Path) -> tuple[Job, list[Scene]]:
+    """Read and check a job file; returns the job and each stage's resolved scene (with the
+    stage's fidelity override applied).
+
+    Raises:
+        SpecError: one line naming the file, the field and what is allowed.
+    """
+    job = load_yaml_model(path, Job)
+    return job, resolve_scenes(job, base=path.parent, source=str(path))
+
+
+def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> list[Scene]:
+    """Each stage's scene, checked against the job's backend."""
+    scenes = []
+    for i, stage in enumerate(job.stages):
+        ref = stage.scene
+        if ref.endswith((".yaml", ".yml")) and not Path(ref).is_absolute():
+            ref = str(base / ref)
+        try:
+            scene = load_scene(ref)
+            if stage.fidelity is not None:
+                scene = Scene.model_validate({**scene.model_dump(), "fidelity": stage.fidelity})
+        except (SpecError, ValueError) as exc:
+            raise SpecError(f"{source}: stages.{i}.scene: {str(exc).splitlines()[0]}") from None
+        if job.backend not in scene.backends:
+            raise SpecError(
+                f"{source}: stages.{i}.scene: {scene.name!r} runs on {scene.backends}, "
+                f"not on the job's backend {job.backend!r}"
+            )
+        scenes.append(scene)
+    return scenes

@@ -1,0 +1,56 @@
+"""Where fragments come from: a Ray ``WorkerPool`` or one in-process ``RolloutWorker``.
+
+Both answer the same calls. A *version* is handed out with each weight update; a fragment
+carries the version it was made with, so that the trainer can drop fragments made before a
+scene or network switch (requests already queued finish on the old ones).
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import torch
+
+from workers.rollout import PolicyFactory, RolloutWorker
+from workers.scenes import Scene
+
+
+class Sampler(Protocol):
+    def set_weights(self, weights: dict[str, torch.Tensor]) -> int: ...
+
+    def set_scene(self, scene: Scene) -> None: ...
+
+    def set_policy(
+        self, policy_factory: PolicyFactory, weights: dict[str, torch.Tensor]
+    ) -> int: ...
+
+    def next_fragment(self, timeout_s: float | None = None) -> tuple[dict, int]: ...
+
+    def close(self) -> None: ...
+
+
+class LocalSampler:
+    """One in-process ``RolloutWorker`` (tests, debugging, ``num_workers: 0``)."""
+
+    def __init__(self, scene: Scene, policy_factory: PolicyFactory, **worker_kwargs) -> None:
+        self.worker = RolloutWorker(scene, policy_factory, **worker_kwargs)
+        self.version = -1
+        self._weights: dict[str, torch.Tensor] | None = None
+
+    def set_weights(self, weights: dict[str, torch.Tensor]) -> int:
+        self.version += 1
+        self._weights = {k: v.detach().clone() for k, v in weights.items()}
+        return self.version
+
+    def set_scene(self, scene: Scene) -> None:
+        self.worker.set_scene(scene)
+
+    def set_policy(self, policy_factory: PolicyFactory, weights: dict[str, torch.Tensor]) -> int:
+        self.worker.set_policy(policy_factory)
+        return self.set_weights(weights)
+
+    def next_fragment(self, timeout_s: float | None = None) -> tuple[dict, int]:
+        return self.worker.sample(self._weights, self.version), self.version
+
+    def close(self) -> None:
+        pass
