@@ -117,7 +117,9 @@ class Rate:
         denom = 1 + z**2 / n
         centre = (p + z**2 / (2 * n)) / denom
         half = z * math.sqrt(p * (1 - p) / n + z**2 / (4 * n**2)) / denom
-        return cls(p, max(0.0, centre - half), min(1.0, centre + half), count, n)
+        low = 0.0 if count == 0 else max(0.0, centre - half)
+        high = 1.0 if count == n else min(1.0, centre + half)
+        return cls(p, low, high, count, n)
 
 
 # ---- results --------------------------------------------------------------------------------
