@@ -75,6 +75,12 @@ def check_finite(tensors: dict[str, torch.Tensor]) -> None:
             )
 
 
+def clipped_surrogate_loss(ratio: torch.Tensor, adv: torch.Tensor, clip: float) -> torch.Tensor:
+    """PPO's policy loss: ``-mean(min(r A, clip(r, 1 - eps, 1 + eps) A))`` over ratios
+    ``ratio`` [N] and advantages ``adv`` [N]."""
+    return -torch.min(ratio * adv, ratio.clamp(1 - clip, 1 + clip) * adv).mean()
+
+
 def ppo_update(
     policy: GaussianPolicy,
     optimizer: torch.optim.Optimizer,
@@ -94,10 +100,7 @@ def ppo_update(
             logp, entropy, value = policy.evaluate(batch["obs"][idx], batch["action"][idx])
             log_ratio = logp - batch["logp"][idx]
             ratio = log_ratio.exp()
-            surrogate = torch.min(
-                ratio * adv[idx], ratio.clamp(1 - cfg.clip, 1 + cfg.clip) * adv[idx]
-            )
-            policy_loss = -surrogate.mean()
+            policy_loss = clipped_surrogate_loss(ratio, adv[idx], cfg.clip)
             value_loss = 0.5 * (value - batch["return"][idx]).pow(2).mean()
             loss = policy_loss + cfg.value_coef * value_loss - cfg.entropy_coef * entropy.mean()
             check_finite({"policy_loss": policy_loss, "value_loss": value_loss})

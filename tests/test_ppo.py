@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from learner.policy import GaussianPolicy
-from learner.ppo import PPOConfig, batch_from_fragments, ppo_update
+from learner.ppo import PPOConfig, batch_from_fragments, clipped_surrogate_loss, ppo_update
 from workers.env import MuscleEnv
 from workers.rollout import RolloutWorker
 from workers.scenes import load_scene
@@ -62,3 +62,12 @@ def test_elbow_reach_learns_in_process() -> None:
     start, end = np.mean(returns[:3]), np.mean(returns[-3:])
     assert start < -50, f"a random policy should do badly: {start:.1f}"
     assert end > start / 2, f"no learning: {start:.1f} -> {end:.1f}"
+
+
+def test_clipped_surrogate_against_hand_worked_numbers() -> None:
+    # r = 1.5, A = +2: min(3.0, 1.2 * 2) = 2.4;   r = 0.5, A = +1: min(0.5, 0.8) = 0.5;
+    # r = 0.5, A = -1: min(-0.5, 0.8 * -1) = -0.8; r = 1.1, A = -3: inside the range, -3.3
+    ratio = torch.tensor([1.5, 0.5, 0.5, 1.1])
+    adv = torch.tensor([2.0, 1.0, -1.0, -3.0])
+    expected = -(2.4 + 0.5 + (-0.8) + (-3.3)) / 4
+    assert clipped_surrogate_loss(ratio, adv, 0.2).item() == pytest.approx(expected)
