@@ -21,6 +21,8 @@ over steps and muscles), return (sum of the scene's weighted reward terms).
 
 from __future__ import annotations
 
+import hashlib
+import importlib
 import json
 import logging
 import math
@@ -236,6 +238,10 @@ class EvaluationReport:
     sweep: list[SweepPoint] = field(default_factory=list)
     sweep_mode: Mode | None = None
     stage: dict | None = None
+    recording: str | None = None
+    """MCAP file of the first episode, if one was written"""
+    video: str | None = None
+    """MP4 file of the first episode, if one was written"""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able (NaN written as null)."""
@@ -262,7 +268,8 @@ def write_json(report: EvaluationReport, path: Path) -> None:
 
 
 class EpisodeObserver(Protocol):
-    """Sees every step of one episode (a recorder or a video writer)."""
+    """Sees every step of one episode (a recorder or a video writer); ``action`` is the
+    excitation applied, clipped to [0, 1]."""
 
     def on_reset(self, env: Any, obs: np.ndarray) -> None: ...
 
@@ -271,6 +278,77 @@ class EpisodeObserver(Protocol):
     ) -> None: ...
 
     def close(self) -> None: ...
+
+
+class McapObserver:
+    """Records one episode to an MCAP file with ``learner.recording.EpisodeRecorder``."""
+
+    def __init__(self, path: Path, env: MuscleEnv, metadata: dict[str, str]) -> None:
+        from learner.recording import EpisodeRecorder  # lazy: imports foxglove
+
+        self.recorder = EpisodeRecorder(path, env, metadata)
+
+    def on_reset(self, env: MuscleEnv, obs: np.ndarray) -> None:
+        pass
+
+    def on_step(
+        self, env: MuscleEnv, action: np.ndarray, obs: np.ndarray, reward: float, info: dict
+    ) -> None:
+        self.recorder.log_step(env, action, info.get("reward_terms"), info)
+
+    def close(self) -> None:
+        self.recorder.close()
+
+
+def check_recording_available(record: bool, video: bool) -> None:
+    """Raise :class:`EvaluationError` (one line) if the modules that write recordings or
+    videos cannot be imported."""
+    wanted = [("--record", "learner.recording")] if record else []
+    wanted += [("--video", "learner.video")] if video else []
+    for option, module in wanted:
+        try:
+            importlib.import_module(module)
+        except ImportError as exc:
+            raise EvaluationError(f"{option}: recording not available yet ({exc})") from None
+
+
+class VideoObserver:
+    """Renders one episode to an MP4 with ``learner.video.VideoRecorder`` (offscreen, CPU)."""
+
+    def __init__(self, path: Path, env: MuscleEnv) -> None:
+        from learner.video import VideoRecorder  # lazy: imports the renderer
+
+        try:
+            self.video = VideoRecorder(path, env)
+        except (RuntimeError, ValueError) as exc:
+            first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise EvaluationError(f"--video: {first}") from None
+
+    def on_reset(self, env: MuscleEnv, obs: np.ndarray) -> None:
+        self.video.capture(env)
+
+    def on_step(
+        self, env: MuscleEnv, action: np.ndarray, obs: np.ndarray, reward: float, info: dict
+    ) -> None:
+        self.video.capture(env)
+
+    def close(self) -> None:
+        self.video.close()
+
+
+def recording_metadata(ckpt: Path, meta: dict, mode: str, seed: int) -> dict[str, str]:
+    """Strings for a recording's metadata: checkpoint path and hash (sha256 of its
+    manifest, which holds every file's sha256), env steps, stage, action mode and seed."""
+    stage = meta.get("stage")
+    return {
+        "source": "gaitforge evaluate",
+        "checkpoint": str(ckpt),
+        "checkpoint_sha256": hashlib.sha256((ckpt / "manifest.json").read_bytes()).hexdigest(),
+        "env_steps": str(meta.get("env_steps", "")),
+        "stage": json.dumps(stage) if stage is not None else "",
+        "mode": mode,
+        "seed": str(seed),
+    }
 
 
 # ---- running --------------------------------------------------------------------------------
@@ -353,7 +431,7 @@ def run_episode(
         for name, value in info.get("reward_terms", {}).items():
             terms[name] = terms.get(name, 0.0) + float(value)
         if observer is not None:
-            observer.on_step(env, action, obs, reward, info)
+            observer.on_step(env, applied, obs, reward, info)
         health = info.get("health", "ok")
         fell = bool(info.get("fell", False))
         if terminated or truncated:
@@ -545,7 +623,8 @@ def evaluate_checkpoint(
     sweep: Iterable[float] | None = None,
     sweep_mode: Mode = "deterministic",
     observers: Sequence[EpisodeObserver] = (),
-    observer_factory: Callable[[Any, dict], Sequence[EpisodeObserver]] | None = None,
+    record: Path | None = None,
+    video: Path | None = None,
     pick: Literal["latest", "best"] = "latest",
     progress: ProgressFn | None = None,
 ) -> EvaluationReport:
@@ -560,9 +639,9 @@ def evaluate_checkpoint(
         seed: episode ``i`` resets with ``seed + i``.
         sweep: target-speed reductions (fractions in [0, 1)) for the speed-against-safety
             sweep, run in ``sweep_mode``; None for no sweep.
-        observers: see every step of the first episode of the first mode (recordings).
-        observer_factory: ``(env, metadata) -> observers``, called with the env of the first
-            mode and the checkpoint's metadata, for observers that need the env.
+        observers: see every step of the first episode (seed ``seed``) of the first mode.
+        record: write that episode as an MCAP recording here (``learner.recording``).
+        video: write that episode as an MP4 video here (``learner.video``).
         pick: "latest" or "best" when ``path`` is a run directory.
         progress: ``(label, done, total)`` after each episode.
 
@@ -575,6 +654,8 @@ def evaluate_checkpoint(
     bad = [m for m in modes if m not in MODES]
     if bad or not modes:
         raise EvaluationError(f"modes {list(modes)}: expected some of {list(MODES)}")
+    if record is not None or video is not None:
+        check_recording_available(record is not None, video is not None)
     ckpt = resolve_checkpoint(Path(path), pick)
     policy, meta = load_policy(ckpt)
     chosen = _scene_of(meta, ckpt, scene)
@@ -589,8 +670,11 @@ def evaluate_checkpoint(
             watching: list[EpisodeObserver] = []
             if k == 0:
                 watching = list(observers)
-                if observer_factory is not None:
-                    watching += list(observer_factory(env, {**meta, "checkpoint": str(ckpt)}))
+                info = recording_metadata(ckpt, meta, mode, seed)
+                if record is not None:
+                    watching.append(McapObserver(record, env, info))
+                if video is not None:
+                    watching.append(VideoObserver(video, env))
             observer = _Fanout(watching) if watching else None
             results[mode] = evaluate_policy(
                 policy, chosen, backend, episodes=episodes, mode=mode, seed=seed, env=env,
@@ -614,6 +698,8 @@ def evaluate_checkpoint(
         sweep=points,
         sweep_mode=sweep_mode if sweep_list is not None else None,
         stage=meta.get("stage"),
+        recording=None if record is None else str(record),
+        video=None if video is None else str(video),
     )
 
 

@@ -100,22 +100,6 @@ def render(report: Any) -> Group:
     return Group(*parts)
 
 
-def _observer_factory(record: Path | None, video: Path | None):
-    """Observers for ``--record`` / ``--video``, or None; exits with one line when the
-    recording modules are not there yet."""
-    if record is None and video is None:
-        return None
-    try:
-        from learner.evaluate_recording import make_observers  # lazy: imports mcap, renderer
-    except ImportError as exc:
-        raise _fail(f"--record/--video: recording not available yet ({exc})") from None
-
-    def factory(env: Any, meta: dict) -> list:
-        return make_observers(env, meta, record=record, video=video)
-
-    return factory
-
-
 def evaluate(
     checkpoint: Annotated[Path, typer.Argument(help="Checkpoint directory, or a run directory.")],
     scene: Annotated[
@@ -152,7 +136,6 @@ def evaluate(
         raise _fail(f"{checkpoint}: no such file or directory")
     reductions = _parse_reductions(sweep_percent) if sweep else None
     modes = ["deterministic", "stochastic"] if mode is ModeChoice.both else [mode.value]
-    factory = _observer_factory(record, video)
     with Progress(
         TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
         TimeElapsedColumn(), console=console, transient=True, disable=not console.is_terminal,
@@ -168,7 +151,7 @@ def evaluate(
             report = evaluate_checkpoint(
                 checkpoint, scene=scene, backend=backend.value if backend else None,
                 episodes=episodes, modes=modes, seed=seed, sweep=reductions,
-                sweep_mode=modes[0], observer_factory=factory, pick=pick.value,
+                sweep_mode=modes[0], record=record, video=video, pick=pick.value,
                 progress=on_episode,
             )  # fmt: skip
         except (EvaluationError, CheckpointError) as exc:

@@ -251,3 +251,37 @@ def test_cli_errors_are_one_line(walk: tuple[Path, Scene], tmp_path: Path) -> No
     assert "policy.safetensors" in line and "damaged" in line
     with pytest.raises(CheckpointError):
         evaluate_checkpoint(damaged, episodes=1)
+
+
+def test_the_first_episode_is_recorded(walk: tuple[Path, Scene], tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+
+    from learner.recording import TOPICS
+
+    run, _ = walk
+    out = tmp_path / "first.mcap"
+    report = evaluate_checkpoint(run, episodes=2, record=out)
+    assert report.recording == str(out)
+    first = report.results["deterministic"].episodes[0]
+    with out.open("rb") as f:
+        reader = make_reader(f)
+        counts: dict[str, int] = {}
+        for _, channel, _ in reader.iter_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+    assert counts == dict.fromkeys(TOPICS, first.steps)
+    with out.open("rb") as f:
+        (meta,) = [m.metadata for m in make_reader(f).iter_metadata()]
+    assert meta["mode"] == "deterministic" and meta["seed"] == "0"
+    assert len(meta["checkpoint_sha256"]) == 64 and meta["scene"] == "walk-2d"
+
+
+def test_the_first_episode_as_a_video(walk: tuple[Path, Scene], tmp_path: Path) -> None:
+    video = pytest.importorskip("learner.video")
+    if (why := video.osmesa_available()) is not None:
+        pytest.skip(f"no offscreen rendering here: {why}")
+    run, _ = walk
+    out = tmp_path / "first.mp4"
+    report = evaluate_checkpoint(run, episodes=1, video=out)
+    assert report.video == str(out)
+    assert out.stat().st_size > 1000
+    assert out.read_bytes()[4:8] == b"ftyp"  # an MP4 container
