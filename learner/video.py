@@ -1,0 +1,367 @@
+"""MP4 videos of episodes, rendered offscreen on the CPU with MuJoCo and OSMesa.
+
+Rendering needs Debian's ``libosmesa6`` (``make`` installs it where apt-get exists) and
+``MUJOCO_GL=osmesa``: the renderer sets that default (``os.environ.setdefault``) just before
+it creates its GL context, and builds an OSMesa context itself, since ``mujoco`` picks its
+own default context class once, at import. Set ``MUJOCO_GL=egl`` (a GPU) or ``glfw`` before
+starting the process to use those instead. Frames go to ffmpeg (bundled by
+``imageio-ffmpeg``) as H.264, yuv420p.
+
+The camera tracks the pelvis from the body's side (the lateral axis, so a sagittal gait is
+seen in profile) with the body's up axis up, at a fixed height; stripes on the floor every
+0.5 m show progress. Muscles (MuJoCo tendons) are coloured by activation (MuJoCo's
+``mjVIS_ACTIVATION``), and a skeleton (a sphere per body origin, capsules parent to child) is
+drawn over the model, since pruned scenes keep no visual geoms.
+
+OpenSim episodes are rendered by replaying the OpenSim coordinates (by name), activations
+and obstacles on the MuJoCo model of the same scene, which shares the body's coordinate
+names; a scene without a MuJoCo backend cannot be rendered.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Callable
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import imageio_ffmpeg
+import mujoco
+import numpy as np
+
+from workers.env import MuscleEnv
+from workers.sim.base import HEALTHY
+from workers.sim.mujoco import OBSTACLE_PREFIX, MujocoSimulator
+
+logger = logging.getLogger(__name__)
+
+TARGET_FPS = 30.0
+"""Frames per second aimed at when ``every`` is not given (one frame per control step at most)."""
+STRIPE_SPACING = 0.5
+"""m between floor stripes."""
+BONE_RADIUS = 0.015
+"""m: skeleton capsules; spheres at body origins are twice as wide."""
+SKELETON_RGBA = np.array([0.85, 0.85, 0.8, 1.0], dtype=np.float32)
+
+
+def _gl_context(width: int, height: int) -> Any:
+    """A GL context for offscreen rendering: OSMesa unless ``MUJOCO_GL`` says otherwise."""
+    backend = os.environ.setdefault("MUJOCO_GL", "osmesa").lower()
+    if backend == "osmesa":
+        from mujoco.osmesa import GLContext  # sets PYOPENGL_PLATFORM=osmesa if unset
+    elif backend == "egl":
+        from mujoco.egl import GLContext  # type: ignore[no-redef]
+    else:
+        from mujoco.glfw import GLContext  # type: ignore[no-redef]
+    try:
+        return GLContext(width, height)
+    except Exception as exc:
+        raise RuntimeError(
+            f"cannot create a {backend} GL context for offscreen rendering ({exc}); "
+            "on Debian: apt-get install -y libosmesa6"
+        ) from exc
+
+
+def osmesa_available() -> str | None:
+    """None when offscreen rendering works here, else why not (for test skips, messages)."""
+    try:
+        context = _gl_context(16, 16)
+    except (ImportError, RuntimeError, OSError, AttributeError) as exc:
+        return str(exc)
+    context.free()
+    return None
+
+
+class _Replay:
+    """The MuJoCo model of an OpenSim scene, posed from the OpenSim simulator's read-outs."""
+
+    def __init__(self, env: MuscleEnv) -> None:
+        if "mujoco" not in env.scene.backends:
+            raise ValueError(
+                f"scene {env.scene.name!r} has no MuJoCo model of its body "
+                f"(backends {env.scene.backends}): its {env.backend} episodes cannot be rendered"
+            )
+        self.sim = MujocoSimulator(env.scene)
+        m = self.sim.model
+        self._qadr = {m.joint(j).name: int(m.jnt_qposadr[j]) for j in range(m.njnt)}
+        self._actadr = {m.actuator(i).name: int(m.actuator_actadr[i]) for i in range(m.nu)}
+        self._obstacles = [
+            mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{OBSTACLE_PREFIX}{i}")
+            for i in range(self.sim.report.plan.obstacles)
+        ]
+        self._warned = False
+
+    def pose(self, env: MuscleEnv) -> None:
+        m, d = self.sim.model, self.sim.data
+        coords = env.sim.coordinates()
+        missing = [name for name in coords if name not in self._qadr]
+        if missing and not self._warned:
+            logger.warning("video replay: coordinates missing in the MuJoCo model: %s", missing)
+            self._warned = True
+        for name, value in coords.items():
+            if name in self._qadr:
+                d.qpos[self._qadr[name]] = value
+        state = env.sim.state()
+        for name, a in zip(env.sim.muscle_names, state.activations, strict=True):
+            adr = self._actadr.get(name, -1)
+            if adr >= 0:
+                d.act[adr] = a
+        up, forward = self.sim.up_axis, self.sim.forward_axis
+        for gid, (ahead, height, radius) in zip(self._obstacles, env.sim.obstacles(), strict=False):
+            m.geom_pos[gid] = 0.0
+            m.geom_pos[gid, forward], m.geom_pos[gid, up] = ahead, height
+            m.geom_size[gid, 0] = radius
+        d.time = state.time
+        mujoco.mj_fwdPosition(m, d)
+
+
+class VideoRecorder:
+    """Renders frames of ``env`` into an MP4 at ``path``.
+
+    Call :meth:`capture` after ``reset`` and after every ``step``; one call in ``every`` makes
+    a frame (default: the control rate brought near 30 fps), played at ``control_hz / every``
+    frames per second, i.e. in real time. Then :meth:`close` (or use a ``with`` block). The
+    file is written from the first frame on: with no frame, none is made. :meth:`render`
+    alone returns an image.
+
+    Args:
+        path: the .mp4 to write (overwritten; parent directories are created).
+        env: a MuJoCo env, or an OpenSim env of a scene that also runs on MuJoCo.
+        width, height: pixels; rounded down to even numbers (H.264, yuv420p).
+        every: control steps per frame.
+        distance: m from the camera to the tracked point.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        env: MuscleEnv,
+        width: int = 640,
+        height: int = 480,
+        every: int | None = None,
+        distance: float = 2.5,
+    ) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.width, self.height = max(2, width - width % 2), max(2, height - height % 2)
+        control_hz = float(env.scene.control_hz)
+        self.every = every or max(1, round(control_hz / TARGET_FPS))
+        self.fps = control_hz / self.every
+        self.frames = 0
+        self._calls = 0
+        self._closed = False
+        self._distance = distance
+        self._replay = _Replay(env) if env.backend != "mujoco" else None
+        sim = self._replay.sim if self._replay else env.sim
+        self._model: mujoco.MjModel = sim.model
+        self._data: mujoco.MjData = sim.data
+        self._up, self._forward = sim.up_axis, sim.forward_axis
+        m = self._model
+        self._pelvis = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "pelvis")
+        m.vis.global_.offwidth = max(m.vis.global_.offwidth, self.width)
+        m.vis.global_.offheight = max(m.vis.global_.offheight, self.height)
+        self._gl = _gl_context(self.width, self.height)
+        self._gl.make_current()
+        self._context = mujoco.MjrContext(m, mujoco.mjtFontScale.mjFONTSCALE_100)
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._context)
+        self._scene = mujoco.MjvScene(m, maxgeom=max(1000, 4 * m.ngeom + 4 * m.nbody + 200))
+        self._option = mujoco.MjvOption()
+        self._option.flags[mujoco.mjtVisFlag.mjVIS_ACTIVATION] = 1
+        self._option.flags[mujoco.mjtVisFlag.mjVIS_TENDON] = 1
+        self._option.geomgroup[:4] = 1
+        self._camera = mujoco.MjvCamera()
+        self._viewport = mujoco.MjrRect(0, 0, self.width, self.height)
+        self._pixels = np.empty((self.height, self.width, 3), dtype=np.uint8)
+        if m.nlight == 0:  # bodies built from neutral specs have no lights: a brighter headlight
+            m.vis.headlight.ambient[:] = 0.45
+            m.vis.headlight.diffuse[:] = 0.7
+        self._writer: Any = None  # ffmpeg starts with the first frame
+
+    # ---- public -----------------------------------------------------------------------------
+
+    def capture(self, env: MuscleEnv) -> None:
+        """Render the env's current state if this call is one of every ``every``."""
+        if self._closed:
+            raise RuntimeError(f"video {self.path} is closed")
+        self._calls += 1
+        if (self._calls - 1) % self.every:
+            return
+        frame = self.render(env)
+        if self._writer is None:
+            self._writer = imageio_ffmpeg.write_frames(
+                str(self.path),
+                (self.width, self.height),
+                fps=self.fps,
+                codec="libx264",
+                pix_fmt_in="rgb24",
+                pix_fmt_out="yuv420p",
+                macro_block_size=2,
+                ffmpeg_log_level="error",
+            )
+            self._writer.send(None)
+        self._writer.send(frame)
+        self.frames += 1
+
+    def render(self, env: MuscleEnv) -> np.ndarray:
+        """[height, width, 3] uint8 RGB image of the env's current state."""
+        if self._replay is not None:
+            self._replay.pose(env)
+        m, d, scene = self._model, self._data, self._scene
+        self._gl.make_current()
+        mujoco.mjv_updateScene(
+            m, d, self._option, None, self._camera, mujoco.mjtCatBit.mjCAT_ALL, scene
+        )
+        target = self._target()
+        self._place_camera(target)
+        self._add_floor_stripes(target)
+        self._add_skeleton()
+        mujoco.mjr_render(self._viewport, scene, self._context)
+        mujoco.mjr_readPixels(self._pixels, None, self._viewport, self._context)
+        return np.flipud(self._pixels).copy()
+
+    def close(self) -> None:
+        """Finish the MP4 and free the GL resources; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        if self._writer is not None:
+            self._writer.close()
+        self._context.free()
+        self._gl.free()
+        logger.info("video: %d frames at %.1f fps to %s", self.frames, self.fps, self.path)
+
+    def __enter__(self) -> VideoRecorder:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    # ---- helpers ----------------------------------------------------------------------------
+
+    def _target(self) -> np.ndarray:
+        """[3] tracked point: the pelvis along the ground, at a fixed height (m)."""
+        m, d = self._model, self._data
+        if self._pelvis < 0:
+            return np.asarray(m.stat.center, dtype=float).copy()
+        target = d.xpos[self._pelvis].copy()
+        target[self._up] = 0.8
+        return target
+
+    def _place_camera(self, target: np.ndarray) -> None:
+        up = np.eye(3)[self._up]
+        forward = np.eye(3)[self._forward]
+        side = np.cross(forward, up)  # the body's left in a Y-up world, its right in Z-up
+        eye = target + self._distance * side + 0.15 * self._distance * up
+        look = target - eye
+        look /= np.linalg.norm(look)
+        cam_up = up - np.dot(up, look) * look
+        cam_up /= np.linalg.norm(cam_up)
+        for cam in self._scene.camera:
+            cam.pos[:] = eye
+            cam.forward[:] = look
+            cam.up[:] = cam_up
+
+    def _add_geom(self) -> mujoco.MjvGeom | None:
+        scene = self._scene
+        if scene.ngeom >= scene.maxgeom:
+            return None
+        geom = scene.geoms[scene.ngeom]
+        scene.ngeom += 1
+        return geom
+
+    def _add_floor_stripes(self, target: np.ndarray) -> None:
+        up, forward = self._up, self._forward
+        lateral = 3 - up - forward
+        centre = round(target[forward] / STRIPE_SPACING)
+        size = np.zeros(3)
+        size[forward], size[lateral], size[up] = STRIPE_SPACING / 8, 0.6, 0.001
+        for k in range(centre - 12, centre + 13):
+            geom = self._add_geom()
+            if geom is None:
+                return
+            pos = np.zeros(3)
+            pos[forward], pos[lateral], pos[up] = k * STRIPE_SPACING, target[lateral], 0.001
+            shade = 0.3 if k % 2 else 0.45
+            rgba = np.array([shade, shade, shade + 0.05, 1.0], dtype=np.float32)
+            mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_BOX, size, pos, np.eye(3).ravel(), rgba)
+
+    def _add_skeleton(self) -> None:
+        m, d = self._model, self._data
+        for body in range(1, m.nbody):
+            parent = m.body_parentid[body]
+            if parent > 0 and np.linalg.norm(d.xpos[body] - d.xpos[parent]) > 1e-6:
+                geom = self._add_geom()
+                if geom is None:
+                    return
+                mujoco.mjv_initGeom(
+                    geom,
+                    mujoco.mjtGeom.mjGEOM_CAPSULE,
+                    np.zeros(3),
+                    np.zeros(3),
+                    np.eye(3).ravel(),
+                    SKELETON_RGBA,
+                )
+                mujoco.mjv_connector(
+                    geom,
+                    mujoco.mjtGeom.mjGEOM_CAPSULE,
+                    BONE_RADIUS,
+                    d.xpos[parent],
+                    d.xpos[body],
+                )
+            geom = self._add_geom()
+            if geom is None:
+                return
+            mujoco.mjv_initGeom(
+                geom,
+                mujoco.mjtGeom.mjGEOM_SPHERE,
+                np.array([2 * BONE_RADIUS, 0, 0]),
+                d.xpos[body],
+                np.eye(3).ravel(),
+                SKELETON_RGBA,
+            )
+
+
+def record_video(
+    env: MuscleEnv,
+    act_fn: Callable[[np.ndarray], np.ndarray],
+    path: str | os.PathLike[str],
+    seed: int,
+    max_steps: int | None = None,
+    width: int = 640,
+    height: int = 480,
+    every: int | None = None,
+) -> dict[str, Any]:
+    """Reset ``env`` with ``seed``, run ``act_fn`` (observation [n_obs] -> excitations
+    [n_muscles] in [0, 1]) until the episode ends or ``max_steps``, and render it to ``path``.
+
+    Returns ``path``, ``frames``, ``fps``, ``steps``, ``return``, ``distance`` (m),
+    ``health`` (cause of the last step).
+    """
+    obs, _ = env.reset(seed=seed)
+    limit = max_steps if max_steps is not None else env.scene.steps_per_episode
+    total, steps, info = 0.0, 0, {"health": HEALTHY}
+    with VideoRecorder(path, env, width, height, every) as video:
+        video.capture(env)
+        for _ in range(limit):
+            obs, reward, terminated, truncated, info = env.step(act_fn(obs))
+            total += reward
+            steps += 1
+            video.capture(env)
+            if terminated or truncated:
+                break
+    return {
+        "path": str(path),
+        "frames": video.frames,
+        "fps": video.fps,
+        "steps": steps,
+        "return": total,
+        "distance": float(info.get("distance", 0.0)),
+        "health": str(info.get("health", HEALTHY)),
+    }
