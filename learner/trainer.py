@@ -23,6 +23,7 @@ A checkpoint is written every ``checkpoint.every_iters`` iterations and at each 
 from __future__ import annotations
 
 import functools
+import hashlib
 import logging
 import time
 from collections import Counter
@@ -269,7 +270,10 @@ class Trainer:
         if self.on_iteration is not None:
             self.on_iteration(metrics)
         if verdict is not None or self.iteration % self.job.checkpoint.every_iters == 0:
-            self._checkpoint(metrics)
+            checkpoint = self._checkpoint(metrics)
+            every = self.job.checkpoint.record_every_iters
+            if verdict is not None or (every and self.iteration % every == 0):
+                self._record(checkpoint)
         if verdict is not None:
             logger.info("stage %d (%s) ends: %s", self.curriculum.stage, self.scene.name, verdict)
             self.curriculum.advance()
@@ -408,6 +412,36 @@ class Trainer:
         for group in ("reward_terms", "health"):
             for key, value in metrics[group].items():
                 self._writer.add_scalar(f"{group}/{key}", value, step)
+
+    def _record(self, checkpoint: Path) -> Path | None:
+        """One deterministic episode of the current policy on the stage's scene, as MCAP in
+        ``run_dir/recordings``. A failure is logged, never raised: training goes on."""
+        from learner.recording import record_episode  # lazy: imports foxglove
+
+        path = self.run_dir / "recordings" / f"{checkpoint.name}-{self.scene.name}.mcap"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        policy = self.policy
+
+        def act(obs: np.ndarray) -> np.ndarray:
+            with torch.no_grad():
+                return policy.mean_action(torch.from_numpy(obs).float()[None])[0].numpy()
+
+        metadata = {
+            "scene": self.scene.name, "backend": self.job.backend,
+            "profile": self.scene.profile(self.job.backend).model_dump_json(),
+            "checkpoint": checkpoint.name, "stage": str(self.curriculum.stage),
+            "manifest_sha256": hashlib.sha256((checkpoint / "manifest.json").read_bytes())
+            .hexdigest(),
+        }  # fmt: skip
+        try:
+            summary = record_episode(MuscleEnv(self.scene, self.job.backend), act, path,
+                                     seed=self.job.seed, metadata=metadata)  # fmt: skip
+        except Exception:
+            logger.exception("recording %s failed; training goes on", path)
+            return None
+        logger.info("recorded %s: %.2f m in %.1f s", path, summary["distance"],
+                    summary["sim_time"])  # fmt: skip
+        return path
 
     def _checkpoint(self, metrics: dict) -> Path:
         self._checkpointed_at = self.iteration

@@ -1,4 +1,4 @@
-"""The ``gaitforge`` command line: ``gaitforge scenes list | show NAME | check NAME``."""
+"""The ``gaitforge`` command line: ``scenes``, ``train``, ``evaluate`` (and more sub-apps)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from rich.console import Console
 
 from service.evaluate_commands import evaluate
 from service.scene_commands import scenes_app
+from service.train_commands import train
 
 app = typer.Typer(
     help="gaitforge: train muscle-driven bodies on heavy simulators.",
@@ -17,6 +18,7 @@ app = typer.Typer(
 )
 app.add_typer(scenes_app, name="scenes")
 app.command("evaluate")(evaluate)
+app.command("train")(train)
 console = Console()
 
 
