@@ -39,6 +39,7 @@ import logging
 import math
 import os
 from collections.abc import Callable, Mapping
+from contextlib import ExitStack
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -426,33 +427,49 @@ class EpisodeRecorder:
 def record_episode(
     env: MuscleEnv,
     act_fn: Callable[[np.ndarray], np.ndarray],
-    path: str | os.PathLike[str],
+    path: str | os.PathLike[str] | None,
     seed: int,
     metadata: Mapping[str, str] | None = None,
     max_steps: int | None = None,
+    video_path: str | os.PathLike[str] | None = None,
+    video_size: tuple[int, int] = (640, 480),
 ) -> dict[str, Any]:
     """Reset ``env`` with ``seed``, run ``act_fn`` (observation [n_obs] -> excitations
-    [n_muscles] in [0, 1]) until the episode ends or ``max_steps``, and record it to ``path``.
+    [n_muscles] in [0, 1]) until the episode ends or ``max_steps``, and record it to the
+    MCAP ``path`` and/or render it to the MP4 ``video_path`` (width, height ``video_size``
+    pixels; see :mod:`learner.video`). Either may be None.
 
-    Returns a summary: ``path``, ``steps``, ``sim_time`` (s), ``return`` (sum of rewards),
-    ``distance`` (m), ``fell``, ``health`` (cause of the last step), ``terminated``,
-    ``truncated``.
+    Returns a summary: ``path``, ``video_path``, ``steps``, ``frames`` (video frames),
+    ``sim_time`` (s), ``return`` (sum of rewards), ``distance`` (m), ``fell``, ``health``
+    (cause of the last step), ``terminated``, ``truncated``.
     """
     obs, _ = env.reset(seed=seed)
     limit = max_steps if max_steps is not None else env.scene.steps_per_episode
-    total, info = 0.0, {"health": HEALTHY}
+    total, info, steps = 0.0, {"health": HEALTHY}, 0
     terminated = truncated = False
-    with EpisodeRecorder(path, env, metadata) as recorder:
+    with ExitStack() as stack:
+        recorder = stack.enter_context(EpisodeRecorder(path, env, metadata)) if path else None
+        video = None
+        if video_path is not None:
+            from learner.video import VideoRecorder  # lazy: needs a GL context
+
+            video = stack.enter_context(VideoRecorder(video_path, env, *video_size))
+            video.capture(env)
         for _ in range(limit):
             action = np.asarray(act_fn(obs), dtype=np.float64)
             obs, reward, terminated, truncated, info = env.step(action)
-            recorder.log_step(env, action, info.get("reward_terms"), info)
+            steps += 1
+            if recorder is not None:
+                recorder.log_step(env, action, info.get("reward_terms"), info)
+            if video is not None:
+                video.capture(env)
             total += reward
             if terminated or truncated:
                 break
-        steps = recorder.steps
     return {
-        "path": str(path),
+        "path": None if path is None else str(path),
+        "video_path": None if video_path is None else str(video_path),
+        "frames": 0 if video is None else video.frames,
         "steps": steps,
         "sim_time": float(info.get("sim_time", 0.0)),
         "return": total,
