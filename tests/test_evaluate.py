@@ -14,7 +14,7 @@ import torch
 import yaml
 from typer.testing import CliRunner
 
-from learner.checkpoint import CheckpointError, save_checkpoint
+from learner.checkpoint import CheckpointError, load_policy, save_checkpoint
 from learner.evaluate import (
     EvaluationError,
     Rate,
@@ -28,7 +28,7 @@ from learner.evaluate import (
     t_quantile_975,
     with_target_speed,
 )
-from learner.policy import GaussianPolicy
+from learner.policy import BlendedPolicy, GaussianPolicy
 from service.cli import app
 from workers.env import MuscleEnv
 from workers.scenes import Scene, catalogue_file, load_scene
@@ -285,3 +285,28 @@ def test_the_first_episode_as_a_video(walk: tuple[Path, Scene], tmp_path: Path) 
     assert report.video == str(out)
     assert out.stat().st_size > 1000
     assert out.read_bytes()[4:8] == b"ftyp"  # an MP4 container
+
+
+def test_a_checkpoint_the_trainer_wrote_mid_blend(tmp_path: Path) -> None:
+    from learner.job import Job
+    from learner.trainer import Trainer
+
+    job = Job.model_validate({
+        "name": "walk-blend", "network": {"hidden": [8]}, "checkpoint": {"every_iters": 1},
+        "workers": {"num_workers": 0, "envs_per_worker": 2, "fragment_length": 16},
+        "ppo": {"batch_env_steps": 32, "minibatch_size": 32, "epochs": 1},
+        "stages": [
+            {"scene": "walk-2d", "env_steps": 32},
+            {"scene": "walk-2d", "env_steps": 32, "transition": "blend",
+             "network": {"hidden": [16]},
+             "blend": {"ramp_env_steps": 1024, "critic_warmup_env_steps": 32, "fit_epochs": 1}},
+        ],
+    })  # fmt: skip
+    Trainer(job, tmp_path, tensorboard=False).run()
+    policy, _ = load_policy(resolve_checkpoint(tmp_path))
+    assert isinstance(policy, BlendedPolicy)  # alpha still ramping: pi_old and pi_new both act
+    report = evaluate_checkpoint(tmp_path, episodes=1, modes=("deterministic", "stochastic"))
+    assert report.scene == "walk-2d" and report.stage is not None and report.stage["index"] == 1
+    assert report.env_steps is not None and report.env_steps >= 64
+    for result in report.results.values():
+        assert result.episodes[0].steps > 0 and 0.0 <= result.fall_rate.value <= 1.0
