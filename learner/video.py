@@ -1,11 +1,11 @@
 """MP4 videos of episodes, rendered offscreen on the CPU with MuJoCo and OSMesa.
 
 Rendering needs Debian's ``libosmesa6`` (``make`` installs it where apt-get exists) and
-``MUJOCO_GL=osmesa``: the renderer sets that default (``os.environ.setdefault``) just before
-it creates its GL context, and builds an OSMesa context itself, since ``mujoco`` picks its
-own default context class once, at import. Set ``MUJOCO_GL=egl`` (a GPU) or ``glfw`` before
-starting the process to use those instead. Frames go to ffmpeg (bundled by
-``imageio-ffmpeg``) as H.264, yuv420p.
+``MUJOCO_GL=osmesa``, the default here: the renderer builds its OSMesa context itself, since
+``mujoco`` picks its default context class once, when it is imported (long before this module,
+by the simulators), and sets ``MUJOCO_GL`` (``os.environ.setdefault``) once that worked.
+Set ``MUJOCO_GL=egl`` (a GPU) or ``glfw`` before starting the process to use those instead.
+Frames go to ffmpeg (bundled by ``imageio-ffmpeg``) as H.264, yuv420p.
 
 The camera tracks the pelvis from the body's side (the lateral axis, so a sagittal gait is
 seen in profile) with the body's up axis up, at a fixed height; stripes on the floor every
@@ -47,28 +47,34 @@ SKELETON_RGBA = np.array([0.85, 0.85, 0.8, 1.0], dtype=np.float32)
 
 
 def _gl_context(width: int, height: int) -> Any:
-    """A GL context for offscreen rendering: OSMesa unless ``MUJOCO_GL`` says otherwise."""
-    backend = os.environ.setdefault("MUJOCO_GL", "osmesa").lower()
-    if backend == "osmesa":
-        from mujoco.osmesa import GLContext  # sets PYOPENGL_PLATFORM=osmesa if unset
-    elif backend == "egl":
-        from mujoco.egl import GLContext  # type: ignore[no-redef]
-    else:
-        from mujoco.glfw import GLContext  # type: ignore[no-redef]
+    """A GL context for offscreen rendering: OSMesa unless ``MUJOCO_GL`` names another.
+
+    ``MUJOCO_GL`` is set (``setdefault``) only once a context was made, so that a machine
+    without OSMesa never hands the setting to child processes (whose ``import mujoco`` would
+    then try to load OSMesa)."""
+    backend = (os.environ.get("MUJOCO_GL") or "osmesa").lower()
     try:
-        return GLContext(width, height)
+        if backend == "osmesa":
+            from mujoco.osmesa import GLContext  # sets PYOPENGL_PLATFORM=osmesa if unset
+        elif backend == "egl":
+            from mujoco.egl import GLContext  # type: ignore[no-redef]
+        else:
+            from mujoco.glfw import GLContext  # type: ignore[no-redef]
+        context = GLContext(width, height)
     except Exception as exc:
         raise RuntimeError(
-            f"cannot create a {backend} GL context for offscreen rendering ({exc}); "
-            "on Debian: apt-get install -y libosmesa6"
+            f"cannot create a {backend} GL context for offscreen rendering "
+            f"({type(exc).__name__}: {exc}); on Debian: apt-get install -y libosmesa6"
         ) from exc
+    os.environ.setdefault("MUJOCO_GL", backend)
+    return context
 
 
 def osmesa_available() -> str | None:
     """None when offscreen rendering works here, else why not (for test skips, messages)."""
     try:
         context = _gl_context(16, 16)
-    except (ImportError, RuntimeError, OSError, AttributeError) as exc:
+    except RuntimeError as exc:
         return str(exc)
     context.free()
     return None
