@@ -8,6 +8,7 @@ import typer
 from rich.console import Console
 
 from service.evaluate_commands import evaluate
+from service.fidelity_commands import fidelity_app
 from service.scene_commands import scenes_app
 from service.train_commands import train
 
@@ -17,6 +18,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 app.add_typer(scenes_app, name="scenes")
+app.add_typer(fidelity_app, name="fidelity")
 app.command("evaluate")(evaluate)
 app.command("train")(train)
 console = Console()

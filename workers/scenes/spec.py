@@ -133,6 +133,9 @@ class Scene(_Strict):
     control_hz: Annotated[float, Field(gt=0, le=1000)] = 100.0
     episode_s: Annotated[float, Field(gt=0, le=600)] = 10.0
     fidelity: Fidelity = "default"
+    fidelity_tolerance: Annotated[float, Field(gt=0)] | None = Field(
+        default=None, description="rad: RMS joint-angle error allowed with fidelity: auto"
+    )
     tendon: Literal["rigid", "compliant"] = Field(
         default="rigid", description="OpenSim muscles' tendons (MuJoCo's are always rigid)"
     )
@@ -152,7 +155,7 @@ class Scene(_Strict):
         if self.body in MJCF_BODIES and "opensim" in self.backends:
             raise ValueError(f"backends: body {self.body!r} is MJCF and runs on MuJoCo only")
         for backend in self.backends:
-            profile = resolve_profile(self.fidelity, backend)
+            profile = self.profile(backend)
             steps = 1.0 / (self.control_hz * profile.timestep)
             if backend == "mujoco" and abs(steps - round(steps)) > 1e-6:
                 raise ValueError(
@@ -166,7 +169,7 @@ class Scene(_Strict):
         return round(self.episode_s * self.control_hz)
 
     def profile(self, backend: str) -> FidelityProfile:
-        return resolve_profile(self.fidelity, backend)
+        return resolve_profile(self.fidelity, backend, self.name, self.fidelity_tolerance)
 
 
 __all__ = [

@@ -1,0 +1,101 @@
+"""Model error beside integration error: the same held rollout under another simulator,
+another tendon model, or without pruning, each compared with the scene's reference.
+
+All comparisons use the held variant (pelvis held, no contact, the same seeded excitations
+by muscle name) so that they measure the model, not contact chaos. Rows carry the RMS
+joint-angle difference (rad, over the dofs both runs share) and the speed of each side.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from workers.fidelity.held import Rollout, describe, held_rollout, rms_error
+from workers.fidelity.reference import REFERENCE
+from workers.scenes import Scene
+from workers.spec_io import validate_model
+
+
+@dataclass
+class ModelDifference:
+    """One model comparison on the held variant.
+
+    Attributes:
+        what: e.g. ``"opensim vs mujoco"``.
+        setting: the profiles used, in words.
+        rms_short: RMS difference over the short window, rad.
+        rms_long: RMS difference over the long window, rad.
+        speed_ratio: held-variant steps/s of the alternative over the scene's model.
+        note: anything the reader needs (e.g. why a comparison was skipped).
+    """
+
+    what: str
+    setting: str
+    rms_short: float
+    rms_long: float
+    speed_ratio: float
+    note: str = ""
+
+
+def _rate(r: Rollout) -> float:
+    return r.steps / r.wall_s if r.wall_s else float("nan")
+
+
+def _compare(what: str, setting: str, base: Rollout, other: Rollout, short: float, long: float,
+             dt: float, note: str = "") -> ModelDifference:  # fmt: skip
+    failed = f"failed: {other.health}" if other.health != "ok" else ""
+    return ModelDifference(
+        what, setting, rms_error(other, base, short, dt), rms_error(other, base, long, dt),
+        _rate(other) / _rate(base), note or failed,
+    )  # fmt: skip
+
+
+def cross_simulator(
+    scene: Scene, backend: str, reference: Rollout, short: float, long: float
+) -> ModelDifference | None:
+    """The other backend's reference against this one's (``None`` if the scene runs on one
+    backend only): the difference the choice of simulator makes on the same neutral body."""
+    others = [b for b in scene.backends if b != backend]
+    if not others:
+        return None
+    other = others[0]
+    run = held_rollout(scene, other, REFERENCE[other], long)
+    setting = f"{describe(REFERENCE[other])} vs {describe(REFERENCE[backend])}"
+    return _compare(f"{other} vs {backend}", setting, reference, run, short, long,
+                    1.0 / scene.control_hz)  # fmt: skip
+
+
+def tendon(scene: Scene, backend: str, short: float, long: float, accuracy: float = 1e-5
+           ) -> ModelDifference | None:  # fmt: skip
+    """OpenSim only: compliant against rigid tendons at ``accuracy`` (both runs alike)."""
+    if backend != "opensim":
+        return None
+    profile = REFERENCE["opensim"].model_copy(update={"accuracy": accuracy})
+    rigid = held_rollout(scene.model_copy(update={"tendon": "rigid"}), backend, profile, long)
+    compliant = held_rollout(
+        scene.model_copy(update={"tendon": "compliant"}), backend, profile, long
+    )
+    return _compare("compliant vs rigid tendon", describe(profile), rigid, compliant, short, long,
+                    1.0 / scene.control_hz)  # fmt: skip
+
+
+def pruning(
+    scene: Scene, backend: str, reference: Rollout, short: float, long: float
+) -> ModelDifference:
+    """The unpruned body (every joint and muscle kept) against the scene's pruned model, at
+    the reference setting; the speed ratio is unpruned over pruned at the scene's own
+    profile (the one training uses)."""
+    raw = scene.model_dump(mode="python")
+    raw["keep"] = {**raw["keep"], "joints": "all", "muscles": "all", "planar": False, "lock_at": {}}
+    full = validate_model(raw, Scene, f"scene {scene.name!r} unpruned")
+    dt = 1.0 / scene.control_hz
+    run = held_rollout(full, backend, REFERENCE[backend], long)
+    own = scene.profile(backend)
+    speed_full = held_rollout(full, backend, own, long)
+    speed_pruned = held_rollout(scene, backend, own, long)
+    diff = _compare(
+        "unpruned vs pruned", describe(REFERENCE[backend]), reference, run, short, long, dt
+    )
+    diff.speed_ratio = _rate(speed_full) / _rate(speed_pruned)
+    diff.note = (diff.note + f" speed at {describe(own)}").strip()
+    return diff

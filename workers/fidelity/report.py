@@ -1,0 +1,89 @@
+"""Write a sweep: CSV (one row per profile), JSON (everything), and the Pareto plot PNG
+(integration error against speed, one marker per profile, unstable ones marked)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+from workers.fidelity.sweep import SweepResult
+
+CSV_FIELDS = (
+    "label", "integrator", "timestep_ms", "accuracy", "fixed_step", "steps_per_s", "realtime",
+    "err_short", "err_long", "stable", "within", "health",
+)  # fmt: skip
+TASK_FIELDS = (
+    "distance_m", "distance_ci", "distance_vs_ref", "distance_vs_ref_ci", "fall_rate",
+    "fall_rate_lo", "fall_rate_hi", "peak_grf_bw", "peak_grf_ci", "grf_vs_ref", "grf_vs_ref_ci",
+)  # fmt: skip
+
+
+def _clean(value: object) -> object:
+    """JSON has no inf/NaN: write them as strings."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if isinstance(value, dict):
+        return {k: _clean(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_clean(v) for v in value]
+    return value
+
+
+def write_all(result: SweepResult, out: Path) -> dict[str, Path]:
+    """Write ``<scene>-<backend>.csv/.json/.png`` under ``out``; returns the paths by kind."""
+    out.mkdir(parents=True, exist_ok=True)
+    stem = out / f"{result.scene}-{result.backend}"
+    paths = {"csv": stem.with_suffix(".csv"), "json": stem.with_suffix(".json"),
+             "png": stem.with_suffix(".png")}  # fmt: skip
+    with paths["csv"].open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow([*CSV_FIELDS, *TASK_FIELDS])
+        for row in result.rows:
+            writer.writerow(
+                [getattr(row, k) for k in CSV_FIELDS] + [row.task.get(k, "") for k in TASK_FIELDS]
+            )
+    paths["json"].write_text(json.dumps(_clean(result.to_json()), indent=1))
+    pareto_plot(result, paths["png"])
+    return paths
+
+
+def pareto_plot(result: SweepResult, path: Path) -> None:
+    """Error (rad, log) against env steps/s (log); unstable profiles drawn as red crosses at
+    the top edge; the tolerance as a dashed line; the recommended profile ringed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5), dpi=110)
+    finite = [r.err_long for r in result.rows if r.stable and 0 < r.err_long < math.inf]
+    top = max([*finite, result.tolerance]) * 3
+    bottom = min([*finite, result.tolerance]) / 3
+    markers = dict(zip(sorted({r.integrator for r in result.rows}), "osD^v<>ph*", strict=False))
+    for integ, marker in markers.items():
+        rows = [r for r in result.rows if r.integrator == integ and r.stable]
+        ax.scatter([r.steps_per_s for r in rows], [max(r.err_long, bottom) for r in rows],
+                   marker=marker, label=integ)  # fmt: skip
+    bad = [r for r in result.rows if not r.stable]
+    if bad:
+        ax.scatter([max(r.steps_per_s, 1e-3) for r in bad], [top] * len(bad), marker="x",
+                   color="red", label="unstable")  # fmt: skip
+    ax.axhline(result.tolerance, ls="--", color="grey", lw=1)
+    ax.text(0.99, result.tolerance * 1.1, "tolerance", fontsize=8,
+            transform=ax.get_yaxis_transform(), ha="right", color="grey")  # fmt: skip
+    if result.recommended is not None:
+        r = result.recommended
+        ax.scatter([r.steps_per_s], [max(r.err_long, bottom)], s=200, facecolors="none",
+                   edgecolors="black", label=f"recommended: {r.label}")  # fmt: skip
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_ylim(bottom, top * 1.5)
+    ax.set_xlabel("env steps/s (one process)")
+    ax.set_ylabel(f"RMS joint-angle error over {result.size.long:g} s (rad)")
+    ax.set_title(f"{result.scene} on {result.backend}: error against speed")
+    ax.legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)

@@ -1,0 +1,194 @@
+"""``gaitforge fidelity sweep``: measure every profile of the grid, recommend the fastest
+within tolerance, and save it as a named profile.
+
+Per profile: speed (median env steps/s over the task runs, one process), integration error
+(RMS joint-angle error against the converged reference on the held variant, over
+``short`` and ``long`` windows), task-level statistics against the reference's (distance,
+fall rate, peak ground force with 95% intervals), and stability (any health cause in any
+run). The recommended profile is the fastest stable one whose long-window error is within
+the tolerance.
+"""
+
+from __future__ import annotations
+
+import logging
+import platform
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from workers.fidelity import model_error
+from workers.fidelity.held import describe, held_rollout, rms_error
+from workers.fidelity.reference import MARGIN, Reference, converged_reference
+from workers.fidelity.task import TaskStats, difference, task_runs
+from workers.scenes import Scene
+from workers.scenes.profiles import FidelityProfile
+from workers.spec_io import SpecError
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass
+class SweepSize:
+    """How long each measurement runs.
+
+    Attributes:
+        short: s, the short error window; long: s, the long one (the held rollout length).
+        seeds: task runs per profile; task_s: s simulated per task run.
+    """
+
+    short: float = 0.5
+    long: float = 2.0
+    seeds: int = 8
+    task_s: float = 1.0
+
+    @classmethod
+    def for_run(cls, backend: str, quick: bool) -> SweepSize:
+        if quick:
+            return cls(short=0.1, long=0.5, seeds=2, task_s=0.2)
+        if backend == "opensim":
+            return cls(short=0.5, long=2.0, seeds=4, task_s=0.5)
+        return cls()
+
+
+@dataclass
+class Row:
+    """One profile's measurements (errors in rad, speeds per wall-clock s)."""
+
+    label: str
+    integrator: str
+    timestep_ms: float
+    accuracy: float | None
+    fixed_step: bool
+    steps_per_s: float
+    realtime: float
+    err_short: float
+    err_long: float
+    stable: bool
+    health: str
+    within: bool
+    task: dict[str, float] = field(default_factory=dict)
+
+    def profile(self) -> FidelityProfile:
+        return FidelityProfile(
+            integrator=self.integrator, timestep=self.timestep_ms / 1e3,
+            accuracy=self.accuracy, fixed_step=self.fixed_step,
+        )  # fmt: skip
+
+
+@dataclass
+class SweepResult:
+    scene: str
+    backend: str
+    tolerance: float
+    size: SweepSize
+    reference: dict
+    rows: list[Row]
+    model: list[dict]
+    recommended: Row | None
+    machine: str = field(default_factory=lambda: f"{platform.machine()} {platform.processor()}")
+
+    def to_json(self) -> dict:
+        out = asdict(self)
+        out["recommended"] = asdict(self.recommended) if self.recommended else None
+        return out
+
+
+def _task_summary(stats: TaskStats, ref: TaskStats) -> dict[str, float]:
+    out = stats.summary()
+    dd, dh = difference(stats.distance, ref.distance)
+    gd, gh = difference(stats.peak_grf, ref.peak_grf)
+    out.update(distance_vs_ref=dd, distance_vs_ref_ci=dh, grf_vs_ref=gd, grf_vs_ref_ci=gh)
+    return out
+
+
+def run_sweep(
+    scene: Scene,
+    backend: str,
+    tolerance: float,
+    grid: list[FidelityProfile],
+    size: SweepSize,
+    on_step: Callable[[str], None] | None = None,
+    model_checks: bool = True,
+) -> SweepResult:
+    """Measure ``grid`` on ``scene``/``backend`` (see the module docstring).
+
+    Raises:
+        SpecError: empty grid, tolerance <= 0, or a backend the scene does not run on.
+    """
+    if tolerance <= 0:
+        raise SpecError(f"--tolerance: must be > 0 rad, got {tolerance:g}")
+    if not grid:
+        raise SpecError(f"grid: no profile to sweep for scene {scene.name!r} on {backend}")
+    if backend not in scene.backends:
+        raise SpecError(f"--backend: scene {scene.name!r} runs on {scene.backends}")
+
+    def note(text: str) -> None:
+        logger.info(text)
+        if on_step is not None:
+            on_step(text)
+
+    dt = 1.0 / scene.control_hz
+    ref: Reference = converged_reference(scene, backend, tolerance, size.long)
+    note(f"reference {describe(ref.profile)}: margin {ref.margin:.1f}")
+    if not ref.converged:
+        logger.warning(
+            "reference %s not converged: refinement changes it by %.3g rad, margin %.1f < %g",
+            describe(ref.profile), ref.refined_change, ref.margin, MARGIN,
+        )  # fmt: skip
+    ref_task = task_runs(scene, backend, ref.profile, size.seeds, size.task_s)
+    note("reference task runs")
+    rows = []
+    for profile in grid:
+        label = describe(profile)
+        held = held_rollout(scene, backend, profile, size.long)
+        stats = task_runs(scene, backend, profile, size.seeds, size.task_s)
+        causes = dict(stats.health)
+        if held.health != "ok":
+            causes[f"held:{held.health}"] = 1
+        err_long = rms_error(held, ref.rollout, size.long, dt)
+        stable = not causes
+        health = ", ".join(f"{k}: {v}" for k, v in sorted(causes.items())) or "ok"
+        rows.append(
+            Row(
+                label=label, integrator=profile.integrator, timestep_ms=profile.timestep * 1e3,
+                accuracy=profile.accuracy, fixed_step=profile.fixed_step,
+                steps_per_s=float(np.median(stats.steps_per_s)),
+                realtime=float(np.median(stats.realtime)),
+                err_short=rms_error(held, ref.rollout, size.short, dt), err_long=err_long,
+                stable=stable, health=health,
+                within=stable and err_long <= tolerance, task=_task_summary(stats, ref_task),
+            )
+        )  # fmt: skip
+        note(label)
+    model: list[dict] = []
+    if model_checks:
+        checks = [
+            lambda: model_error.cross_simulator(scene, backend, ref.rollout, size.short, size.long),
+            lambda: model_error.tendon(scene, backend, size.short, size.long),
+            lambda: model_error.pruning(scene, backend, ref.rollout, size.short, size.long),
+        ]
+        for check in checks:
+            diff = check()
+            if diff is not None:
+                model.append(asdict(diff))
+                note(diff.what)
+    fits = [r for r in rows if r.within]
+    best = max(fits, key=lambda r: r.steps_per_s) if fits else None
+    reference = {
+        "profile": describe(ref.profile), "refined": describe(ref.refined_profile),
+        "refined_change": ref.refined_change, "margin": ref.margin, "converged": ref.converged,
+        "required_margin": MARGIN, "task": ref_task.summary(),
+        "steps_per_s": float(np.median(ref_task.steps_per_s)),
+    }  # fmt: skip
+    return SweepResult(scene.name, backend, tolerance, size, reference, rows, model, best)
+
+
+def remeasure(scene: Scene, backend: str, profile: FidelityProfile, seconds: float) -> float:
+    """The long-window error of ``profile`` against a fresh reference run (rad)."""
+    from workers.fidelity.reference import REFERENCE
+
+    ref = held_rollout(scene, backend, REFERENCE[backend], seconds)
+    run = held_rollout(scene, backend, profile, seconds)
+    return rms_error(run, ref, seconds, 1.0 / scene.control_hz)
