@@ -53,11 +53,11 @@ def _ci(stat: Any, fmt: str = ".2f") -> str:
         return "-"
     if stat.n == 1:
         return f"{stat.mean:{fmt}}"
-    return f"{stat.mean:{fmt}} [{stat.low:{fmt}}, {stat.high:{fmt}}]"
+    return f"{stat.mean:{fmt}} ± {(stat.high - stat.low) / 2:{fmt}}"
 
 
 def _rate(rate: Any) -> str:
-    return f"{100 * rate.value:.0f} % [{100 * rate.low:.0f}, {100 * rate.high:.0f}]"
+    return f"{100 * rate.value:.0f} % ({100 * rate.low:.0f}-{100 * rate.high:.0f})"
 
 
 def _health(counts: dict[str, int]) -> str:
@@ -65,14 +65,33 @@ def _health(counts: dict[str, int]) -> str:
     return ", ".join(f"{k}: {v}" for k, v in failures.items()) or "none"
 
 
+def render_episodes(report: Any) -> list[Table]:
+    """One table per mode: every episode of an ``EvaluationReport``."""
+    tables = []
+    for mode, r in report.results.items():
+        table = Table(
+            "seed", "steps", "time s", "distance m", "speed m/s", "fell", "health", "effort",
+            "return", title=f"Episodes ({mode})",
+        )  # fmt: skip
+        for e in r.episodes:
+            table.add_row(
+                str(e.seed), str(e.steps), f"{e.time_s:.2f}", f"{e.distance_m:.2f}",
+                f"{e.mean_speed_m_s:.2f}", "yes" if e.fell else "no", e.health,
+                f"{e.effort:.3f}", f"{e.return_:.1f}",
+            )  # fmt: skip
+        tables.append(table)
+    return tables
+
+
 def render(report: Any) -> Group:
-    """Rich tables of an ``EvaluationReport``."""
+    """Rich tables of an ``EvaluationReport`` (means ± the half-width of their 95 % interval;
+    rates with their 95 % Wilson interval)."""
     head = (
         f"[bold]{report.checkpoint}[/bold]: {report.env_steps} env steps; scene "
         f"{report.scene} on {report.backend}; seeds {report.seed}.."
     )
     first = next(iter(report.results.values()))
-    head += f"{report.seed + len(first.episodes) - 1}; means with 95 % intervals"
+    head += f"{report.seed + len(first.episodes) - 1}; means ± 95 % intervals"
     table = Table(
         "mode", "target m/s", "distance m", "speed m/s", "fall rate", "time s", "effort",
         "return", "health failures", title="Evaluation",
@@ -122,6 +141,9 @@ def evaluate(
         Path | None, typer.Option(help="MCAP recording of the first episode.")
     ] = None,
     video: Annotated[Path | None, typer.Option(help="MP4 video of the first episode.")] = None,
+    per_episode: Annotated[
+        bool, typer.Option("--per-episode", help="Also a table of every episode.")
+    ] = False,
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Write the results as JSON here.")
     ] = None,
@@ -156,6 +178,9 @@ def evaluate(
             )  # fmt: skip
         except (EvaluationError, CheckpointError) as exc:
             raise _fail(str(exc)) from None
+    if per_episode:
+        for table in render_episodes(report):
+            console.print(table)
     console.print(render(report))
     if json_out is not None:
         write_json(report, json_out)

@@ -173,11 +173,12 @@ def test_json_is_complete(walk: tuple[Path, Scene], tmp_path: Path) -> None:
     result = runner.invoke(
         app,
         ["evaluate", str(run), "--episodes", "2", "--mode", "both", "--sweep",
-         "--sweep-percent", "0,20", "--json", str(out)],
+         "--sweep-percent", "0,20", "--per-episode", "--json", str(out)],
         env={"COLUMNS": "200"},
     )  # fmt: skip
     assert result.exit_code == 0, result.output
     assert "Speed against safety" in result.output and "fall rate" in result.output
+    assert "Episodes (stochastic)" in result.output
     data = json.loads(out.read_text())
     assert set(data["results"]) == {"deterministic", "stochastic"}
     det = data["results"]["deterministic"]
