@@ -51,7 +51,8 @@ def write_all(result: SweepResult, out: Path) -> dict[str, Path]:
 
 def pareto_plot(result: SweepResult, path: Path) -> None:
     """Error (rad, log) against env steps/s (log); unstable profiles drawn as red crosses at
-    the top edge; the tolerance as a dashed line; the recommended profile ringed."""
+    the top edge; the tolerance as a dashed line; model differences (simulator, tendon,
+    pruning) as dotted lines; the recommended profile ringed."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -66,6 +67,17 @@ def pareto_plot(result: SweepResult, path: Path) -> None:
         rows = [r for r in result.rows if r.integrator == integ and r.stable]
         ax.scatter([r.steps_per_s for r in rows], [max(r.err_long, bottom) for r in rows],
                    marker=marker, label=integ)  # fmt: skip
+    for r in result.rows:
+        if r.stable:
+            short = r.label.split(" ", 1)[-1].replace("acc ", "")
+            ax.annotate(short, (r.steps_per_s, max(r.err_long, bottom)), fontsize=5,
+                        xytext=(3, 2), textcoords="offset points", color="dimgrey")  # fmt: skip
+    for m in result.model:
+        if 0 < m["rms_long"] < math.inf:
+            ax.axhline(m["rms_long"], ls=":", lw=1, color="purple")
+            ax.text(0.01, m["rms_long"] * 1.1, f"model: {m['what']}", fontsize=6,
+                    transform=ax.get_yaxis_transform(), color="purple")  # fmt: skip
+            top = max(top, m["rms_long"] * 3)
     bad = [r for r in result.rows if not r.stable]
     if bad:
         ax.scatter([max(r.steps_per_s, 1e-3) for r in bad], [top] * len(bad), marker="x",
