@@ -68,7 +68,7 @@ def _check_file(path: Path, truth: list[dict], backend: str) -> None:
     steps = len(truth)
     times = [round(t["time"] * 1e9) for t in truth]
     with path.open("rb") as f:
-        reader = make_reader(f)
+        reader = make_reader(f, validate_crcs=True)
         summary = reader.get_summary()
         assert summary is not None and summary.statistics is not None
         channels = {c.topic: c for c in summary.channels.values()}

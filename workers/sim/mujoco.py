@@ -273,7 +273,7 @@ class MujocoSimulator:
 
     def body_frames(self) -> dict[str, BodyPose]:
         m, d = self.model, self.data
-        names = [m.body(i).name for i in range(m.nbody)]
+        names = [m.body(i).name or f"body{i}" for i in range(m.nbody)]
         return {
             names[i]: BodyPose(
                 d.xpos[i].copy(), d.xquat[i].copy(), names[p] if (p := m.body_parentid[i]) else ""
