@@ -244,7 +244,7 @@ class EvaluationReport:
     """MP4 file of the first episode, if one was written"""
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-able (NaN written as null)."""
+        """JSON-able: NaN written as null, the field ``return_`` as ``"return"``."""
         return _finite(asdict(self))
 
 
@@ -252,7 +252,7 @@ def _finite(x: Any) -> Any:
     if isinstance(x, float):
         return x if math.isfinite(x) else None
     if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
+        return {("return" if k == "return_" else k): _finite(v) for k, v in x.items()}
     if isinstance(x, list | tuple):
         return [_finite(v) for v in x]
     return x

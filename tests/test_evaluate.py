@@ -183,6 +183,9 @@ def test_json_is_complete(walk: tuple[Path, Scene], tmp_path: Path) -> None:
     assert set(data["results"]) == {"deterministic", "stochastic"}
     det = data["results"]["deterministic"]
     assert len(det["episodes"]) == 2 and set(det["fall_rate"]) >= {"value", "low", "high"}
+    assert det["return"]["mean"] == pytest.approx(
+        sum(e["return"] for e in det["episodes"]) / 2, rel=1e-9
+    )
     assert [p["target_speed_m_s"] for p in data["sweep"]] == pytest.approx([1.25, 1.0])
 
 
