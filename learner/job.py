@@ -25,12 +25,19 @@ import re
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from learner.ppo import PPOConfig
 from workers.scenes import Scene, load_scene
 from workers.scenes.profiles import Fidelity
-from workers.spec_io import SpecError, load_yaml_model
+from workers.spec_io import SpecError, format_validation_error, load_yaml_model
 
 METRICS = ("return", "distance", "speed", "fall_rate", "survival", "length")
 """Episode statistics a promotion rule can test, each averaged over its window: return;
@@ -209,14 +216,19 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
             ref = str(base / ref)
         try:
             scene = load_scene(ref)
-            if stage.fidelity is not None:
-                scene = Scene.model_validate({**scene.model_dump(), "fidelity": stage.fidelity})
-        except (SpecError, ValueError) as exc:
-            raise SpecError(f"{source}: stages.{i}.scene: {str(exc).splitlines()[0]}") from None
+        except SpecError as exc:
+            raise SpecError(f"{source}: stages.{i}.scene: {exc}") from None
         if job.backend not in scene.backends:
             raise SpecError(
                 f"{source}: stages.{i}.scene: {scene.name!r} runs on {scene.backends}, "
                 f"not on the job's backend {job.backend!r}"
             )
+        if stage.fidelity is not None:  # checked on the job's backend only
+            raw = {**scene.model_dump(), "fidelity": stage.fidelity, "backends": [job.backend]}
+            try:
+                scene = Scene.model_validate(raw)
+            except ValidationError as err:
+                message = format_validation_error(f"{source}: stages.{i}", err)
+                raise SpecError(message.replace(": <root>:", ":")) from None
         scenes.append(scene)
     return scenes

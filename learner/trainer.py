@@ -1,9 +1,10 @@
 """The training loop: PPO through a job's curriculum of stages, with policy blending,
 checkpoints, resume after SIGKILL, TensorBoard scalars and a callback for progress displays.
 
-Each iteration gathers at least ``ppo.batch_env_steps`` env steps of fragments, updates the
-observation normaliser, runs PPO (on the mirrored batch too with ``ppo.mirror``) and
-publishes the new weights. After each update the curriculum decides whether the stage is
+Each iteration gathers at least ``ppo.batch_env_steps`` env steps of fragments, runs PPO (on
+the mirrored batch too with ``ppo.mirror``), then merges the batch's observations into the
+normaliser (not before: the behaviour log-probabilities were taken with the old statistics)
+and publishes the new weights. After each update the curriculum decides whether the stage is
 over (its promotion rule passed or its budget is spent); the next stage's scene is pushed to
 the live workers and, where the stage asks for it, a new network is built:
 
@@ -248,7 +249,6 @@ class Trainer:
         fragments = self._gather(sampler, ppo.batch_env_steps)
         gathered_s = time.perf_counter() - start
         obs = np.concatenate([f["obs"].reshape(-1, f["obs"].shape[-1]) for f in fragments])
-        self.policy.norm.update(torch.from_numpy(obs))
         progress = min(1.0, self.curriculum.stage_env_steps / stage.env_steps)
         cfg = ppo.config(batch_size=len(obs) * (2 if ppo.mirror else 1), progress=progress)
         for group in self.optimizer.param_groups:
@@ -259,6 +259,8 @@ class Trainer:
             mirror = MirrorMap.from_names(io.obs_names, io.act_names, io.lateral_axis)
             batch = add_mirrored(batch, mirror, self.policy)
         losses = ppo_update(self.policy, self.optimizer, batch, cfg)
+        # after the update: the batch's log-probabilities were taken with the old statistics
+        self.policy.norm.update(torch.from_numpy(obs))
         self._ramp_blend(sampler)
         self.iteration += 1
         sampler.set_weights(self.policy.state_dict())
