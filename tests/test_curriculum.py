@@ -54,7 +54,8 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
          "stages.0.scene: 'walk-3d' runs on ['mujoco'], not on the job's backend 'opensim'"),
         ("stages: [{scene: walk-2d, env_steps: 9}, {scene: run-2d, env_steps: 9, "
          "network: {hidden: [8]}}]", "a new network needs transition blend, distil or scratch"),
-        ("stages: [{scene: walk-2d, env_steps: 9, fidelity: warp}]", "stages.0: fidelity: unknown profile 'warp'"),
+        ("stages: [{scene: walk-2d, env_steps: 9, fidelity: warp}]",
+         "stages.0: fidelity: unknown profile 'warp'"),
         ("stages: [{scene: walk-2d, env_steps: 9}]\nppo: {lr: -1}", "ppo.lr: Input should be"),
         ("stages: [{scene: walk-2d, env_steps: 9}]\nworkers: {threads: 3}",
          "workers.threads: Extra inputs are not permitted"),
