@@ -14,9 +14,14 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e ".[dev]"
 	touch $(STAMP)
 
+# The main job, short: the gait2d curriculum (stand, walk with a blended bigger network, run,
+# obstacles) at 1/1000 of its budget, then an evaluation with an MCAP recording and a video.
+RUN_DIR := runs/make-run
 run: $(STAMP)
-	$(BIN)/gaitforge scenes check --all --seconds 2
-	$(BIN)/gaitforge scenes check --all --seconds 2 --backend opensim
+	$(BIN)/gaitforge scenes check --all --seconds 1
+	$(BIN)/gaitforge train examples/gait2d-curriculum.yaml --budget-scale 0.001 --run-dir $(RUN_DIR)
+	$(BIN)/gaitforge evaluate $(RUN_DIR) --episodes 5 --sweep \
+		--record $(RUN_DIR)/evaluate.mcap --video $(RUN_DIR)/evaluate.mp4 --json $(RUN_DIR)/evaluate.json
 
 test: $(STAMP)
 	$(BIN)/ruff check .
