@@ -1,0 +1,193 @@
+"""Policy blending against behavioural cloning and training from scratch, on one stage
+transition at equal env steps, over several seeds.
+
+Usage: python bench/blending.py [--seeds 3] [--from-steps N] [--to-steps M]
+                                [--from-scene S] [--to-scene S] [--workers W] [--out DIR]
+
+Per seed, stage 0 trains a small network (``--small``, default 32x32) on ``--from-scene``
+for ``--from-steps`` env steps, once; its final checkpoint is then copied three times, and
+stage 1 goes on from it on ``--to-scene`` with a bigger network (``--big``, 128x128) built
+by each transition for ``--to-steps`` env steps (warm-up rollouts included):
+
+- blend:   pi_new trained in blend with the frozen pi_old, alpha ramped 0 -> 1 over half
+           of the stage (critic fitted to pi_old's returns first);
+- distil:  pi_new's actor cloned from pi_old's actions and its critic fitted, then PPO;
+- scratch: a fresh pi_new.
+
+Reported per transition: the training return over the stage's last 100 episodes and a
+deterministic evaluation (20 seeded episodes) of the final policy, mean and spread (std)
+over seeds, with the return right after the switch (first iteration) to show the dip that
+blending avoids. The default transition is elbow-reach from a narrow band of targets to the
+full range (fast enough for this 2-core machine); ``--from-scene stand-2d --to-scene
+walk-2d`` is the locomotion one (hours on 2 cores). Writes ``blending.json`` and a learning
+curve plot ``blending.png`` to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import shutil
+import statistics
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import torch
+import yaml
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from learner.checkpoint import latest_checkpoint, load_policy
+from learner.evaluate import evaluate_policy
+from learner.job import Job
+from learner.trainer import Trainer
+from workers.scenes import load_scene
+
+console = Console()
+TRANSITIONS = ("blend", "distil", "scratch")
+
+
+def narrow_elbow(out: Path) -> Path:
+    """elbow-reach with targets drawn from [0.9, 1.2] rad only (stage 0 of the default)."""
+    raw = load_scene("elbow-reach").model_dump(mode="json")
+    raw.update(name="elbow-reach-narrow")
+    raw["task"]["reach_range"] = [0.9, 1.2]
+    path = out / "elbow-reach-narrow.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    return path
+
+
+def job_for(args: argparse.Namespace, seed: int, transition: str, from_scene: str) -> Job:
+    ramp = max(1, args.to_steps // 2)
+    return Job.model_validate({
+        "name": f"blending-{transition}-{seed}",
+        "seed": seed,
+        "network": {"hidden": args.small},
+        "ppo": {"batch_env_steps": args.batch, "minibatch_size": args.batch // 4,
+                "lr": args.lr, "mirror": args.mirror},
+        "workers": {"num_workers": args.workers, "envs_per_worker": 8, "fragment_length": 64},
+        "checkpoint": {"every_iters": 1000, "keep_last": 1},
+        "stages": [
+            {"scene": from_scene, "env_steps": args.from_steps},
+            {"scene": args.to_scene, "env_steps": args.to_steps, "transition": transition,
+             "network": {"hidden": args.big},
+             "blend": {"ramp_env_steps": ramp, "critic_warmup_env_steps": args.batch}},
+        ],
+    })  # fmt: skip
+
+
+def run_seed(args: argparse.Namespace, seed: int, from_scene: str, progress: Progress) -> dict:
+    """Stage 0 once, then each transition from a copy of its final checkpoint."""
+    base = args.out / f"seed{seed}" / "stage0"
+    task = progress.add_task(f"seed {seed} stage 0", total=args.from_steps)
+
+    def tick(task_id: int):
+        return lambda m: progress.update(task_id, completed=m["stage_env_steps"])
+
+    if latest_checkpoint(base / "checkpoints") is None:
+        stage0 = job_for(args, seed, "blend", from_scene).model_dump()
+        stage0["stages"] = stage0["stages"][:1]
+        Trainer(Job.model_validate(stage0), base, on_iteration=tick(task), tensorboard=False).run()
+    results = {}
+    for transition in TRANSITIONS:
+        run_dir = args.out / f"seed{seed}" / transition
+        shutil.rmtree(run_dir, ignore_errors=True)
+        (run_dir / "checkpoints").mkdir(parents=True)
+        stage0_end = _stage_end(base)
+        shutil.copytree(stage0_end, run_dir / "checkpoints" / stage0_end.name)
+        task = progress.add_task(f"seed {seed} {transition}", total=args.to_steps)
+        job = job_for(args, seed, transition, from_scene)
+        start = time.perf_counter()
+        trainer = Trainer(job, run_dir, on_iteration=tick(task), tensorboard=False)
+        history = [h for h in trainer.run() if h["stage"] == 1]
+        policy, _ = load_policy(latest_checkpoint(run_dir / "checkpoints"))
+        evaluation = evaluate_policy(policy, trainer.scenes[1], episodes=20, seed=10_000)
+        results[transition] = {
+            "curve": [(h["stage_env_steps"], h["return"]) for h in history],
+            "first_return": history[0]["return"],
+            "final_train_return": history[-1]["return"],
+            "eval_return": evaluation.return_.mean,
+            "wall_s": time.perf_counter() - start,
+        }
+    return results
+
+
+def _stage_end(base: Path) -> Path:
+    path = latest_checkpoint(base / "checkpoints")
+    assert path is not None, f"stage 0 left no checkpoint in {base}"
+    return path
+
+
+def summarise(per_seed: list[dict]) -> Table:
+    table = Table(title="Stage transition at equal env steps (mean ± std over seeds)")
+    for col in ("transition", "return after switch", "final train return", "eval return",
+                "wall s"):  # fmt: skip
+        table.add_column(col, justify="right")
+    for transition in TRANSITIONS:
+        cells = []
+        for key in ("first_return", "final_train_return", "eval_return", "wall_s"):
+            values = [seed[transition][key] for seed in per_seed]
+            spread = statistics.stdev(values) if len(values) > 1 else 0.0
+            cells.append(f"{statistics.mean(values):.1f} ± {spread:.1f}")
+        table.add_row(transition, *cells)
+    return table
+
+
+def plot(per_seed: list[dict], path: Path) -> None:
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for colour, transition in zip(("C0", "C1", "C2"), TRANSITIONS, strict=True):
+        for i, seed in enumerate(per_seed):
+            steps, returns = zip(*seed[transition]["curve"], strict=True)
+            ax.plot(steps, returns, color=colour, alpha=0.7,
+                    label=transition if i == 0 else None)  # fmt: skip
+    ax.set_xlabel("env steps in the new stage")
+    ax.set_ylabel("training return (last 100 episodes)")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--from-scene", default=None, help="default: elbow-reach, narrow")
+    parser.add_argument("--to-scene", default="elbow-reach")
+    parser.add_argument("--from-steps", type=int, default=60_000)
+    parser.add_argument("--to-steps", type=int, default=60_000)
+    parser.add_argument("--small", type=int, nargs="+", default=[32, 32])
+    parser.add_argument("--big", type=int, nargs="+", default=[128, 128])
+    parser.add_argument("--batch", type=int, default=2048)
+    parser.add_argument("--lr", type=float, default=1e-3)
+    parser.add_argument("--mirror", action="store_true")
+    parser.add_argument("--workers", type=int, default=0, help="Ray actors (0: in-process)")
+    parser.add_argument("--out", type=Path, default=Path("bench/results/blending"))
+    args = parser.parse_args()
+    if args.seeds < 1:
+        parser.error("--seeds must be >= 1")
+    logging.basicConfig(level=logging.WARNING)
+    torch.set_num_threads(1)
+    args.out.mkdir(parents=True, exist_ok=True)
+    from_scene = args.from_scene or str(narrow_elbow(args.out))
+    if args.from_scene is not None:
+        load_scene(args.from_scene)  # one-line error for an unknown scene
+    columns = (TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn())
+    with Progress(*columns, console=console) as progress:
+        per_seed = [run_seed(args, seed, from_scene, progress) for seed in range(args.seeds)]
+    console.print(summarise(per_seed))
+    (args.out / "blending.json").write_text(json.dumps(per_seed, indent=1))
+    plot(per_seed, args.out / "blending.png")
+    console.print(f"written: {args.out / 'blending.json'}, {args.out / 'blending.png'} "
+                  f"(machine: {os.cpu_count()} CPUs)")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
