@@ -244,6 +244,8 @@ class EpisodeRecorder:
         if not self._closed:
             self._closed = True
             self._writer.close()
+            for channel in (self._tf, self._scene, self._joints, *self._scalars.values()):
+                channel.close()
             logger.info("recording: %d steps to %s", self.steps, self.path)
 
     def __enter__(self) -> EpisodeRecorder:
