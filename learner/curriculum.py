@@ -91,11 +91,15 @@ class CurriculumState:
 
     def verdict(self, stage: Stage) -> str | None:
         """Why the stage ends now (``"promoted: ..."`` or ``"budget spent"``), or None."""
-        rule = stage.promote
-        if rule is not None and len(self.episodes) >= rule.window:
-            mean = self.window_mean(rule.metric, rule.window)
-            if rule.passes(mean):
-                return f"promoted: {rule.metric} {mean:.3g} {rule.op} {rule.value:g}"
+        rules = stage.promote
+        full = rules and len(self.episodes) >= max(rule.window for rule in rules)
+        if full:
+            means = [self.window_mean(rule.metric, rule.window) for rule in rules]
+            if all(rule.passes(mean) for rule, mean in zip(rules, means, strict=True)):
+                return "promoted: " + ", ".join(
+                    f"{rule.metric} {mean:.3g} {rule.op} {rule.value:g}"
+                    for rule, mean in zip(rules, means, strict=True)
+                )
         if self.stage_env_steps >= stage.env_steps:
             return "budget spent"
         return None

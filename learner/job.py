@@ -11,7 +11,7 @@ network (``blend``, ``distil`` or ``scratch``). Errors are one line naming the f
     stages:
       - scene: stand-2d
         env_steps: 300000
-        promote: "survival >= 0.95 over 50"
+        promote: "survival >= 0.95 over 50"     # or a list of rules that must all pass
       - scene: walk-2d
         env_steps: 2000000
         network: {hidden: [128, 128]}
@@ -70,6 +70,18 @@ class PromotionRule(_Strict):
         return mean >= self.value if self.op == ">=" else mean <= self.value
 
 
+def _parse_rule(raw: object) -> object:
+    """``"distance >= 5 over 100"`` -> its fields; a mapping passes through."""
+    if not isinstance(raw, str):
+        return raw
+    match = _RULE.match(raw)
+    if match is None:
+        raise ValueError(
+            f"expected '<metric> >=|<= <value> [over <episodes>]', metric one of {METRICS}"
+        )
+    return {k: v for k, v in match.groupdict().items() if v is not None}
+
+
 class NetworkSpec(_Strict):
     hidden: list[Annotated[int, Field(ge=1, le=4096)]] = Field(
         default_factory=lambda: [64, 64], min_length=1, max_length=8
@@ -96,9 +108,13 @@ class Stage(_Strict):
     """defaults to the scene's name"""
     fidelity: Fidelity | None = None
     """overrides the scene's fidelity profile (a fidelity curriculum changes only this)"""
+    control_hz: Annotated[float, Field(gt=0, le=1000)] | None = None
+    """overrides the scene's control rate: a lower rate repeats each action over more
+    simulator steps (the 2017 entrants' frame skip), which shortens the credit horizon"""
     env_steps: Annotated[int, Field(ge=1)]
     """the stage's budget; it ends at the budget even if the rule never passed"""
-    promote: PromotionRule | None = None
+    promote: list[PromotionRule] = Field(default_factory=list)
+    """rules that must all pass to promote early; one rule may be given alone"""
     network: NetworkSpec | None = None
     """a new network for this stage (needs a building transition); None keeps the current"""
     transition: Literal["continue", "blend", "distil", "scratch"] = "continue"
@@ -106,15 +122,9 @@ class Stage(_Strict):
 
     @field_validator("promote", mode="before")
     @classmethod
-    def _parse_rule(cls, raw: object) -> object:
-        if not isinstance(raw, str):
-            return raw
-        match = _RULE.match(raw)
-        if match is None:
-            raise ValueError(
-                f"expected '<metric> >=|<= <value> [over <episodes>]', metric one of {METRICS}"
-            )
-        return {k: v for k, v in match.groupdict().items() if v is not None}
+    def _parse_rules(cls, raw: object) -> object:
+        rules = raw if isinstance(raw, list) else [] if raw is None else [raw]
+        return [_parse_rule(rule) for rule in rules]
 
     @model_validator(mode="after")
     def _transition_fits(self) -> Stage:
@@ -223,8 +233,9 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
                 f"{source}: stages.{i}.scene: {scene.name!r} runs on {scene.backends}, "
                 f"not on the job's backend {job.backend!r}"
             )
-        if stage.fidelity is not None:  # checked on the job's backend only
-            raw = {**scene.model_dump(), "fidelity": stage.fidelity, "backends": [job.backend]}
+        overrides = {k: v for k in ("fidelity", "control_hz") if (v := getattr(stage, k))}
+        if overrides:  # checked on the job's backend only
+            raw = {**scene.model_dump(), **overrides, "backends": [job.backend]}
             try:
                 scene = Scene.model_validate(raw)
             except ValidationError as err:

@@ -18,8 +18,8 @@ def test_a_rule_reads_from_a_string() -> None:
     stage = Stage.model_validate(
         {"scene": "walk-2d", "env_steps": 10, "promote": "distance >= 5 over 100"}
     )
-    assert stage.promote == PromotionRule(metric="distance", op=">=", value=5.0, window=100)
-    assert str(stage.promote) == "distance >= 5 over 100 episodes"
+    assert stage.promote == [PromotionRule(metric="distance", op=">=", value=5.0, window=100)]
+    assert str(stage.promote[0]) == "distance >= 5 over 100 episodes"
 
 
 def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> None:
@@ -37,6 +37,14 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
     assert state.verdict(stage) is None
     state.stage_env_steps = 1000
     assert state.verdict(stage) == "budget spent"
+    both = Stage.model_validate(
+        {"scene": "walk-2d", "env_steps": 10**6,
+         "promote": ["speed >= 0.2 over 2", "fall_rate <= 0.5 over 2"]}
+    )  # fmt: skip
+    assert both.promote[1].metric == "fall_rate"
+    assert state.verdict(both) is None, "speed passes, falls 2 of 2 do not"
+    state.episodes.append(EpisodeStats(1.0, 3.0, 10.0, False, True))
+    assert state.verdict(both) == "promoted: speed 0.275 >= 0.2, fall_rate 0.5 <= 0.5"
     assert CurriculumState.from_json(state.to_json()).to_json() == state.to_json()
 
 
@@ -47,8 +55,10 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
         ("stages: [{scene: walk-2d, env_steps: 0}]", "stages.0.env_steps: Input should be"),
         ("stages: [{scene: walk-2d, env_steps: 9, promote: 'speed > 1'}]",
          "stages.0.promote: expected '<metric> >=|<= <value> [over <episodes>]'"),
-        ("stages: [{scene: walk-2d, env_steps: 9, promote: 'height >= 1'}]",
-         "stages.0.promote.metric: Input should be"),
+        ("stages: [{scene: walk-2d, env_steps: 9, promote: ['speed >= 1', 'height >= 1']}]",
+         "stages.0.promote.1.metric: Input should be"),
+        ("stages: [{scene: walk-2d, env_steps: 9, control_hz: 30}]",
+         "does not divide the control period 1/30.0 s"),
         ("stages: [{scene: nowhere, env_steps: 9}]", "stages.0.scene: scene 'nowhere': unknown"),
         ("stages: [{scene: walk-3d, env_steps: 9}]\nbackend: opensim",
          "stages.0.scene: 'walk-3d' runs on ['mujoco'], not on the job's backend 'opensim'"),
