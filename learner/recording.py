@@ -34,6 +34,7 @@ recorder, so recorders in one process never see each other's channels).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import math
@@ -151,6 +152,30 @@ def _json_schema(title: str, numbers: list[str], strings: tuple[str, ...] = ()) 
     props: dict[str, dict[str, str]] = {name: {"type": "number"} for name in numbers}
     props.update({name: {"type": "string"} for name in strings})
     return {"title": title, "type": "object", "properties": props}
+
+
+def checkpoint_metadata(path: str | os.PathLike[str]) -> dict[str, str]:
+    """Recording metadata naming a checkpoint directory (``learner.checkpoint`` layout):
+    ``checkpoint`` (its path), ``checkpoint_sha256`` (sha256 of its ``manifest.json``, which
+    holds the sha256 of every file: one hash for the whole checkpoint), ``policy_sha256``, and
+    ``stage``, ``env_steps`` from ``meta.json`` when there. Reads JSON only, unpickles nothing;
+    a missing manifest raises ``FileNotFoundError`` naming it."""
+    root = Path(path)
+    manifest_bytes = (root / "manifest.json").read_bytes()
+    manifest = json.loads(manifest_bytes)
+    meta: dict[str, Any] = {}
+    if (root / "meta.json").exists():
+        meta = json.loads((root / "meta.json").read_text())
+    out = {
+        "checkpoint": str(root),
+        "checkpoint_sha256": hashlib.sha256(manifest_bytes).hexdigest(),
+        "policy_sha256": str(manifest.get("policy.safetensors", "")),
+    }
+    for key in ("stage", "env_steps"):
+        if key in meta:
+            value = meta[key]
+            out[key] = value if isinstance(value, str) else json.dumps(value, default=str)
+    return out
 
 
 # ---- recorder ---------------------------------------------------------------------------------

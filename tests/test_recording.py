@@ -10,10 +10,19 @@ from pathlib import Path
 import imageio_ffmpeg
 import numpy as np
 import pytest
+import torch
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from mcap.reader import make_reader
 
-from learner.recording import METADATA_NAME, SCALAR_TOPICS, TOPICS, EpisodeRecorder, record_episode
+from learner.checkpoint import save_checkpoint
+from learner.recording import (
+    METADATA_NAME,
+    SCALAR_TOPICS,
+    TOPICS,
+    EpisodeRecorder,
+    checkpoint_metadata,
+    record_episode,
+)
 from learner.video import osmesa_available, record_video
 from workers.env import MuscleEnv
 
@@ -136,6 +145,22 @@ def test_record_episode_summary(tmp_path: Path) -> None:
     with open(summary["path"], "rb") as f:
         stats = make_reader(f).get_summary().statistics
     assert stats.message_count == 20 * len(TOPICS)
+
+
+def test_checkpoint_metadata_names_the_checkpoint(tmp_path: Path) -> None:
+    state = {"w": torch.ones(3), "norm.mean": torch.zeros(3)}
+    ckpt = save_checkpoint(tmp_path / "run", 1000, state, {"stage": "walk"})
+    meta = checkpoint_metadata(ckpt)
+    assert meta["checkpoint"] == str(ckpt) and meta["stage"] == "walk"
+    assert meta["env_steps"] == "1000"
+    assert len(meta["checkpoint_sha256"]) == 64 and len(meta["policy_sha256"]) == 64
+    env = MuscleEnv("walk-2d", backend="mujoco")
+    summary = record_episode(
+        env, lambda obs: np.zeros(18), tmp_path / "e.mcap", seed=0, metadata=meta, max_steps=2
+    )
+    with open(summary["path"], "rb") as f:
+        (record,) = list(make_reader(f).iter_metadata())
+    assert record.metadata["checkpoint_sha256"] == meta["checkpoint_sha256"]
 
 
 needs_gl = pytest.mark.skipif(
