@@ -211,14 +211,20 @@ class Trainer:
 
     # ---- the loop -------------------------------------------------------------------------
 
-    def run(self, max_iterations: int | None = None) -> list[dict]:
-        """Train until the last stage ends (or ``max_iterations`` more iterations)."""
+    def run(
+        self, max_iterations: int | None = None, max_seconds: float | None = None
+    ) -> list[dict]:
+        """Train until the last stage ends, or ``max_iterations`` more iterations, or
+        ``max_seconds`` of wall-clock time (checked between iterations)."""
         if self.done:
             return self.history
         sampler = self._make_sampler()
         stop_at = None if max_iterations is None else self.iteration + max_iterations
+        deadline = None if max_seconds is None else time.monotonic() + max_seconds
         try:
             while not self.done and (stop_at is None or self.iteration < stop_at):
+                if deadline is not None and time.monotonic() > deadline:
+                    break
                 if not self.curriculum.entered:
                     self._enter_stage(sampler)
                 self._iterate(sampler)
