@@ -11,7 +11,9 @@ topic              schema (encoding)           content
 ``/scene``         foxglove.SceneUpdate        entities in frame ``world``: ``skeleton`` (a sphere
                    (protobuf)                  per body origin, lines parent to child), ``muscles``
                                                (one line strip per muscle path, blue at activation
-                                               0 to red at 1), ``obstacles`` (spheres)
+                                               0 to red at 1), ``obstacles`` (spheres),
+                                               ``contacts`` (foot contact spheres, grey unloaded
+                                               to green at body weight on that foot)
 ``/joints``        foxglove.JointStates        every scalar joint coordinate: position rad or m,
                    (protobuf)                  velocity of the kept dofs rad/s or m/s
 ``/reward``        gaitforge.Reward (json)     ``total`` and every weighted reward term
@@ -66,7 +68,7 @@ from foxglove.messages import (
     Vector3,
 )
 
-from workers.env import MuscleEnv
+from workers.env import GRAVITY, MuscleEnv
 from workers.rewards import TERMS
 from workers.sim.base import HEALTHY, SimState
 
@@ -210,6 +212,7 @@ class EpisodeRecorder:
         self._rot = z_up_rotation(sim.up_axis, sim.forward_axis)
         self._rot_q = matrix_to_quat(self._rot)
         self._target_speed = float(env.scene.task.target_speed or 0.0)
+        self._weight = max(GRAVITY * sim.report.mass, 1e-9)
         self._start_forward: float | None = None
         self._context = foxglove.Context()
         self._writer = foxglove.open_mcap(self.path, allow_overwrite=True, context=self._context)
@@ -392,7 +395,25 @@ class EpisodeRecorder:
         obstacles = SceneEntity(
             timestamp=stamp, frame_id=WORLD, id="obstacles", spheres=obstacle_spheres
         )
-        self._scene.log(SceneUpdate(entities=[skeleton, muscles, obstacles]), log_time=log_time)
+        contact_spheres = []
+        forces = dict(zip(self._feet, state.foot_forces, strict=True))
+        for foot, spheres in sim.contact_spheres().items():
+            load = float(np.clip(forces.get(foot, 0.0) / self._weight, 0.0, 1.0))
+            colour = Color(r=0.5 * (1 - load), g=0.5 + 0.5 * load, b=0.5 * (1 - load), a=0.8)
+            for *centre, radius in spheres:
+                contact_spheres.append(
+                    SpherePrimitive(
+                        pose=_pose(self._to_world(np.array(centre))),
+                        size=Vector3(x=2 * radius, y=2 * radius, z=2 * radius),
+                        color=colour,
+                    )
+                )
+        contacts = SceneEntity(
+            timestamp=stamp, frame_id=WORLD, id="contacts", spheres=contact_spheres
+        )
+        self._scene.log(
+            SceneUpdate(entities=[skeleton, muscles, obstacles, contacts]), log_time=log_time
+        )
 
         coords = sim.coordinates()
         speeds = dict(zip(sim.dof_names, state.dof_vel, strict=True))

@@ -112,6 +112,8 @@ def _check_file(path: Path, truth: list[dict], backend: str) -> None:
                 reds = [line.color.r for line in muscles.lines]
                 np.testing.assert_allclose(reds, np.clip(truth[k]["activations"], 0, 1), atol=1e-6)
                 assert all(len(line.points) >= 2 for line in muscles.lines)
+                contacts = next(e for e in scene.entities if e.id == "contacts")
+                assert len(contacts.spheres) == 4  # heel and toe spheres of each foot
         for topic in TOPICS:
             assert log_times[topic] == times, topic
 

@@ -140,6 +140,10 @@ class Simulator(Protocol):
         """Each muscle's path, by muscle name (``muscle_names``): [P, 3] points in the world
         from origin to insertion (via points and wrap points included), m."""
 
+    def contact_spheres(self) -> dict[str, np.ndarray]:
+        """Each foot's (``foot_names``) contact spheres: [S, 4] centre in the world (m) and
+        radius (m); spheres only (MuJoCo foot geoms of other shapes are left out)."""
+
     def coordinates(self) -> dict[str, float]:
         """Every scalar joint coordinate by name (root dofs and locked dofs included), rad
         or m; ball and free joints are left out."""

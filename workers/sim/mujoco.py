@@ -296,6 +296,15 @@ class MujocoSimulator:
             paths[name] = points[span][kinds[span] != -2].copy()
         return paths
 
+    def contact_spheres(self) -> dict[str, np.ndarray]:
+        m, d = self.model, self.data
+        spheres: dict[str, list] = {foot: [] for foot in self.foot_names}
+        for g in self._foot_spheres:
+            spheres[self.foot_names[self._geom_foot[g]]].append(
+                [*d.geom_xpos[g], m.geom_size[g, 0]]
+            )
+        return {foot: np.array(s, dtype=float).reshape(-1, 4) for foot, s in spheres.items()}
+
     def coordinates(self) -> dict[str, float]:
         m, d = self.model, self.data
         scalar = {int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)}

@@ -132,6 +132,11 @@ class OpenSimSimulator:
             for c in self._body.contact_spheres
             if c.name in self._plan.contact_geoms and c.part == "foot"
         ]
+        self._sphere_feet = [
+            c.foot
+            for c in self._body.contact_spheres
+            if c.name in self._plan.contact_geoms and c.part == "foot"
+        ]
 
     # ---- protocol -----------------------------------------------------------------------
 
@@ -279,6 +284,16 @@ class OpenSimSimulator:
                 [_vec3(points.get(k).getLocationInGround(state)) for k in range(points.getSize())]
             ).reshape(-1, 3)
         return paths
+
+    def contact_spheres(self) -> dict[str, np.ndarray]:
+        state = self.osim_state
+        self.model.realizePosition(state)
+        spheres: dict[str, list] = {foot: [] for foot in self.foot_names}
+        for foot, (body, where, radius) in zip(self._sphere_feet, self._foot_spheres, strict=True):
+            if foot in spheres:
+                centre = _vec3(body.findStationLocationInGround(state, where))
+                spheres[foot].append([*centre, radius])
+        return {foot: np.array(s, dtype=float).reshape(-1, 4) for foot, s in spheres.items()}
 
     def coordinates(self) -> dict[str, float]:
         state = self.osim_state
