@@ -1,0 +1,238 @@
+"""Learning curves and wall-clock to target, gaitforge's PPO beside RLlib's on the same env.
+
+Usage: python bench/learning.py [--tasks elbow-reach stand-2d walk-2d] [--minutes M ...]
+                                [--no-rllib] [--workers W] [--out DIR]
+
+A task is an example job (``examples/<task>.yaml``); its target is its stage's promotion
+rule(s): elbow-reach ``return >= -12 over 50``; stand-2d ``survival >= 0.95 over 100``
+(the whole 5 s episode without a fall); walk-2d ``speed >= 1.0`` and ``fall_rate <= 0.1``
+over 100 10-s episodes. Each framework gets the same wall-clock budget per task
+(``--minutes``, default 3, 5 and 30) on the same scene (with the job's overrides, e.g.
+25 Hz control), the same number of rollout workers (``--workers``, default: CPUs less one
+for the learner), network, batch size, epochs, learning rate and discount. gaitforge stops
+at the target; RLlib is checked against the same rules after each of its iterations, with
+episode statistics logged by a callback over the same window.
+
+Prints a table (target reached?, wall-clock and env steps to it, or the last values),
+writes ``learning.json`` and ``learning.png`` (the rule's first metric against wall-clock
+time) to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import time
+from collections import deque
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import ray
+from rich.console import Console
+from rich.table import Table
+
+from learner.curriculum import EpisodeStats
+from learner.job import Job, PromotionRule, load_job
+from learner.trainer import Trainer
+from workers.env import MuscleEnv
+from workers.scenes import Scene
+
+console = Console()
+EXAMPLES = Path(__file__).parents[1] / "examples"
+DEFAULT_MINUTES = {"elbow-reach": 3.0, "stand-2d": 5.0, "walk-2d": 30.0}
+RLLIB_ENV = "gaitforge-learning"
+
+
+def rules_pass(rules: list[PromotionRule], episodes: list[EpisodeStats]) -> tuple[bool, dict]:
+    """Whether every rule passes over its window of ``episodes``, and each rule's mean."""
+    means = {}
+    for rule in rules:
+        window = episodes[-rule.window :]
+        means[rule.metric] = (
+            sum(e.metric(rule.metric) for e in window) / len(window) if window else float("nan")
+        )
+    full = all(len(episodes) >= rule.window for rule in rules)
+    return full and all(rule.passes(means[r.metric]) for r in rules), means
+
+
+def run_gaitforge(job: Job, scenes: list[Scene], minutes: float, out: Path) -> dict:
+    curve: list[dict] = []
+    start = time.monotonic()
+    rules = job.stages[0].promote
+
+    def record(m: dict) -> None:
+        means = {r.metric: m[r.metric] for r in rules}
+        curve.append({"wall_s": time.monotonic() - start, "env_steps": m["env_steps"],
+                      "return": m["return"], **means})  # fmt: skip
+        console.log(f"gaitforge {job.name}: {curve[-1]}")
+
+    trainer = Trainer(job, out, scenes, on_iteration=record, tensorboard=False)
+    history = trainer.run(max_seconds=minutes * 60)
+    reached = next((h for h in history if (h["verdict"] or "").startswith("promoted")), None)
+    return _summary(curve, reached is not None)
+
+
+def run_rllib(job: Job, scene: Scene, minutes: float, workers: int) -> dict:
+    from ray.rllib.algorithms.ppo import PPOConfig
+    from ray.rllib.callbacks.callbacks import RLlibCallback
+    from ray.tune.registry import register_env
+
+    logging.getLogger("ray.rllib").setLevel(logging.ERROR)
+    register_env(RLLIB_ENV, lambda cfg: MuscleEnv(Scene.model_validate(cfg["scene"]),
+                                                   cfg["backend"]))  # fmt: skip
+    steps_per_episode = scene.steps_per_episode
+    control_hz = scene.control_hz
+
+    class EpisodeLog(RLlibCallback):
+        """Each finished episode's statistics, as the gaitforge trainer keeps them."""
+
+        def on_episode_end(self, *, episode, metrics_logger, **kwargs) -> None:
+            info = episode.get_infos()[-1]
+            length = len(episode)
+            for key, value in (
+                ("gf_distance", float(info.get("distance", 0.0))),
+                ("gf_length", length / control_hz),
+                ("gf_fell", float(bool(info.get("fell", False)))),
+                ("gf_full", float(length >= steps_per_episode)),
+            ):
+                metrics_logger.log_value(key, value, reduce=None, clear_on_reduce=True)
+
+    ppo = job.ppo
+    config = (
+        PPOConfig()
+        .environment(RLLIB_ENV, env_config={"scene": scene.model_dump(mode="json"),
+                                            "backend": job.backend})
+        .env_runners(num_env_runners=workers,
+                     num_envs_per_env_runner=job.workers.envs_per_worker)
+        .training(train_batch_size_per_learner=ppo.batch_env_steps,
+                  minibatch_size=ppo.minibatch_size, num_epochs=ppo.epochs, lr=ppo.lr,
+                  gamma=ppo.gamma, lambda_=ppo.lam, clip_param=ppo.clip)
+        .rl_module(model_config={"fcnet_hiddens": list(job.network.hidden),
+                                 "fcnet_activation": "tanh"})
+        .callbacks(EpisodeLog)
+        .debugging(seed=job.seed)
+    )  # fmt: skip
+    algo = config.build_algo()
+    rules = job.stages[0].promote
+    episodes: deque[EpisodeStats] = deque(maxlen=10_000)
+    curve: list[dict] = []
+    start = time.monotonic()
+    reached = False
+    try:
+        while time.monotonic() - start < minutes * 60:
+            result = algo.train()
+            runners = result.get("env_runners", {})
+            returns = runners.get("episode_return_mean", float("nan"))
+            for d, n, f, full in zip(*(_as_list(runners.get(k)) for k in (
+                    "gf_distance", "gf_length", "gf_fell", "gf_full")), strict=False):  # fmt: skip
+                episodes.append(EpisodeStats(float("nan"), d, n, bool(f), bool(full)))
+            reached, means = rules_pass(rules, list(episodes))
+            steps = runners.get("num_env_steps_sampled_lifetime") or result.get(
+                "num_env_steps_sampled_lifetime", 0
+            )
+            curve.append({"wall_s": time.monotonic() - start, "env_steps": int(steps),
+                          "return": returns, **means})  # fmt: skip
+            console.log(f"rllib {job.name}: {curve[-1]}")
+            if reached:
+                break
+    finally:
+        algo.stop()
+    return _summary(curve, reached)
+
+
+def _as_list(value: object) -> list[float]:
+    if value is None:
+        return []
+    return [float(v) for v in value] if isinstance(value, list | tuple) else [float(value)]
+
+
+def _summary(curve: list[dict], reached: bool) -> dict:
+    last = curve[-1] if curve else {}
+    return {"reached": reached, "wall_s": last.get("wall_s"), "env_steps": last.get("env_steps"),
+            "last": last, "curve": curve}  # fmt: skip
+
+
+def table(results: dict) -> Table:
+    out = Table(title=f"Learning to target, same wall-clock budget ({os.cpu_count()} CPUs)")
+    for col in ("task", "framework", "target", "reached", "wall s", "env steps", "last values"):
+        out.add_column(col)
+    for task, by_framework in results.items():
+        for framework, r in by_framework["runs"].items():
+            last = {k: round(v, 3) for k, v in r["last"].items()
+                    if k not in ("wall_s", "env_steps")}  # fmt: skip
+            reached = "yes" if r["reached"] else "no"
+            out.add_row(
+                task,
+                framework,
+                by_framework["target"],
+                reached,
+                f"{r['wall_s'] or 0:.0f}",
+                f"{r['env_steps'] or 0:,}",
+                str(last),
+            )
+    return out
+
+
+def plot(results: dict, path: Path) -> None:
+    fig, axes = plt.subplots(1, len(results), figsize=(5 * len(results), 3.5), squeeze=False)
+    for ax, (task, by_framework) in zip(axes[0], results.items(), strict=True):
+        metric = by_framework["metric"]
+        for framework, r in by_framework["runs"].items():
+            xs = [p["wall_s"] / 60 for p in r["curve"]]
+            ax.plot(xs, [p.get(metric, float("nan")) for p in r["curve"]], label=framework)
+        ax.axhline(by_framework["threshold"], color="grey", linestyle="--", linewidth=1)
+        ax.set_title(task)
+        ax.set_xlabel("wall-clock min")
+        ax.set_ylabel(metric)
+        ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tasks", nargs="+", default=list(DEFAULT_MINUTES))
+    parser.add_argument("--minutes", type=float, nargs="+", default=None)
+    parser.add_argument("--no-rllib", action="store_true")
+    parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--out", type=Path, default=Path("bench/results/learning"))
+    args = parser.parse_args()
+    minutes = args.minutes or [DEFAULT_MINUTES.get(t, 5.0) for t in args.tasks]
+    if len(minutes) != len(args.tasks):
+        parser.error("--minutes: one value per task")
+    logging.basicConfig(level=logging.WARNING)
+    ray.init(include_dashboard=False, logging_level=logging.WARNING)
+    workers = args.workers or max(1, int(ray.cluster_resources()["CPU"]) - 1)
+    results: dict = {}
+    for task, budget in zip(args.tasks, minutes, strict=True):
+        job, scenes = load_job(EXAMPLES / f"{task}.yaml")
+        raw = job.model_dump()
+        raw["workers"]["num_workers"] = workers
+        job = Job.model_validate(raw)
+        rules = job.stages[0].promote
+        runs = {"gaitforge": run_gaitforge(job, scenes, budget, args.out / "runs" / task)}
+        if not args.no_rllib:
+            runs["rllib"] = run_rllib(job, scenes[0], budget, workers)
+        results[task] = {
+            "target": " and ".join(str(r) for r in rules),
+            "minutes": budget,
+            "metric": rules[0].metric,
+            "threshold": rules[0].value,
+            "runs": runs,
+        }
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "learning.json").write_text(json.dumps(results, indent=1))
+    console.print(table(results))
+    plot(results, args.out / "learning.png")
+    console.print(f"written: {args.out / 'learning.json'}, {args.out / 'learning.png'}")
+
+
+if __name__ == "__main__":
+    main()
