@@ -80,8 +80,10 @@ def osmesa_available() -> str | None:
     return None
 
 
-class _Replay:
-    """The MuJoCo model of an OpenSim scene, posed from the OpenSim simulator's read-outs."""
+class MujocoReplay:
+    """The MuJoCo model of an OpenSim env's scene (``.sim``, a :class:`MujocoSimulator`),
+    posed by :meth:`pose` from the OpenSim simulator's coordinates (by name), activations and
+    obstacles. Same body, same kinematics: body poses and muscle paths agree to rounding."""
 
     def __init__(self, env: MuscleEnv) -> None:
         if "mujoco" not in env.scene.backends:
@@ -100,6 +102,7 @@ class _Replay:
         self._warned = False
 
     def pose(self, env: MuscleEnv) -> None:
+        """Copy the state of ``env`` (an OpenSim env) onto ``self.sim`` (positions only)."""
         m, d = self.sim.model, self.sim.data
         coords = env.sim.coordinates()
         missing = [name for name in coords if name not in self._qadr]
@@ -161,7 +164,7 @@ class VideoRecorder:
         self._calls = 0
         self._closed = False
         self._distance = distance
-        self._replay = _Replay(env) if env.backend != "mujoco" else None
+        self._replay = MujocoReplay(env) if env.backend != "mujoco" else None
         sim = self._replay.sim if self._replay else env.sim
         self._model: mujoco.MjModel = sim.model
         self._data: mujoco.MjData = sim.data

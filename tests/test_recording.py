@@ -23,7 +23,7 @@ from learner.recording import (
     checkpoint_metadata,
     record_episode,
 )
-from learner.video import osmesa_available, record_video
+from learner.video import MujocoReplay, osmesa_available, record_video
 from workers.env import MuscleEnv
 
 SCHEMAS = {
@@ -163,6 +163,24 @@ def test_checkpoint_metadata_names_the_checkpoint(tmp_path: Path) -> None:
     with open(summary["path"], "rb") as f:
         (record,) = list(make_reader(f).iter_metadata())
     assert record.metadata["checkpoint_sha256"] == meta["checkpoint_sha256"]
+
+
+def test_opensim_replays_exactly_on_the_mujoco_model() -> None:
+    env = MuscleEnv("obstacles-2d", backend="opensim")
+    env.reset(seed=2)
+    for _ in range(5):
+        env.step(np.full(18, 0.4))
+    replay = MujocoReplay(env)
+    replay.pose(env)
+    want, got = env.sim.body_frames(), replay.sim.body_frames()
+    assert set(want) == set(got)
+    for name, frame in want.items():
+        np.testing.assert_allclose(got[name].position, frame.position, atol=1e-9)
+        assert abs(np.dot(got[name].quaternion, frame.quaternion)) == pytest.approx(1.0)
+    want_paths, got_paths = env.sim.muscle_paths(), replay.sim.muscle_paths()
+    for name, path in want_paths.items():  # origins and insertions (wrap points may differ)
+        np.testing.assert_allclose(got_paths[name][[0, -1]], path[[0, -1]], atol=1e-9)
+    np.testing.assert_allclose(replay.sim.obstacles(), env.sim.obstacles(), atol=1e-12)
 
 
 needs_gl = pytest.mark.skipif(
