@@ -149,6 +149,19 @@ def test_record_episode_summary(tmp_path: Path) -> None:
     assert stats.message_count == 20 * len(TOPICS)
 
 
+def test_a_z_up_body_stays_as_it_is(tmp_path: Path) -> None:
+    env = MuscleEnv("walk-3d", backend="mujoco")  # MyoLeg: Z-up, X forward, like Foxglove
+    summary = record_episode(
+        env, lambda obs: np.zeros(80), tmp_path / "w.mcap", seed=0, max_steps=3
+    )
+    pelvis = env.sim.state().pelvis_pos
+    with open(summary["path"], "rb") as f:
+        *_, (schema, _, message) = make_reader(f).iter_messages(topics=["/tf"])
+    tf = _decode(schema, message.data)
+    got = next(t for t in tf.transforms if t.child_frame_id == "pelvis").translation
+    np.testing.assert_allclose([got.x, got.y, got.z], pelvis)
+
+
 def test_checkpoint_metadata_names_the_checkpoint(tmp_path: Path) -> None:
     state = {"w": torch.ones(3), "norm.mean": torch.zeros(3)}
     ckpt = save_checkpoint(tmp_path / "run", 1000, state, {"stage": "walk"})
