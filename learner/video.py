@@ -234,7 +234,8 @@ class VideoRecorder:
         self._colour_tendons()
         target = self._target()
         self._place_camera(target)
-        self._add_floor_stripes(target)
+        if self._pelvis >= 0:  # locomotion: progress along the floor
+            self._add_floor_stripes(target)
         self._add_skeleton()
         mujoco.mjr_render(self._viewport, scene, self._context)
         mujoco.mjr_readPixels(self._pixels, None, self._viewport, self._context)
