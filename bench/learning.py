@@ -11,7 +11,7 @@ over 100 10-s episodes. Each framework gets the same wall-clock budget per task
 25 Hz control), the same number of rollout workers (``--workers``, default: CPUs less one
 for the learner), network, batch size, epochs, learning rate and discount. gaitforge stops
 at the target; RLlib is checked against the same rules after each of its iterations, with
-episode statistics logged by a callback over the same window.
+episode statistics logged by a callback as means over the rules' largest window.
 
 Prints a table (target reached?, wall-clock and env steps to it, or the last values),
 writes ``learning.json`` and ``learning.png`` (the rule's first metric against wall-clock
@@ -25,7 +25,6 @@ import json
 import logging
 import os
 import time
-from collections import deque
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -39,7 +38,7 @@ from rich.console import Console
 from rich.table import Table
 
 from learner.curriculum import EpisodeStats
-from learner.job import Job, PromotionRule, load_job
+from learner.job import METRICS, Job, load_job
 from learner.trainer import Trainer
 from workers.env import MuscleEnv
 from workers.scenes import Scene
@@ -48,18 +47,6 @@ console = Console()
 EXAMPLES = Path(__file__).parents[1] / "examples"
 DEFAULT_MINUTES = {"elbow-reach": 3.0, "stand-2d": 5.0, "walk-2d": 30.0}
 RLLIB_ENV = "gaitforge-learning"
-
-
-def rules_pass(rules: list[PromotionRule], episodes: list[EpisodeStats]) -> tuple[bool, dict]:
-    """Whether every rule passes over its window of ``episodes``, and each rule's mean."""
-    means = {}
-    for rule in rules:
-        window = episodes[-rule.window :]
-        means[rule.metric] = (
-            sum(e.metric(rule.metric) for e in window) / len(window) if window else float("nan")
-        )
-    full = all(len(episodes) >= rule.window for rule in rules)
-    return full and all(rule.passes(means[r.metric]) for r in rules), means
 
 
 def run_gaitforge(job: Job, scenes: list[Scene], minutes: float, out: Path) -> dict:
@@ -90,19 +77,22 @@ def run_rllib(job: Job, scene: Scene, minutes: float, workers: int) -> dict:
     steps_per_episode = scene.steps_per_episode
     control_hz = scene.control_hz
 
+    rules = job.stages[0].promote
+    window = max(rule.window for rule in rules)
+
     class EpisodeLog(RLlibCallback):
-        """Each finished episode's statistics, as the gaitforge trainer keeps them."""
+        """Each finished episode's statistics as the gaitforge trainer keeps them, as means
+        over the last ``window`` episodes."""
 
         def on_episode_end(self, *, episode, metrics_logger, **kwargs) -> None:
             info = episode.get_infos()[-1]
             length = len(episode)
-            for key, value in (
-                ("gf_distance", float(info.get("distance", 0.0))),
-                ("gf_length", length / control_hz),
-                ("gf_fell", float(bool(info.get("fell", False)))),
-                ("gf_full", float(length >= steps_per_episode)),
-            ):
-                metrics_logger.log_value(key, value, reduce=None, clear_on_reduce=True)
+            stats = EpisodeStats(
+                float(episode.get_return()), float(info.get("distance", 0.0)),
+                length / control_hz, bool(info.get("fell", False)), length >= steps_per_episode,
+            )  # fmt: skip
+            for metric in METRICS:
+                metrics_logger.log_value(f"gf_{metric}", stats.metric(metric), window=window)
 
     ppo = job.ppo
     config = (
@@ -119,24 +109,22 @@ def run_rllib(job: Job, scene: Scene, minutes: float, workers: int) -> dict:
         .callbacks(EpisodeLog)
         .debugging(seed=job.seed)
     )  # fmt: skip
+    start = time.monotonic()  # set-up counts, as it does for gaitforge
     algo = config.build_algo()
-    rules = job.stages[0].promote
-    episodes: deque[EpisodeStats] = deque(maxlen=10_000)
     curve: list[dict] = []
-    start = time.monotonic()
     reached = False
     try:
         while time.monotonic() - start < minutes * 60:
             result = algo.train()
             runners = result.get("env_runners", {})
-            returns = runners.get("episode_return_mean", float("nan"))
-            for d, n, f, full in zip(*(_as_list(runners.get(k)) for k in (
-                    "gf_distance", "gf_length", "gf_fell", "gf_full")), strict=False):  # fmt: skip
-                episodes.append(EpisodeStats(float("nan"), d, n, bool(f), bool(full)))
-            reached, means = rules_pass(rules, list(episodes))
+            means = {r.metric: float(runners.get(f"gf_{r.metric}", float("nan"))) for r in rules}
+            reached = runners.get("num_episodes_lifetime", 0) >= window and all(
+                r.passes(means[r.metric]) for r in rules
+            )
             steps = runners.get("num_env_steps_sampled_lifetime") or result.get(
                 "num_env_steps_sampled_lifetime", 0
             )
+            returns = float(runners.get("episode_return_mean", float("nan")))
             curve.append({"wall_s": time.monotonic() - start, "env_steps": int(steps),
                           "return": returns, **means})  # fmt: skip
             console.log(f"rllib {job.name}: {curve[-1]}")
@@ -145,12 +133,6 @@ def run_rllib(job: Job, scene: Scene, minutes: float, workers: int) -> dict:
     finally:
         algo.stop()
     return _summary(curve, reached)
-
-
-def _as_list(value: object) -> list[float]:
-    if value is None:
-        return []
-    return [float(v) for v in value] if isinstance(value, list | tuple) else [float(value)]
 
 
 def _summary(curve: list[dict], reached: bool) -> dict:
