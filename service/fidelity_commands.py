@@ -128,17 +128,23 @@ def sweep(
     else:
         line = (
             f"recommended: {best.label} ({best.steps_per_s:.0f} steps/s, "
-            f"error {best.err_long:.3g} rad)"
+            f"error {best.error:.3g} rad)"
         )
         if save:
             saved = store.SavedProfile(
                 name=store.saved_name(scene.name, backend, tolerance), scene=scene.name,
                 backend=backend, tolerance=tolerance, profile=best.profile(),
-                error=best.err_long, steps_per_s=best.steps_per_s,
+                error=best.error, steps_per_s=best.steps_per_s,
             )  # fmt: skip
             path = store.save(saved)
             line += f"; saved as {saved.name!r} ({path})"
         console.print(line, soft_wrap=True)
+    if result.challenge is not None:
+        c = result.challenge
+        console.print(
+            f"against the 2017 challenge's {c['challenge']} ({c['challenge_steps_per_s']:.0f} "
+            f"steps/s, error {c['challenge_error']:.3g} rad): {c['speedup']:.1f}x faster"
+        )
     console.print(f"wrote {', '.join(str(p) for p in paths.values())}", soft_wrap=True)
 
 

@@ -12,7 +12,7 @@ from workers.fidelity.sweep import SweepResult
 
 CSV_FIELDS = (
     "label", "integrator", "timestep_ms", "accuracy", "fixed_step", "steps_per_s", "realtime",
-    "err_short", "err_long", "stable", "within", "health",
+    "err_short", "err_long", "error", "stable", "within", "health",
 )  # fmt: skip
 TASK_FIELDS = (
     "distance_m", "distance_ci", "distance_vs_ref", "distance_vs_ref_ci", "fall_rate",
@@ -59,18 +59,18 @@ def pareto_plot(result: SweepResult, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 4.5), dpi=110)
-    finite = [r.err_long for r in result.rows if r.stable and 0 < r.err_long < math.inf]
+    finite = [r.error for r in result.rows if r.stable and 0 < r.error < math.inf]
     top = max([*finite, result.tolerance]) * 3
     bottom = min([*finite, result.tolerance]) / 3
     markers = dict(zip(sorted({r.integrator for r in result.rows}), "osD^v<>ph*", strict=False))
     for integ, marker in markers.items():
         rows = [r for r in result.rows if r.integrator == integ and r.stable]
-        ax.scatter([r.steps_per_s for r in rows], [max(r.err_long, bottom) for r in rows],
+        ax.scatter([r.steps_per_s for r in rows], [max(r.error, bottom) for r in rows],
                    marker=marker, label=integ)  # fmt: skip
     for r in result.rows:
         if r.stable:
             short = r.label.split(" ", 1)[-1].replace("acc ", "")
-            ax.annotate(short, (r.steps_per_s, max(r.err_long, bottom)), fontsize=5,
+            ax.annotate(short, (r.steps_per_s, max(r.error, bottom)), fontsize=5,
                         xytext=(3, 2), textcoords="offset points", color="dimgrey")  # fmt: skip
     for m in result.model:
         if 0 < m["rms_long"] < math.inf:
@@ -87,13 +87,14 @@ def pareto_plot(result: SweepResult, path: Path) -> None:
             transform=ax.get_yaxis_transform(), ha="right", color="grey")  # fmt: skip
     if result.recommended is not None:
         r = result.recommended
-        ax.scatter([r.steps_per_s], [max(r.err_long, bottom)], s=200, facecolors="none",
+        ax.scatter([r.steps_per_s], [max(r.error, bottom)], s=200, facecolors="none",
                    edgecolors="black", label=f"recommended: {r.label}")  # fmt: skip
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_ylim(bottom, top * 1.5)
     ax.set_xlabel("env steps/s (one process)")
-    ax.set_ylabel(f"RMS joint-angle error over {result.size.long:g} s (rad)")
+    windows = f"{result.size.short:g} s and {result.size.long:g} s"
+    ax.set_ylabel(f"RMS joint-angle error (rad),\nlarger of {windows}")
     ax.set_title(f"{result.scene} on {result.backend}: error against speed")
     ax.legend(fontsize=7, loc="best")
     fig.tight_layout()

@@ -30,7 +30,7 @@ class SavedProfile(BaseModel):
     backend: str
     tolerance: float = Field(gt=0, description="rad, RMS joint-angle error it was chosen for")
     profile: FidelityProfile
-    error: float = Field(description="rad, measured RMS joint-angle error over the long window")
+    error: float = Field(description="rad, measured RMS joint-angle error (larger window)")
     steps_per_s: float = Field(description="env steps/s measured on the scene")
 
 
