@@ -24,7 +24,6 @@ A checkpoint is written every ``checkpoint.every_iters`` iterations and at each 
 from __future__ import annotations
 
 import functools
-import hashlib
 import logging
 import time
 from collections import Counter
@@ -424,7 +423,7 @@ class Trainer:
     def _record(self, checkpoint: Path) -> Path | None:
         """One deterministic episode of the current policy on the stage's scene, as MCAP in
         ``run_dir/recordings``. A failure is logged, never raised: training goes on."""
-        from learner.recording import record_episode  # lazy: imports foxglove
+        from learner.recording import checkpoint_metadata, record_episode  # lazy: foxglove
 
         path = self.run_dir / "recordings" / f"{checkpoint.name}-{self.scene.name}.mcap"
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -434,16 +433,9 @@ class Trainer:
             with torch.no_grad():
                 return policy.mean_action(torch.from_numpy(obs).float()[None])[0].numpy()
 
-        metadata = {
-            "scene": self.scene.name, "backend": self.job.backend,
-            "profile": self.scene.profile(self.job.backend).model_dump_json(),
-            "checkpoint": checkpoint.name, "stage": str(self.curriculum.stage),
-            "manifest_sha256": hashlib.sha256((checkpoint / "manifest.json").read_bytes())
-            .hexdigest(),
-        }  # fmt: skip
         try:
-            summary = record_episode(MuscleEnv(self.scene, self.job.backend), act, path,
-                                     seed=self.job.seed, metadata=metadata)  # fmt: skip
+            env = MuscleEnv(self.scene, self.job.backend)
+            summary = record_episode(env, act, path, self.job.seed, checkpoint_metadata(checkpoint))
         except Exception:
             logger.exception("recording %s failed; training goes on", path)
             return None
