@@ -13,4 +13,4 @@ run sweep-walk-3d-mujoco fidelity sweep walk-3d --backend mujoco --out "$OUT"
 run sweep-walk-2d-opensim fidelity sweep walk-2d --backend opensim --out "$OUT"
 run stress-walk-3d-mujoco fidelity stress walk-3d --backend mujoco
 run stress-walk-2d-mujoco fidelity stress walk-2d --backend mujoco
-run stress-walk-2d-opensim fidelity stress walk-2d --backend opensim --seconds 0.5 --no-bisect
+run stress-walk-2d-opensim fidelity stress walk-2d --backend opensim --seconds 0.5
