@@ -1,4 +1,5 @@
-"""The learner: PPO pieces so far (GAE, running normaliser, Gaussian actor-critic, PPO
-update). The trainer loop, curriculum, policy blending, checkpoints, evaluation and
-recordings are the learner issue's remaining work. ``workers`` never imports this package.
+"""The learner: PPO through a job's curriculum of stages (``trainer``, ``job``,
+``curriculum``), policy blending, cloning and fresh networks at stage transitions
+(``policy``, ``distil``), mirror symmetry, checkpoints, evaluation and recordings.
+``workers`` never imports this package.
 """
