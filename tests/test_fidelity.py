@@ -89,3 +89,18 @@ def test_every_stress_scenario_runs_healthy_at_the_default_profile() -> None:
     scene = load_scene("walk-2d")
     for scenario in SCENARIOS:
         assert run_scenario(scene, "mujoco", scene.profile("mujoco"), scenario, 0.2) == "ok"
+
+
+def test_pruning_check_measures_the_error_pruning_introduces() -> None:
+    """walk-3d welds the subtalar and toe joints: on the held variant the unpruned body
+    moves them, so the kept joints' trajectories differ by a small, non-zero amount."""
+    from workers.fidelity.model_error import pruning
+    from workers.fidelity.reference import REFERENCE
+    from workers.fidelity.sweep import SweepSize
+
+    scene = load_scene("walk-3d")
+    size = SweepSize(short=0.1, long=0.2, seeds=1, task_s=0.2, repeats=1)
+    reference = held_rollout(scene, "mujoco", REFERENCE["mujoco"], size.long)
+    diff = pruning(scene, "mujoco", reference, size)
+    assert 1e-5 < diff.rms_long < 0.1, diff
+    assert diff.speed_ratio > 0 and diff.note.startswith("speed at")

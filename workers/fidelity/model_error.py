@@ -9,16 +9,17 @@ joint-angle difference (rad, over the dofs both runs share) and the speed of eac
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from workers.fidelity.held import Rollout, describe, held_rollout, rms_error
 from workers.fidelity.reference import REFERENCE
+
+if TYPE_CHECKING:
+    from workers.fidelity.sweep import SweepSize
 from workers.scenes import Scene
 from workers.spec_io import validate_model
-
-SPEED_REPEATS = 5
-"""MuJoCo held runs are short (tens of ms): the pruning speed ratio is a median of these."""
 
 
 @dataclass
@@ -84,27 +85,30 @@ def tendon(scene: Scene, backend: str, short: float, long: float, accuracy: floa
                     1.0 / scene.control_hz)  # fmt: skip
 
 
-def pruning(
-    scene: Scene, backend: str, reference: Rollout, short: float, long: float
-) -> ModelDifference:
-    """The unpruned body (every joint and muscle kept) against the scene's pruned model, at
-    the reference setting; the speed ratio is unpruned over pruned at the scene's own
-    profile (the one training uses), alternated ``SPEED_REPEATS`` times on MuJoCo."""
+def pruning(scene: Scene, backend: str, reference: Rollout, size: SweepSize) -> ModelDifference:
+    """The unpruned body (every joint, muscle and contact geom kept, visuals too) against
+    the scene's pruned model. Error: on the held variant at the reference setting. Speed
+    ratio: unpruned over pruned env steps/s on the scene itself (with contact) at the
+    scene's own profile (the one training uses), batches alternated ``size.repeats`` times,
+    median."""
+    from workers.fidelity.task import task_runs
+
     raw = scene.model_dump(mode="python")
-    raw["keep"] = {**raw["keep"], "joints": "all", "muscles": "all", "planar": False, "lock_at": {}}
+    raw["keep"] = {**raw["keep"], "joints": "all", "muscles": "all", "planar": False,
+                   "lock_at": {}, "contacts": "all", "visuals": True}  # fmt: skip
     full = validate_model(raw, Scene, f"scene {scene.name!r} unpruned")
     dt = 1.0 / scene.control_hz
-    run = held_rollout(full, backend, REFERENCE[backend], long)
+    run = held_rollout(full, backend, REFERENCE[backend], size.long)
     own = scene.profile(backend)
-    repeats = SPEED_REPEATS if backend == "mujoco" else 1
     ratios = [
-        _rate(held_rollout(full, backend, own, long))
-        / _rate(held_rollout(scene, backend, own, long))
-        for _ in range(repeats)
+        task_runs(full, backend, own, size.seeds, size.task_s).steps_per_s
+        / task_runs(scene, backend, own, size.seeds, size.task_s).steps_per_s
+        for _ in range(max(1, size.repeats))
     ]
     diff = _compare(
-        "unpruned vs pruned", describe(REFERENCE[backend]), reference, run, short, long, dt
-    )
+        "unpruned vs pruned", describe(REFERENCE[backend]), reference, run, size.short,
+        size.long, dt,
+    )  # fmt: skip
     diff.speed_ratio = float(np.median(ratios))
-    diff.note = (diff.note + f" speed at {describe(own)}").strip()
+    diff.note = (diff.note + f" speed at {describe(own)}, with contact").strip()
     return diff

@@ -18,12 +18,10 @@ import platform
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
-import numpy as np
-
 from workers.fidelity import model_error
 from workers.fidelity.held import describe, held_rollout, rms_error
 from workers.fidelity.reference import MARGIN, Reference, converged_reference
-from workers.fidelity.task import TaskStats, difference, task_runs
+from workers.fidelity.task import TaskStats, difference, speed_runs
 from workers.scenes import Scene
 from workers.scenes.profiles import NAMED_PROFILES, FidelityProfile
 from workers.spec_io import SpecError
@@ -38,19 +36,21 @@ class SweepSize:
     Attributes:
         short: s, the short error window; long: s, the long one (the held rollout length).
         seeds: task runs per profile; task_s: s simulated per task run.
+        repeats: batches of task runs timed per profile (speed = their median).
     """
 
     short: float = 0.5
     long: float = 2.0
     seeds: int = 8
     task_s: float = 1.0
+    repeats: int = 3
 
     @classmethod
     def for_run(cls, backend: str, quick: bool) -> SweepSize:
         if quick:
-            return cls(short=0.1, long=0.5, seeds=2, task_s=0.2)
+            return cls(short=0.1, long=0.5, seeds=2, task_s=0.2, repeats=1)
         if backend == "opensim":
-            return cls(short=0.5, long=2.0, seeds=4, task_s=0.5)
+            return cls(short=0.5, long=2.0, seeds=4, task_s=0.5, repeats=1)
         return cls()
 
 
@@ -147,13 +147,13 @@ def run_sweep(
             "reference %s not converged: refinement changes it by %.3g rad, margin %.1f < %g",
             describe(ref.profile), ref.refined_change, ref.margin, MARGIN,
         )  # fmt: skip
-    ref_task = task_runs(scene, backend, ref.profile, size.seeds, size.task_s)
+    ref_task, ref_speed = speed_runs(scene, backend, ref.profile, size.seeds, size.task_s, 1)
     note("reference task runs")
     rows = []
     for profile in grid:
         label = describe(profile)
         held = held_rollout(scene, backend, profile, size.long)
-        stats = task_runs(scene, backend, profile, size.seeds, size.task_s)
+        stats, speed = speed_runs(scene, backend, profile, size.seeds, size.task_s, size.repeats)
         causes = dict(stats.health)
         if held.health != "ok":
             causes[f"held:{held.health}"] = 1
@@ -165,8 +165,7 @@ def run_sweep(
             Row(
                 label=label, integrator=profile.integrator, timestep_ms=profile.timestep * 1e3,
                 accuracy=profile.accuracy, fixed_step=profile.fixed_step,
-                steps_per_s=float(np.median(stats.steps_per_s)),
-                realtime=float(np.median(stats.realtime)),
+                steps_per_s=speed, realtime=speed / scene.control_hz,
                 err_short=err_short, err_long=err_long,
                 stable=stable, health=health,
                 within=stable and max(err_short, err_long) <= tolerance,
@@ -179,7 +178,7 @@ def run_sweep(
         checks = [
             lambda: model_error.cross_simulator(scene, backend, ref.rollout, size.short, size.long),
             lambda: model_error.tendon(scene, backend, size.short, size.long),
-            lambda: model_error.pruning(scene, backend, ref.rollout, size.short, size.long),
+            lambda: model_error.pruning(scene, backend, ref.rollout, size),
         ]
         for check in checks:
             diff = check()
@@ -192,7 +191,7 @@ def run_sweep(
         "profile": describe(ref.profile), "refined": describe(ref.refined_profile),
         "refined_change": ref.refined_change, "margin": ref.margin, "converged": ref.converged,
         "required_margin": MARGIN, "task": ref_task.summary(),
-        "steps_per_s": float(np.median(ref_task.steps_per_s)),
+        "steps_per_s": ref_speed,
     }  # fmt: skip
     result = SweepResult(scene.name, backend, tolerance, size, reference, rows, model, best)
     result.challenge = _versus_challenge(rows, best)

@@ -3,7 +3,8 @@
 With contact, point-wise trajectories of two profiles diverge for physical reasons (a foot
 lands a step earlier), so a sweep compares what a task cares about, over many reset seeds,
 under one fixed excitation pattern: distance covered (m), fall rate, and peak ground
-reaction (body weights). Every run is also a speed measurement: env steps/s of the scene.
+reaction (body weights). The runs are also the speed measurement: env steps/s of the
+scene over all seeds together (``speed_runs`` repeats them and takes the median).
 """
 
 from __future__ import annotations
@@ -52,17 +53,29 @@ class TaskStats:
         distance: [n_seeds] forward pelvis displacement at the end or at the fall, m.
         fell: [n_seeds] whether the episode ended in a fall.
         peak_grf: [n_seeds] largest summed normal ground force, body weights.
-        steps_per_s: [n_seeds] env steps/s of each run (wall-clock, one process).
-        realtime: [n_seeds] simulated s per wall-clock s of each run.
+        steps: [n_seeds] env steps of each run.
+        wall_s: [n_seeds] wall-clock s of each run's steps (one process; resets excluded).
+        dt: s, the control period.
         health: cause -> count of runs ended by a simulator failure.
     """
 
     distance: np.ndarray
     fell: np.ndarray
     peak_grf: np.ndarray
-    steps_per_s: np.ndarray
-    realtime: np.ndarray
+    steps: np.ndarray
+    wall_s: np.ndarray
+    dt: float
     health: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def steps_per_s(self) -> float:
+        """Env steps/s over all runs together."""
+        return float(self.steps.sum() / self.wall_s.sum()) if self.wall_s.sum() else 0.0
+
+    @property
+    def realtime(self) -> float:
+        """Simulated s per wall-clock s over all runs together."""
+        return self.steps_per_s * self.dt
 
     def summary(self) -> dict[str, float]:
         d, dh = mean_ci(self.distance)
@@ -83,7 +96,7 @@ def task_runs(
     steps = round(seconds * scene.control_hz)
     pattern = body_excitations(scene.body, env.sim.muscle_names, steps, env.dt, PATTERN_SEED)
     grf = [i for i, n in enumerate(env.obs_names) if n.startswith("grf:")]
-    distance, fell, peak, rate, rt = [], [], [], [], []
+    distance, fell, peak, counts, walls = [], [], [], [], []
     health: dict[str, int] = {}
     for seed in range(seeds):
         env.reset(seed=seed)
@@ -101,11 +114,12 @@ def task_runs(
         distance.append(info["distance"])
         fell.append(done and info["health"] == "ok")
         peak.append(top)
-        rate.append((k + 1) / wall)
-        rt.append((k + 1) * env.dt / wall)
+        counts.append(k + 1)
+        walls.append(wall)
     return TaskStats(
-        np.array(distance), np.array(fell), np.array(peak), np.array(rate), np.array(rt), health
-    )
+        np.array(distance), np.array(fell), np.array(peak), np.array(counts), np.array(walls),
+        env.dt, health,
+    )  # fmt: skip
 
 
 def difference(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
@@ -114,3 +128,12 @@ def difference(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
         return float(np.mean(a) - np.mean(b)), float("nan")
     half = Z95 * math.sqrt(np.var(a, ddof=1) / len(a) + np.var(b, ddof=1) / len(b))
     return float(np.mean(a) - np.mean(b)), half
+
+
+def speed_runs(
+    scene: Scene, backend: str, profile: FidelityProfile, seeds: int, seconds: float, repeats: int
+) -> tuple[TaskStats, float]:
+    """``task_runs`` repeated ``repeats`` times (the trajectories are identical, only the
+    timing differs): the first batch's statistics and the median env steps/s."""
+    batches = [task_runs(scene, backend, profile, seeds, seconds) for _ in range(max(1, repeats))]
+    return batches[0], float(np.median([b.steps_per_s for b in batches]))
