@@ -184,9 +184,11 @@ def stress(
         task = progress.add_task("bisection", total=None, last="")
         limits = bisect_limits(scene, backend, seconds, integrators, scenarios,
                                lambda t: progress.update(task, advance=1, last=t))  # fmt: skip
-    unit = "step (ms)" if backend == "mujoco" else "accuracy"
-    scale = 1e3 if backend == "mujoco" else 1.0
-    lt = Table("integrator", f"largest stable {unit}", f"smallest unstable {unit}", "checks")
+    if backend == "mujoco":
+        heads, scale = ("largest stable step (ms)", "smallest unstable step (ms)"), 1e3
+    else:
+        heads, scale = ("loosest stable accuracy", "tightest unstable accuracy"), 1.0
+    lt = Table("integrator", *heads, "checks")
     for lim in limits:
         lt.add_row(
             lim.integrator,
