@@ -80,16 +80,18 @@ def hold(sim: Simulator, backend: str) -> None:
         _hold_opensim(sim)
 
 
-def _root_dofs_mujoco(sim: Simulator) -> tuple[np.ndarray, int]:
+def root_dofs_mujoco(sim: Simulator) -> tuple[np.ndarray, int]:
     """(root dof addresses, qpos address of the vertical root coordinate) of a MuJoCo sim:
-    the root dofs are those of the joints between the world and its child bodies."""
+    the root dofs are those of the joints between the world and its child bodies, less any
+    dof the scene keeps (a fixed-base body such as the elbow has none to hold)."""
     import mujoco
 
     m = sim.model  # type: ignore[attr-defined]
     dofs: list[int] = []
     lift = -1
+    kept = set(sim.dof_names)
     for j in range(m.njnt):
-        if m.body_parentid[m.jnt_bodyid[j]] != 0:
+        if m.body_parentid[m.jnt_bodyid[j]] != 0 or m.joint(j).name in kept:
             continue
         n = {0: 6, 1: 3, 2: 1, 3: 1}[int(m.jnt_type[j])]  # free, ball, slide, hinge
         dofs += range(m.jnt_dofadr[j], m.jnt_dofadr[j] + n)
@@ -106,7 +108,7 @@ def _hold_mujoco(sim: Simulator) -> None:
     import mujoco
 
     m, d = sim.model, sim.data  # type: ignore[attr-defined]
-    dofs, lift = _root_dofs_mujoco(sim)
+    dofs, lift = root_dofs_mujoco(sim)
     m.dof_armature[dofs] = HOLD_ARMATURE
     m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
     if lift >= 0:

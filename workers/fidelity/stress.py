@@ -57,7 +57,7 @@ def _perturb(sim: Simulator, backend: str, name: str) -> None:
     if backend == "mujoco":
         import mujoco
 
-        from workers.fidelity.held import _root_dofs_mujoco
+        from workers.fidelity.held import root_dofs_mujoco
 
         m, d = sim.model, sim.data  # type: ignore[attr-defined]
         if name == "spin":
@@ -65,7 +65,7 @@ def _perturb(sim: Simulator, backend: str, name: str) -> None:
                 jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, dof)
                 d.qvel[m.jnt_dofadr[jid]] = SPIN_SPEED * (-1) ** k
         else:
-            _, lift = _root_dofs_mujoco(sim)
+            _, lift = root_dofs_mujoco(sim)
             if lift >= 0:
                 d.qpos[lift] += DROP_HEIGHT
         mujoco.mj_forward(m, d)
