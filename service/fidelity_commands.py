@@ -63,6 +63,9 @@ def sweep(
     ),
     no_model: bool = typer.Option(False, "--no-model", help="Skip the model-error checks."),
     save: bool = typer.Option(True, help="Save the recommendation as a named profile."),
+    task_tolerance: float = typer.Option(
+        None, help="m: also require the mean distance covered within this of the reference's."
+    ),
 ) -> None:
     """Measure every profile of the grid; write CSV, JSON and a Pareto plot; recommend and
     save the fastest profile within tolerance."""
@@ -74,6 +77,8 @@ def sweep(
 
     if tolerance <= 0:
         raise _fail(f"--tolerance: must be > 0 rad, got {tolerance:g}")
+    if task_tolerance is not None and task_tolerance < 0:
+        raise _fail(f"--task-tolerance: must be >= 0 m, got {task_tolerance:g}")
     scene, backend = _load(scene_name, backend)
     grid = sweep_grid(scene, backend, quick)
     if integrators is not None:
@@ -93,7 +98,9 @@ def sweep(
             progress.update(task, advance=1, last=text)
 
         try:
-            result = run_sweep(scene, backend, tolerance, grid, size, advance, model_checks)
+            result = run_sweep(
+                scene, backend, tolerance, grid, size, advance, model_checks, task_tolerance
+            )
         except SpecError as exc:
             raise _fail(str(exc)) from None
     paths = write_all(result, out)

@@ -121,3 +121,18 @@ def test_quick_stress_prints_a_stability_map_and_a_limit() -> None:
     assert "stability map" in result.output
     assert "euler 20ms" in result.output and "diverged" in result.output
     assert "largest stable step" in result.output
+
+
+def test_a_task_tolerance_no_profile_meets_leaves_nothing_recommended(tmp_path: Path) -> None:
+    """Every profile's mean distance differs from the reference's by more than 1e-12 m."""
+    result = runner.invoke(
+        app,
+        ["fidelity", "sweep", "walk-2d", "--quick", "--task-tolerance", "1e-12", "--no-save",
+         "--out", str(tmp_path)],
+        env=ENV,
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert "no stable profile within" in result.output
+    table = json.loads((tmp_path / "walk-2d-mujoco.json").read_text())
+    assert table["recommended"] is None and not any(r["within"] for r in table["rows"])
+    assert all(abs(r["task"]["distance_vs_ref"]) > 1e-12 for r in table["rows"])

@@ -8,7 +8,8 @@ fall rate, peak ground force with 95% intervals), and stability (any health caus
 run). The recommended profile is the fastest stable one whose error is within the
 tolerance in both windows: the long window alone can flatter a profile (on walk-3d, Euler
 at 2 ms measured 0.009 rad over 2 s but 0.011 over 0.5 s, while Euler at 1 ms measured
-0.014 over 2 s), so the larger of the two is what is judged.
+0.014 over 2 s), so the larger of the two is what is judged. With a task tolerance (m),
+the mean distance covered must also lie within it of the reference's.
 """
 
 from __future__ import annotations
@@ -95,6 +96,7 @@ class SweepResult:
     model: list[dict]
     recommended: Row | None
     challenge: dict | None = None
+    task_tolerance: float | None = None
     machine: str = field(default_factory=lambda: f"{platform.machine()} {platform.processor()}")
 
     def to_json(self) -> dict:
@@ -121,6 +123,7 @@ def run_sweep(
     size: SweepSize,
     on_step: Callable[[str], None] | None = None,
     model_checks: bool = True,
+    task_tolerance: float | None = None,
 ) -> SweepResult:
     """Measure ``grid`` on ``scene``/``backend`` (see the module docstring).
 
@@ -129,6 +132,8 @@ def run_sweep(
     """
     if tolerance <= 0:
         raise SpecError(f"--tolerance: must be > 0 rad, got {tolerance:g}")
+    if task_tolerance is not None and task_tolerance < 0:
+        raise SpecError(f"--task-tolerance: must be >= 0 m, got {task_tolerance:g}")
     if not grid:
         raise SpecError(f"grid: no profile to sweep for scene {scene.name!r} on {backend}")
     if backend not in scene.backends:
@@ -161,6 +166,8 @@ def run_sweep(
         err_short = rms_error(held, ref.rollout, size.short, dt)
         stable = not causes
         health = ", ".join(f"{k}: {v}" for k, v in sorted(causes.items())) or "ok"
+        task = _task_summary(stats, ref_task)
+        task_ok = task_tolerance is None or abs(task["distance_vs_ref"]) <= task_tolerance
         rows.append(
             Row(
                 label=label, integrator=profile.integrator, timestep_ms=profile.timestep * 1e3,
@@ -168,8 +175,8 @@ def run_sweep(
                 steps_per_s=speed, realtime=speed / scene.control_hz,
                 err_short=err_short, err_long=err_long,
                 stable=stable, health=health,
-                within=stable and max(err_short, err_long) <= tolerance,
-                task=_task_summary(stats, ref_task),
+                within=stable and max(err_short, err_long) <= tolerance and task_ok,
+                task=task,
             )
         )  # fmt: skip
         note(label)
@@ -194,6 +201,7 @@ def run_sweep(
         "steps_per_s": ref_speed,
     }  # fmt: skip
     result = SweepResult(scene.name, backend, tolerance, size, reference, rows, model, best)
+    result.task_tolerance = task_tolerance
     result.challenge = _versus_challenge(rows, best)
     return result
 
