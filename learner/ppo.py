@@ -34,7 +34,7 @@ class PPOConfig:
     minibatches: int = 4
     """minibatches per pass"""
     max_grad_norm: float = 0.5
-    """gradient clipping (L2 norm)"""
+    """gradient clipping (L2 norm), of the actor's and the critic's parameters apart"""
     target_kl: float | None = 0.03
     """stop the epochs early once the approximate KL exceeds this"""
 
@@ -81,6 +81,15 @@ def clipped_surrogate_loss(ratio: torch.Tensor, adv: torch.Tensor, clip: float) 
     return -torch.min(ratio * adv, ratio.clamp(1 - clip, 1 + clip) * adv).mean()
 
 
+def _clip_groups(policy: GaussianPolicy) -> list[list[torch.nn.Parameter]]:
+    """Actor and critic parameters, clipped apart: the value loss (returns of order 100)
+    would otherwise own the joint gradient norm and clipping would starve the actor."""
+    named = [(n, p) for n, p in policy.named_parameters() if p.requires_grad]
+    critic = [p for n, p in named if "critic" in n]
+    actor = [p for n, p in named if "critic" not in n]
+    return [group for group in (actor, critic) if group]
+
+
 def ppo_update(
     policy: GaussianPolicy,
     optimizer: torch.optim.Optimizer,
@@ -106,7 +115,8 @@ def ppo_update(
             check_finite({"policy_loss": policy_loss, "value_loss": value_loss})
             optimizer.zero_grad()
             loss.backward()
-            torch.nn.utils.clip_grad_norm_(policy.parameters(), cfg.max_grad_norm)
+            for group in _clip_groups(policy):
+                torch.nn.utils.clip_grad_norm_(group, cfg.max_grad_norm)
             optimizer.step()
             with torch.no_grad():
                 kls.append(((ratio - 1) - log_ratio).mean().item())
