@@ -55,6 +55,7 @@ from learner.sampling import LocalSampler, Sampler
 from learner.symmetry import MirrorMap, add_mirrored
 from workers.env import MuscleEnv
 from workers.scenes import Scene
+from workers.spec_io import SpecError
 
 if TYPE_CHECKING:
     from torch.utils.tensorboard import SummaryWriter
@@ -143,16 +144,26 @@ class Trainer:
         return self.curriculum.stage >= len(self.job.stages)
 
     def _check_stages(self) -> None:
+        """What the job file alone cannot tell: the stages' envs fit one policy lineage.
+
+        Raises:
+            SpecError: naming the stage (or ``ppo.mirror``) and what does not fit.
+        """
         acts = self.io[0].act_names
         for i, io in enumerate(self.io):
             if io.act_names != acts:
-                raise ValueError(f"stages.{i}: muscles differ from stage 0's; one job, one body")
+                raise SpecError(f"stages.{i}: muscles differ from stage 0's; one job, one body")
             previous = self.io[i - 1].obs_names if i else io.obs_names
             lost = [n for n in previous if n not in io.obs_names]
             if lost:
-                raise ValueError(f"stages.{i}: observations of stage {i - 1} missing: {lost[:4]}")
+                raise SpecError(f"stages.{i}: observations of stage {i - 1} missing: {lost[:4]}")
             if self.job.ppo.mirror:
-                MirrorMap.from_names(io.obs_names, io.act_names, io.lateral_axis)
+                try:
+                    MirrorMap.from_names(io.obs_names, io.act_names, io.lateral_axis)
+                except ValueError as exc:
+                    raise SpecError(
+                        f"ppo.mirror: stages.{i} ({self.scenes[i].name}): {exc}"
+                    ) from None
 
     def _new_optimizer(self) -> torch.optim.Adam:
         return torch.optim.Adam(self.policy.trainable_parameters(), lr=self.job.ppo.lr)

@@ -104,11 +104,11 @@ def train(
     try:
         job, scenes = load_job(job_file)
         job = _override(job, workers, address, budget_scale)
+        run_dir = run_dir or Path("runs") / job.name
+        trainer = Trainer(job, run_dir, scenes, tensorboard=tensorboard)
     except SpecError as exc:
         console.print(f"[red]error:[/red] {escape(str(exc))}", soft_wrap=True, highlight=False)
         raise typer.Exit(2) from None
-    run_dir = run_dir or Path("runs") / job.name
-    trainer = Trainer(job, run_dir, scenes, tensorboard=tensorboard)
     done = [0] * len(job.stages)
     for i in range(min(trainer.curriculum.stage, len(job.stages))):
         done[i] = job.stages[i].env_steps
