@@ -287,10 +287,11 @@ class Trainer:
         self._log_scalars(metrics)
         if self.on_iteration is not None:
             self.on_iteration(metrics)
-        if verdict is not None or self.iteration % self.job.checkpoint.every_iters == 0:
+        every = self.job.checkpoint.record_every_iters
+        record = verdict is not None or (every > 0 and self.iteration % every == 0)
+        if record or self.iteration % self.job.checkpoint.every_iters == 0:
             checkpoint = self._checkpoint(metrics)
-            every = self.job.checkpoint.record_every_iters
-            if verdict is not None or (every and self.iteration % every == 0):
+            if record:  # a recording names the checkpoint it shows
                 self._record(checkpoint)
         if verdict is not None:
             logger.info("stage %d (%s) ends: %s", self.curriculum.stage, self.scene.name, verdict)
