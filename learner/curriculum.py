@@ -1,5 +1,5 @@
-"""Curriculum bookkeeping: where a run is in its stages, the episodes behind each promotion
-rule, and the decision to move on.
+"""Curriculum bookkeeping: whether a job's stages fit one policy lineage, where a run is in
+its stages, the episodes behind each promotion rule, and the decision to move on.
 
 The trainer feeds every fragment's finished episodes to :class:`CurriculumState`; after each
 update it asks :meth:`CurriculumState.verdict` whether the stage is over: its promotion rule
@@ -15,9 +15,44 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from learner.job import Stage
+from learner.symmetry import MirrorMap
+from workers.env import MuscleEnv
 from workers.scenes import Scene
+from workers.spec_io import SpecError
 
 WINDOW_MAX = 10_000
+
+
+class StageIO:
+    """Observation and muscle names of a stage's scene (from one probe env)."""
+
+    def __init__(self, scene: Scene, backend: str) -> None:
+        env = MuscleEnv(scene, backend)
+        self.obs_names: list[str] = list(env.obs_names)
+        self.act_names: list[str] = list(env.sim.muscle_names)
+        self.lateral_axis = 3 - env.sim.up_axis - env.sim.forward_axis
+        env.close()
+
+
+def check_stages(io: list[StageIO], scene_names: list[str], mirror: bool) -> None:
+    """What the job file alone cannot tell: the stages' envs fit one policy lineage.
+
+    Raises:
+        SpecError: naming the stage (or ``ppo.mirror``) and what does not fit.
+    """
+    acts = io[0].act_names
+    for i, stage_io in enumerate(io):
+        if stage_io.act_names != acts:
+            raise SpecError(f"stages.{i}: muscles differ from stage 0's; one job, one body")
+        previous = io[i - 1].obs_names if i else stage_io.obs_names
+        lost = [n for n in previous if n not in stage_io.obs_names]
+        if lost:
+            raise SpecError(f"stages.{i}: observations of stage {i - 1} missing: {lost[:4]}")
+        if mirror:
+            try:
+                MirrorMap.from_names(stage_io.obs_names, stage_io.act_names, stage_io.lateral_axis)
+            except ValueError as exc:
+                raise SpecError(f"ppo.mirror: stages.{i} ({scene_names[i]}): {exc}") from None
 
 
 @dataclass

@@ -26,10 +26,8 @@ from __future__ import annotations
 import functools
 import logging
 import time
-from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -40,7 +38,7 @@ from learner.checkpoint import (
     load_optimizer_state,
     save_checkpoint,
 )
-from learner.curriculum import CurriculumState
+from learner.curriculum import CurriculumState, StageIO, check_stages
 from learner.distil import fit_student
 from learner.job import Job, Stage, resolve_scenes
 from learner.policy import (
@@ -51,29 +49,14 @@ from learner.policy import (
     widen_inputs,
 )
 from learner.ppo import batch_from_fragments, ppo_update
+from learner.run_log import ScalarLog, batch_stats, record_policy
 from learner.sampling import LocalSampler, Sampler
 from learner.symmetry import MirrorMap, add_mirrored
-from workers.env import MuscleEnv
 from workers.scenes import Scene
-from workers.spec_io import SpecError
-
-if TYPE_CHECKING:
-    from torch.utils.tensorboard import SummaryWriter
 
 logger = logging.getLogger(__name__)
 
 IterationCallback = Callable[[dict], None]
-
-
-class StageIO:
-    """Observation and muscle names of a stage's scene (from one probe env)."""
-
-    def __init__(self, scene: Scene, backend: str) -> None:
-        env = MuscleEnv(scene, backend)
-        self.obs_names: list[str] = list(env.obs_names)
-        self.act_names: list[str] = list(env.sim.muscle_names)
-        self.lateral_axis = 3 - env.sim.up_axis - env.sim.forward_axis
-        env.close()
 
 
 class Trainer:
@@ -100,9 +83,8 @@ class Trainer:
         self.run_dir = run_dir
         self.scenes = scenes if scenes is not None else resolve_scenes(job)
         self.on_iteration = on_iteration
-        self.tensorboard = tensorboard
         self.io = [StageIO(scene, job.backend) for scene in self.scenes]
-        self._check_stages()
+        check_stages(self.io, [scene.name for scene in self.scenes], job.ppo.mirror)
         torch.manual_seed(job.seed)
         first = self.io[0]
         self.policy: ActorCritic = GaussianPolicy(
@@ -122,7 +104,7 @@ class Trainer:
         self.history: list[dict] = []
         self._min_version = 0
         self._checkpointed_at = 0
-        self._writer: SummaryWriter | None = None
+        self.scalars = ScalarLog(run_dir / "tb", enabled=tensorboard)
         self._resume()
 
     # ---- set-up ---------------------------------------------------------------------------
@@ -142,28 +124,6 @@ class Trainer:
     @property
     def done(self) -> bool:
         return self.curriculum.stage >= len(self.job.stages)
-
-    def _check_stages(self) -> None:
-        """What the job file alone cannot tell: the stages' envs fit one policy lineage.
-
-        Raises:
-            SpecError: naming the stage (or ``ppo.mirror``) and what does not fit.
-        """
-        acts = self.io[0].act_names
-        for i, io in enumerate(self.io):
-            if io.act_names != acts:
-                raise SpecError(f"stages.{i}: muscles differ from stage 0's; one job, one body")
-            previous = self.io[i - 1].obs_names if i else io.obs_names
-            lost = [n for n in previous if n not in io.obs_names]
-            if lost:
-                raise SpecError(f"stages.{i}: observations of stage {i - 1} missing: {lost[:4]}")
-            if self.job.ppo.mirror:
-                try:
-                    MirrorMap.from_names(io.obs_names, io.act_names, io.lateral_axis)
-                except ValueError as exc:
-                    raise SpecError(
-                        f"ppo.mirror: stages.{i} ({self.scenes[i].name}): {exc}"
-                    ) from None
 
     def _new_optimizer(self) -> torch.optim.Adam:
         return torch.optim.Adam(self.policy.trainable_parameters(), lr=self.job.ppo.lr)
@@ -242,8 +202,7 @@ class Trainer:
                 self._checkpoint(self.history[-1])
         finally:
             sampler.close()
-            if self._writer is not None:
-                self._writer.close()
+            self.scalars.close()
         return self.history
 
     def _gather(self, sampler: Sampler, env_steps: int) -> list[dict]:
@@ -284,7 +243,7 @@ class Trainer:
         metrics = self._metrics(fragments, losses, cfg.lr, cfg.entropy_coef, gathered_s, start)
         metrics["verdict"] = verdict
         self.history.append(metrics)
-        self._log_scalars(metrics)
+        self.scalars.log(metrics)
         if self.on_iteration is not None:
             self.on_iteration(metrics)
         every = self.job.checkpoint.record_every_iters
@@ -292,7 +251,9 @@ class Trainer:
         if record or self.iteration % self.job.checkpoint.every_iters == 0:
             checkpoint = self._checkpoint(metrics)
             if record:  # a recording names the checkpoint it shows
-                self._record(checkpoint)
+                path = self.run_dir / "recordings" / f"{checkpoint.name}-{self.scene.name}.mcap"
+                record_policy(self.policy, self.scene, self.job.backend, checkpoint, path,
+                              self.job.seed)  # fmt: skip
         if verdict is not None:
             logger.info("stage %d (%s) ends: %s", self.curriculum.stage, self.scene.name, verdict)
             self.curriculum.advance()
@@ -387,17 +348,10 @@ class Trainer:
 
     # ---- metrics and checkpoints ----------------------------------------------------------
 
-    def _metrics(
-        self, fragments: list[dict], losses: dict, lr: float, entropy_coef: float,
-        gathered_s: float, start: float,
-    ) -> dict:  # fmt: skip
-        steps = sum(int(f["steps"]) for f in fragments)
-        health: Counter[str] = Counter()
-        terms: Counter[str] = Counter()
-        for f in fragments:
-            health.update(f["health"])
-            terms.update({k: v * int(f["steps"]) / steps for k, v in f["reward_terms"].items()})
-        alpha = float(self.policy.alpha) if isinstance(self.policy, BlendedPolicy) else None
+    def _metrics(self, fragments: list[dict], losses: dict, lr: float, entropy_coef: float,
+                 gathered_s: float, start: float) -> dict:  # fmt: skip
+        stats = batch_stats(fragments)
+        steps = stats.pop("batch_steps")
         return {
             "iteration": self.iteration,
             "env_steps": self.env_steps,
@@ -405,55 +359,15 @@ class Trainer:
             "stage_name": self.job.stages[self.curriculum.stage].name or self.scene.name,
             "scene": self.scene.name,
             "stage_env_steps": self.curriculum.stage_env_steps,
-            "alpha": alpha,
+            "alpha": float(self.policy.alpha) if isinstance(self.policy, BlendedPolicy) else None,
             "steps_per_s": steps / max(time.perf_counter() - start, 1e-9),
             "sample_steps_per_s": steps / max(gathered_s, 1e-9),
-            "episodes": sum(len(f["episode_return"]) for f in fragments),
             **self.curriculum.summary(),
             "lr": lr,
             "entropy_coef": entropy_coef,
             **losses,
-            "health": dict(health),
-            "reward_terms": dict(terms),
+            **stats,
         }
-
-    def _log_scalars(self, metrics: dict) -> None:
-        if not self.tensorboard:
-            return
-        if self._writer is None:
-            from torch.utils.tensorboard import SummaryWriter  # lazy: imports tensorboard
-
-            self._writer = SummaryWriter(str(self.run_dir / "tb"))
-        step = metrics["env_steps"]
-        for key, value in metrics.items():
-            if isinstance(value, int | float) and value is not None and np.isfinite(value):
-                self._writer.add_scalar(f"train/{key}", value, step)
-        for group in ("reward_terms", "health"):
-            for key, value in metrics[group].items():
-                self._writer.add_scalar(f"{group}/{key}", value, step)
-
-    def _record(self, checkpoint: Path) -> Path | None:
-        """One deterministic episode of the current policy on the stage's scene, as MCAP in
-        ``run_dir/recordings``. A failure is logged, never raised: training goes on."""
-        from learner.recording import checkpoint_metadata, record_episode  # lazy: foxglove
-
-        path = self.run_dir / "recordings" / f"{checkpoint.name}-{self.scene.name}.mcap"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        policy = self.policy
-
-        def act(obs: np.ndarray) -> np.ndarray:
-            with torch.no_grad():
-                return policy.mean_action(torch.from_numpy(obs).float()[None])[0].numpy()
-
-        try:
-            env = MuscleEnv(self.scene, self.job.backend)
-            summary = record_episode(env, act, path, self.job.seed, checkpoint_metadata(checkpoint))
-        except Exception:
-            logger.exception("recording %s failed; training goes on", path)
-            return None
-        logger.info("recorded %s: %.2f m in %.1f s", path, summary["distance"],
-                    summary["sim_time"])  # fmt: skip
-        return path
 
     def _checkpoint(self, metrics: dict) -> Path:
         self._checkpointed_at = self.iteration

@@ -1,0 +1,91 @@
+"""What a training run reports: batch statistics, TensorBoard scalars and MCAP recordings
+of the current policy (the trainer's outputs besides checkpoints)."""
+
+from __future__ import annotations
+
+import logging
+from collections import Counter
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import torch
+
+from learner.policy import ActorCritic
+from workers.env import MuscleEnv
+from workers.scenes import Scene
+
+if TYPE_CHECKING:
+    from torch.utils.tensorboard import SummaryWriter
+
+logger = logging.getLogger(__name__)
+
+
+def batch_stats(fragments: list[dict]) -> dict:
+    """A batch's env steps, finished episodes, health causes (count) and reward terms
+    (weighted mean per env step)."""
+    steps = sum(int(f["steps"]) for f in fragments)
+    health: Counter[str] = Counter()
+    terms: Counter[str] = Counter()
+    for f in fragments:
+        health.update(f["health"])
+        terms.update({k: v * int(f["steps"]) / steps for k, v in f["reward_terms"].items()})
+    return {
+        "batch_steps": steps,
+        "episodes": sum(len(f["episode_return"]) for f in fragments),
+        "health": dict(health),
+        "reward_terms": dict(terms),
+    }
+
+
+class ScalarLog:
+    """TensorBoard scalars in ``log_dir``: every number of an iteration's metrics under
+    ``train/``, and each reward term and health cause under their own group; x = env steps.
+    The writer (and tensorboard's import) waits for the first call."""
+
+    def __init__(self, log_dir: Path, enabled: bool = True) -> None:
+        self.log_dir = log_dir
+        self.enabled = enabled
+        self._writer: SummaryWriter | None = None
+
+    def log(self, metrics: dict) -> None:
+        if not self.enabled:
+            return
+        if self._writer is None:
+            from torch.utils.tensorboard import SummaryWriter  # lazy: imports tensorboard
+
+            self._writer = SummaryWriter(str(self.log_dir))
+        step = metrics["env_steps"]
+        for key, value in metrics.items():
+            if isinstance(value, int | float) and np.isfinite(value):
+                self._writer.add_scalar(f"train/{key}", value, step)
+        for group in ("reward_terms", "health"):
+            for key, value in metrics[group].items():
+                self._writer.add_scalar(f"{group}/{key}", value, step)
+
+    def close(self) -> None:
+        if self._writer is not None:
+            self._writer.close()
+
+
+def record_policy(
+    policy: ActorCritic, scene: Scene, backend: str, checkpoint: Path, path: Path, seed: int
+) -> Path | None:
+    """One deterministic episode of ``policy`` on ``scene`` as MCAP at ``path``, with the
+    checkpoint it shows named in the metadata. A failure is logged, never raised: a recording
+    must not stop training."""
+    from learner.recording import checkpoint_metadata, record_episode  # lazy: foxglove
+
+    def act(obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return policy.mean_action(torch.from_numpy(obs).float()[None])[0].numpy()
+
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        env = MuscleEnv(scene, backend)
+        summary = record_episode(env, act, path, seed, checkpoint_metadata(checkpoint))
+    except Exception:
+        logger.exception("recording %s failed; training goes on", path)
+        return None
+    logger.info("recorded %s: %.2f m in %.1f s", path, summary["distance"], summary["sim_time"])
+    return path
