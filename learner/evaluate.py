@@ -21,23 +21,30 @@ over steps and muscles), return (sum of the scene's weighted reward terms).
 
 from __future__ import annotations
 
-import hashlib
-import importlib
 import json
 import logging
 import math
-import statistics
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import torch
 
 from learner.checkpoint import CheckpointError, checkpoints, latest_checkpoint, load_policy
+from learner.eval_observers import (
+    EpisodeObserver,
+    EvaluationError,
+    Fanout,
+    McapObserver,
+    VideoObserver,
+    check_recording_available,
+    recording_metadata,
+)
 from learner.policy import ActorCritic
+from learner.stats import Rate, Stat
 from workers.scenes import Scene, load_scene
 from workers.spec_io import SpecError
 
@@ -50,78 +57,6 @@ Mode = Literal["deterministic", "stochastic"]
 MODES: tuple[Mode, ...] = ("deterministic", "stochastic")
 DEFAULT_REDUCTIONS: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3)
 """fractions by which the sweep lowers the target speed"""
-CONFIDENCE = 0.95
-
-
-class EvaluationError(ValueError):
-    """Bad evaluation input (path, scene, sizes, options); the message is one line."""
-
-
-# ---- statistics -----------------------------------------------------------------------------
-
-# two-sided 95 % quantiles of Student's t, df = 1..30
-_T975 = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179,
-         2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064,
-         2.060, 2.056, 2.052, 2.048, 2.045, 2.042)  # fmt: skip
-
-
-def t_quantile_975(df: int) -> float:
-    """The 97.5 % quantile of Student's t with ``df`` degrees of freedom (table to 30, then
-    the Cornish-Fisher expansion, within 1e-3 of the exact value)."""
-    if df < 1:
-        raise ValueError("df must be >= 1")
-    if df <= len(_T975):
-        return _T975[df - 1]
-    z = statistics.NormalDist().inv_cdf(0.975)
-    return z + (z**3 + z) / (4 * df) + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * df**2)
-
-
-@dataclass(frozen=True)
-class Stat:
-    """Mean of per-episode values with a 95 % confidence interval ``[low, high]`` (Student's
-    t; a single episode gives ``low == high == mean``). Same unit as the values."""
-
-    mean: float
-    low: float
-    high: float
-    std: float
-    n: int
-
-    @classmethod
-    def of(cls, values: Sequence[float]) -> Stat:
-        n = len(values)
-        if n == 0:
-            return cls(math.nan, math.nan, math.nan, math.nan, 0)
-        mean = statistics.fmean(values)
-        if n == 1:
-            return cls(mean, mean, mean, 0.0, 1)
-        std = statistics.stdev(values)
-        half = t_quantile_975(n - 1) * std / math.sqrt(n)
-        return cls(mean, mean - half, mean + half, std, n)
-
-
-@dataclass(frozen=True)
-class Rate:
-    """A proportion (0..1) of ``n`` episodes with its 95 % Wilson score interval."""
-
-    value: float
-    low: float
-    high: float
-    count: int
-    n: int
-
-    @classmethod
-    def of(cls, count: int, n: int) -> Rate:
-        if n == 0:
-            return cls(math.nan, math.nan, math.nan, 0, 0)
-        p = count / n
-        z = statistics.NormalDist().inv_cdf(0.5 + CONFIDENCE / 2)
-        denom = 1 + z**2 / n
-        centre = (p + z**2 / (2 * n)) / denom
-        half = z * math.sqrt(p * (1 - p) / n + z**2 / (4 * n**2)) / denom
-        low = 0.0 if count == 0 else max(0.0, centre - half)
-        high = 1.0 if count == n else min(1.0, centre + half)
-        return cls(p, low, high, count, n)
 
 
 # ---- results --------------------------------------------------------------------------------
@@ -262,93 +197,6 @@ def write_json(report: EvaluationReport, path: Path) -> None:
     """Write ``report.to_dict()`` to ``path`` (indented JSON)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(report.to_dict(), indent=2) + "\n")
-
-
-# ---- observers (recordings) -----------------------------------------------------------------
-
-
-class EpisodeObserver(Protocol):
-    """Sees every step of one episode (a recorder or a video writer); ``action`` is the
-    excitation applied, clipped to [0, 1]."""
-
-    def on_reset(self, env: Any, obs: np.ndarray) -> None: ...
-
-    def on_step(
-        self, env: Any, action: np.ndarray, obs: np.ndarray, reward: float, info: dict
-    ) -> None: ...
-
-    def close(self) -> None: ...
-
-
-class McapObserver:
-    """Records one episode to an MCAP file with ``learner.recording.EpisodeRecorder``."""
-
-    def __init__(self, path: Path, env: MuscleEnv, metadata: dict[str, str]) -> None:
-        from learner.recording import EpisodeRecorder  # lazy: imports foxglove
-
-        self.recorder = EpisodeRecorder(path, env, metadata)
-
-    def on_reset(self, env: MuscleEnv, obs: np.ndarray) -> None:
-        pass
-
-    def on_step(
-        self, env: MuscleEnv, action: np.ndarray, obs: np.ndarray, reward: float, info: dict
-    ) -> None:
-        self.recorder.log_step(env, action, info.get("reward_terms"), info)
-
-    def close(self) -> None:
-        self.recorder.close()
-
-
-def check_recording_available(record: bool, video: bool) -> None:
-    """Raise :class:`EvaluationError` (one line) if the modules that write recordings or
-    videos cannot be imported."""
-    wanted = [("--record", "learner.recording")] if record else []
-    wanted += [("--video", "learner.video")] if video else []
-    for option, module in wanted:
-        try:
-            importlib.import_module(module)
-        except ImportError as exc:
-            raise EvaluationError(f"{option}: recording not available yet ({exc})") from None
-
-
-class VideoObserver:
-    """Renders one episode to an MP4 with ``learner.video.VideoRecorder`` (offscreen, CPU)."""
-
-    def __init__(self, path: Path, env: MuscleEnv) -> None:
-        from learner.video import VideoRecorder  # lazy: imports the renderer
-
-        try:
-            self.video = VideoRecorder(path, env)
-        except (RuntimeError, ValueError) as exc:
-            first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise EvaluationError(f"--video: {first}") from None
-
-    def on_reset(self, env: MuscleEnv, obs: np.ndarray) -> None:
-        self.video.capture(env)
-
-    def on_step(
-        self, env: MuscleEnv, action: np.ndarray, obs: np.ndarray, reward: float, info: dict
-    ) -> None:
-        self.video.capture(env)
-
-    def close(self) -> None:
-        self.video.close()
-
-
-def recording_metadata(ckpt: Path, meta: dict, mode: str, seed: int) -> dict[str, str]:
-    """Strings for a recording's metadata: checkpoint path and hash (sha256 of its
-    manifest, which holds every file's sha256), env steps, stage, action mode and seed."""
-    stage = meta.get("stage")
-    return {
-        "source": "gaitforge evaluate",
-        "checkpoint": str(ckpt),
-        "checkpoint_sha256": hashlib.sha256((ckpt / "manifest.json").read_bytes()).hexdigest(),
-        "env_steps": str(meta.get("env_steps", "")),
-        "stage": json.dumps(stage) if stage is not None else "",
-        "mode": mode,
-        "seed": str(seed),
-    }
 
 
 # ---- running --------------------------------------------------------------------------------
@@ -675,7 +523,7 @@ def evaluate_checkpoint(
                     watching.append(McapObserver(record, env, info))
                 if video is not None:
                     watching.append(VideoObserver(video, env))
-            observer = _Fanout(watching) if watching else None
+            observer = Fanout(watching) if watching else None
             results[mode] = evaluate_policy(
                 policy, chosen, backend, episodes=episodes, mode=mode, seed=seed, env=env,
                 observer=observer, progress=progress,
@@ -701,30 +549,3 @@ def evaluate_checkpoint(
         recording=None if record is None else str(record),
         video=None if video is None else str(video),
     )
-
-
-class _Fanout:
-    """Several observers as one; each is closed even if another fails."""
-
-    def __init__(self, observers: list[EpisodeObserver]) -> None:
-        self.observers = observers
-
-    def on_reset(self, env: Any, obs: np.ndarray) -> None:
-        for o in self.observers:
-            o.on_reset(env, obs)
-
-    def on_step(
-        self, env: Any, action: np.ndarray, obs: np.ndarray, reward: float, info: dict
-    ) -> None:
-        for o in self.observers:
-            o.on_step(env, action, obs, reward, info)
-
-    def close(self) -> None:
-        errors = []
-        for o in self.observers:
-            try:
-                o.close()
-            except Exception as exc:  # close the others, then raise the first
-                errors.append(exc)
-        if errors:
-            raise errors[0]

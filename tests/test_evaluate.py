@@ -17,18 +17,16 @@ from typer.testing import CliRunner
 from learner.checkpoint import CheckpointError, load_policy, save_checkpoint
 from learner.evaluate import (
     EvaluationError,
-    Rate,
-    Stat,
     evaluate_checkpoint,
     evaluate_policy,
     make_env,
     resolve_checkpoint,
     run_episode,
     speed_sweep,
-    t_quantile_975,
     with_target_speed,
 )
 from learner.policy import BlendedPolicy, GaussianPolicy
+from learner.stats import Rate, Stat, t_quantile_975
 from service.cli import app
 from workers.env import MuscleEnv
 from workers.scenes import Scene, catalogue_file, load_scene
