@@ -3,9 +3,7 @@ and the one-line error type of evaluation."""
 
 from __future__ import annotations
 
-import hashlib
 import importlib
-import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -88,19 +86,14 @@ class VideoObserver:
         self.video.close()
 
 
-def recording_metadata(ckpt: Path, meta: dict, mode: str, seed: int) -> dict[str, str]:
-    """Strings for a recording's metadata: checkpoint path and hash (sha256 of its
-    manifest, which holds every file's sha256), env steps, stage, action mode and seed."""
-    stage = meta.get("stage")
-    return {
-        "source": "gaitforge evaluate",
-        "checkpoint": str(ckpt),
-        "checkpoint_sha256": hashlib.sha256((ckpt / "manifest.json").read_bytes()).hexdigest(),
-        "env_steps": str(meta.get("env_steps", "")),
-        "stage": json.dumps(stage) if stage is not None else "",
-        "mode": mode,
-        "seed": str(seed),
-    }
+def recording_metadata(ckpt: Path, mode: str, seed: int) -> dict[str, str]:
+    """Strings for a recording's metadata: the checkpoint's (path, sha256 of its manifest,
+    which holds every file's sha256, stage, env steps; ``learner.recording``), the action
+    mode and the seed."""
+    from learner.recording import checkpoint_metadata  # lazy: imports foxglove
+
+    return {"source": "gaitforge evaluate", **checkpoint_metadata(ckpt), "mode": mode,
+            "seed": str(seed)}  # fmt: skip
 
 
 class Fanout:

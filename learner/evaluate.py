@@ -518,7 +518,7 @@ def evaluate_checkpoint(
             watching: list[EpisodeObserver] = []
             if k == 0:
                 watching = list(observers)
-                info = recording_metadata(ckpt, meta, mode, seed)
+                info = recording_metadata(ckpt, mode, seed)
                 if record is not None:
                     watching.append(McapObserver(record, env, info))
                 if video is not None:
