@@ -34,13 +34,15 @@ class StageIO:
         env.close()
 
 
-def check_stages(io: list[StageIO], scene_names: list[str], mirror: bool) -> None:
+def check_stages(io: list[StageIO], scene_names: list[str], mirror: bool) -> list[MirrorMap | None]:
     """What the job file alone cannot tell: the stages' envs fit one policy lineage.
+    Returns each stage's mirror map (None without ``mirror``).
 
     Raises:
         SpecError: naming the stage (or ``ppo.mirror``) and what does not fit.
     """
     acts = io[0].act_names
+    mirrors: list[MirrorMap | None] = []
     for i, stage_io in enumerate(io):
         if stage_io.act_names != acts:
             raise SpecError(f"stages.{i}: muscles differ from stage 0's; one job, one body")
@@ -48,11 +50,16 @@ def check_stages(io: list[StageIO], scene_names: list[str], mirror: bool) -> Non
         lost = [n for n in previous if n not in stage_io.obs_names]
         if lost:
             raise SpecError(f"stages.{i}: observations of stage {i - 1} missing: {lost[:4]}")
-        if mirror:
-            try:
+        if not mirror:
+            mirrors.append(None)
+            continue
+        try:
+            mirrors.append(
                 MirrorMap.from_names(stage_io.obs_names, stage_io.act_names, stage_io.lateral_axis)
-            except ValueError as exc:
-                raise SpecError(f"ppo.mirror: stages.{i} ({scene_names[i]}): {exc}") from None
+            )
+        except ValueError as exc:
+            raise SpecError(f"ppo.mirror: stages.{i} ({scene_names[i]}): {exc}") from None
+    return mirrors
 
 
 @dataclass

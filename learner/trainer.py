@@ -51,7 +51,7 @@ from learner.policy import (
 from learner.ppo import batch_from_fragments, ppo_update
 from learner.run_log import ScalarLog, batch_stats, record_policy
 from learner.sampling import LocalSampler, Sampler
-from learner.symmetry import MirrorMap, add_mirrored
+from learner.symmetry import add_mirrored
 from workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
@@ -84,7 +84,7 @@ class Trainer:
         self.scenes = scenes if scenes is not None else resolve_scenes(job)
         self.on_iteration = on_iteration
         self.io = [StageIO(scene, job.backend) for scene in self.scenes]
-        check_stages(self.io, [scene.name for scene in self.scenes], job.ppo.mirror)
+        self.mirrors = check_stages(self.io, [scene.name for scene in self.scenes], job.ppo.mirror)
         torch.manual_seed(job.seed)
         first = self.io[0]
         self.policy: ActorCritic = GaussianPolicy(
@@ -229,9 +229,8 @@ class Trainer:
         for group in self.optimizer.param_groups:
             group["lr"] = cfg.lr
         batch = batch_from_fragments(fragments, cfg)
-        if ppo.mirror:
-            io = self.io[self.curriculum.stage]
-            mirror = MirrorMap.from_names(io.obs_names, io.act_names, io.lateral_axis)
+        mirror = self.mirrors[self.curriculum.stage]
+        if mirror is not None:
             batch = add_mirrored(batch, mirror, self.policy)
         losses = ppo_update(self.policy, self.optimizer, batch, cfg)
         # after the update: the batch's log-probabilities were taken with the old statistics
