@@ -42,15 +42,14 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import torch
 import yaml
+from gaitforge.learner.checkpoint import latest_checkpoint, load_policy
+from gaitforge.learner.evaluate import evaluate_policy
+from gaitforge.learner.job import Job
+from gaitforge.learner.trainer import Trainer
+from gaitforge.workers.scenes import load_scene
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
-
-from learner.checkpoint import latest_checkpoint, load_policy
-from learner.evaluate import evaluate_policy
-from learner.job import Job
-from learner.trainer import Trainer
-from workers.scenes import load_scene
 
 console = Console()
 TRANSITIONS = ("blend", "distil", "scratch")

@@ -25,13 +25,12 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import mujoco
 import numpy as np
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.probe import ProbeResult, random_excitations
+from gaitforge.workers.scenes import Scene, catalogue, load_scene
+from gaitforge.workers.sim.mujoco import INTEGRATORS, MujocoSimulator, source_spec
 from rich.console import Console
 from rich.table import Table
-
-from workers.env import MuscleEnv
-from workers.probe import ProbeResult, random_excitations
-from workers.scenes import Scene, catalogue, load_scene
-from workers.sim.mujoco import INTEGRATORS, MujocoSimulator, source_spec
 
 console = Console()
 OPENSIM_PROFILES = ("default", "challenge2017")

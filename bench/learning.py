@@ -34,14 +34,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import ray
+from gaitforge.learner.curriculum import EpisodeStats
+from gaitforge.learner.job import METRICS, Job, load_job
+from gaitforge.learner.trainer import Trainer
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.scenes import Scene
 from rich.console import Console
 from rich.table import Table
-
-from learner.curriculum import EpisodeStats
-from learner.job import METRICS, Job, load_job
-from learner.trainer import Trainer
-from workers.env import MuscleEnv
-from workers.scenes import Scene
 
 console = Console()
 EXAMPLES = Path(__file__).parents[1] / "examples"

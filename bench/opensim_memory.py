@@ -17,14 +17,13 @@ import os
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.probe import process_rss_mib
+from gaitforge.workers.scenes import load_scene
+from gaitforge.workers.sim.opensim import OpenSimSimulator
 from rich.console import Console
 from rich.progress import track
 from rich.table import Table
-
-from workers.env import MuscleEnv
-from workers.probe import process_rss_mib
-from workers.scenes import load_scene
-from workers.sim.opensim import OpenSimSimulator
 
 console = Console()
 

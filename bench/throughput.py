@@ -38,14 +38,13 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import mujoco
 import numpy as np
 import ray
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.policy_api import UniformExcitationPolicy
+from gaitforge.workers.pool import WorkerPool
+from gaitforge.workers.scenes import load_scene
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
-
-from workers.env import MuscleEnv
-from workers.policy_api import UniformExcitationPolicy
-from workers.pool import WorkerPool
-from workers.scenes import load_scene
 
 console = Console()
 POLL_S = 0.5

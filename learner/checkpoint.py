@@ -28,10 +28,9 @@ from importlib import metadata
 from pathlib import Path
 
 import torch
+from gaitforge.learner.policy import ActorCritic, build_policy
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
-
-from learner.policy import ActorCritic, build_policy
 
 logger = logging.getLogger(__name__)
 

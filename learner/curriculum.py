@@ -13,12 +13,11 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from learner.job import Stage
-from learner.symmetry import MirrorMap
-from workers.env import MuscleEnv
-from workers.scenes import Scene
-from workers.spec_io import SpecError
+from gaitforge.learner.job import Stage
+from gaitforge.learner.symmetry import MirrorMap
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.scenes import Scene
+from gaitforge.workers.spec_io import SpecError
 
 WINDOW_MAX = 10_000
 

@@ -5,8 +5,7 @@ the old policy's."""
 from __future__ import annotations
 
 import torch
-
-from learner.policy import GaussianPolicy
+from gaitforge.learner.policy import GaussianPolicy
 
 
 def fit_student(

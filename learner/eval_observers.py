@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 if TYPE_CHECKING:
-    from workers.env import MuscleEnv
+    from gaitforge.workers.env import MuscleEnv
 
 
 class EvaluationError(ValueError):
@@ -34,7 +34,7 @@ class McapObserver:
     """Records one episode to an MCAP file with ``learner.recording.EpisodeRecorder``."""
 
     def __init__(self, path: Path, env: MuscleEnv, metadata: dict[str, str]) -> None:
-        from learner.recording import EpisodeRecorder  # lazy: imports foxglove
+        from gaitforge.learner.recording import EpisodeRecorder  # lazy: imports foxglove
 
         self.recorder = EpisodeRecorder(path, env, metadata)
 
@@ -53,8 +53,8 @@ class McapObserver:
 def check_recording_available(record: bool, video: bool) -> None:
     """Raise :class:`EvaluationError` (one line) if the modules that write recordings or
     videos cannot be imported."""
-    wanted = [("--record", "learner.recording")] if record else []
-    wanted += [("--video", "learner.video")] if video else []
+    wanted = [("--record", "gaitforge.learner.recording")] if record else []
+    wanted += [("--video", "gaitforge.learner.video")] if video else []
     for option, module in wanted:
         try:
             importlib.import_module(module)
@@ -66,7 +66,7 @@ class VideoObserver:
     """Renders one episode to an MP4 with ``learner.video.VideoRecorder`` (offscreen, CPU)."""
 
     def __init__(self, path: Path, env: MuscleEnv) -> None:
-        from learner.video import VideoRecorder  # lazy: imports the renderer
+        from gaitforge.learner.video import VideoRecorder  # lazy: imports the renderer
 
         try:
             self.video = VideoRecorder(path, env)
@@ -90,7 +90,7 @@ def recording_metadata(ckpt: Path, mode: str, seed: int) -> dict[str, str]:
     """Strings for a recording's metadata: the checkpoint's (path, sha256 of its manifest,
     which holds every file's sha256, stage, env steps; ``learner.recording``), the action
     mode and the seed."""
-    from learner.recording import checkpoint_metadata  # lazy: imports foxglove
+    from gaitforge.learner.recording import checkpoint_metadata  # lazy: imports foxglove
 
     return {"source": "gaitforge evaluate", **checkpoint_metadata(ckpt), "mode": mode,
             "seed": str(seed)}  # fmt: skip

@@ -32,9 +32,13 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import torch
-
-from learner.checkpoint import CheckpointError, checkpoints, latest_checkpoint, load_policy
-from learner.eval_observers import (
+from gaitforge.learner.checkpoint import (
+    CheckpointError,
+    checkpoints,
+    latest_checkpoint,
+    load_policy,
+)
+from gaitforge.learner.eval_observers import (
     EpisodeObserver,
     EvaluationError,
     Fanout,
@@ -43,13 +47,13 @@ from learner.eval_observers import (
     check_recording_available,
     recording_metadata,
 )
-from learner.policy import ActorCritic
-from learner.stats import Rate, Stat
-from workers.scenes import Scene, load_scene
-from workers.spec_io import SpecError
+from gaitforge.learner.policy import ActorCritic
+from gaitforge.learner.stats import Rate, Stat
+from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.spec_io import SpecError
 
 if TYPE_CHECKING:
-    from workers.env import MuscleEnv
+    from gaitforge.workers.env import MuscleEnv
 
 logger = logging.getLogger(__name__)
 
@@ -219,7 +223,7 @@ def make_env(
         EvaluationError: the backend is not one of the scene's, or the observation or action
             size differs from the policy's (naming both).
     """
-    from workers.env import MuscleEnv  # lazy: imports the simulators
+    from gaitforge.workers.env import MuscleEnv  # lazy: imports the simulators
 
     if backend not in scene.backends:
         raise EvaluationError(f"backend {backend!r}: scene {scene.name!r} runs on {scene.backends}")

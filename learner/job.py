@@ -25,6 +25,10 @@ import re
 from pathlib import Path
 from typing import Annotated, Literal
 
+from gaitforge.learner.ppo import PPOConfig
+from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.scenes.profiles import Fidelity
+from gaitforge.workers.spec_io import SpecError, format_validation_error, load_yaml_model
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -33,11 +37,6 @@ from pydantic import (
     field_validator,
     model_validator,
 )
-
-from learner.ppo import PPOConfig
-from workers.scenes import Scene, load_scene
-from workers.scenes.profiles import Fidelity
-from workers.spec_io import SpecError, format_validation_error, load_yaml_model
 
 METRICS = ("return", "distance", "speed", "fall_rate", "survival", "length")
 """Episode statistics a promotion rule can test, each averaged over its window: return;

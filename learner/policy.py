@@ -15,10 +15,9 @@ from __future__ import annotations
 import itertools
 
 import torch
+from gaitforge.learner.normalizer import RunningNorm
 from torch import nn
 from torch.distributions import Normal
-
-from learner.normalizer import RunningNorm
 
 
 def _mlp(sizes: list[int], out: int) -> nn.Sequential:

@@ -8,9 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
-
-from learner.gae import compute_gae
-from learner.policy import GaussianPolicy
+from gaitforge.learner.gae import compute_gae
+from gaitforge.learner.policy import GaussianPolicy
 
 
 @dataclass(frozen=True)

@@ -67,10 +67,9 @@ from foxglove.messages import (
     Timestamp,
     Vector3,
 )
-
-from workers.env import GRAVITY, MuscleEnv
-from workers.rewards import TERMS
-from workers.sim.base import HEALTHY, SimState
+from gaitforge.workers.env import GRAVITY, MuscleEnv
+from gaitforge.workers.rewards import TERMS
+from gaitforge.workers.sim.base import HEALTHY, SimState
 
 logger = logging.getLogger(__name__)
 
@@ -499,7 +498,7 @@ def record_episode(
         recorder = stack.enter_context(EpisodeRecorder(path, env, metadata)) if path else None
         video = None
         if video_path is not None:
-            from learner.video import VideoRecorder  # lazy: needs a GL context
+            from gaitforge.learner.video import VideoRecorder  # lazy: needs a GL context
 
             video = stack.enter_context(VideoRecorder(video_path, env, *video_size))
             video.capture(env)

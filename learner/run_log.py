@@ -10,10 +10,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
-
-from learner.policy import ActorCritic
-from workers.env import MuscleEnv
-from workers.scenes import Scene
+from gaitforge.learner.policy import ActorCritic
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.scenes import Scene
 
 if TYPE_CHECKING:
     from torch.utils.tensorboard import SummaryWriter
@@ -74,7 +73,7 @@ def record_policy(
     """One deterministic episode of ``policy`` on ``scene`` as MCAP at ``path``, with the
     checkpoint it shows named in the metadata. A failure is logged, never raised: a recording
     must not stop training."""
-    from learner.recording import checkpoint_metadata, record_episode  # lazy: foxglove
+    from gaitforge.learner.recording import checkpoint_metadata, record_episode  # lazy: foxglove
 
     def act(obs: np.ndarray) -> np.ndarray:
         with torch.no_grad():

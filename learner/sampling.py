@@ -10,9 +10,8 @@ from __future__ import annotations
 from typing import Protocol
 
 import torch
-
-from workers.rollout import PolicyFactory, RolloutWorker
-from workers.scenes import Scene
+from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
+from gaitforge.workers.scenes import Scene
 
 
 class Sampler(Protocol):

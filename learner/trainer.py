@@ -31,28 +31,27 @@ from pathlib import Path
 
 import numpy as np
 import torch
-
-from learner.checkpoint import (
+from gaitforge.learner.checkpoint import (
     latest_checkpoint,
     load_checkpoint,
     load_optimizer_state,
     save_checkpoint,
 )
-from learner.curriculum import CurriculumState, StageIO, check_stages
-from learner.distil import fit_student
-from learner.job import Job, Stage, resolve_scenes
-from learner.policy import (
+from gaitforge.learner.curriculum import CurriculumState, StageIO, check_stages
+from gaitforge.learner.distil import fit_student
+from gaitforge.learner.job import Job, Stage, resolve_scenes
+from gaitforge.learner.policy import (
     ActorCritic,
     BlendedPolicy,
     GaussianPolicy,
     build_policy,
     widen_inputs,
 )
-from learner.ppo import batch_from_fragments, ppo_update
-from learner.run_log import ScalarLog, batch_stats, record_policy
-from learner.sampling import LocalSampler, Sampler
-from learner.symmetry import add_mirrored
-from workers.scenes import Scene
+from gaitforge.learner.ppo import batch_from_fragments, ppo_update
+from gaitforge.learner.run_log import ScalarLog, batch_stats, record_policy
+from gaitforge.learner.sampling import LocalSampler, Sampler
+from gaitforge.learner.symmetry import add_mirrored
+from gaitforge.workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
 
@@ -167,8 +166,7 @@ class Trainer:
             )
         else:
             import ray  # lazy: the in-process mode needs no Ray
-
-            from workers.pool import WorkerPool
+            from gaitforge.workers.pool import WorkerPool
 
             if not ray.is_initialized() and workers.ray_address is not None:
                 ray.init(address=workers.ray_address, logging_level=logging.WARNING)

@@ -30,10 +30,9 @@ from typing import Any
 import imageio_ffmpeg
 import mujoco
 import numpy as np
-
-from workers.env import MuscleEnv
-from workers.sim.base import HEALTHY
-from workers.sim.mujoco import OBSTACLE_PREFIX, MujocoSimulator
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.sim.base import HEALTHY
+from gaitforge.workers.sim.mujoco import OBSTACLE_PREFIX, MujocoSimulator
 
 logger = logging.getLogger(__name__)
 

@@ -5,12 +5,11 @@ from __future__ import annotations
 import logging
 
 import typer
+from gaitforge.service.evaluate_commands import evaluate
+from gaitforge.service.fidelity_commands import fidelity_app
+from gaitforge.service.scene_commands import scenes_app
+from gaitforge.service.train_commands import train
 from rich.console import Console
-
-from service.evaluate_commands import evaluate
-from service.fidelity_commands import fidelity_app
-from service.scene_commands import scenes_app
-from service.train_commands import train
 
 app = typer.Typer(
     help="gaitforge: train muscle-driven bodies on heavy simulators.",

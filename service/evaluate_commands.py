@@ -149,8 +149,8 @@ def evaluate(
     ] = None,
 ) -> None:
     """Evaluate a checkpoint: distance, speed, fall rate, effort, return and health."""
-    from learner.checkpoint import CheckpointError  # lazy: imports torch
-    from learner.evaluate import EvaluationError, evaluate_checkpoint, write_json
+    from gaitforge.learner.checkpoint import CheckpointError  # lazy: imports torch
+    from gaitforge.learner.evaluate import EvaluationError, evaluate_checkpoint, write_json
 
     if episodes <= 0:
         raise _fail(f"--episodes must be > 0, got {episodes}")

@@ -8,12 +8,11 @@ import os
 from pathlib import Path
 
 import typer
+from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.spec_io import SpecError
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
-
-from workers.scenes import Scene, load_scene
-from workers.spec_io import SpecError
 
 fidelity_app = typer.Typer(
     help="Speed for accuracy: fidelity sweeps and stress.", no_args_is_help=True
@@ -70,10 +69,10 @@ def sweep(
     """Measure every profile of the grid; write CSV, JSON and a Pareto plot; recommend and
     save the fastest profile within tolerance."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    from workers.fidelity import store
-    from workers.fidelity.grid import sweep_grid
-    from workers.fidelity.report import write_all
-    from workers.fidelity.sweep import SweepSize, run_sweep
+    from gaitforge.workers.fidelity import store
+    from gaitforge.workers.fidelity.grid import sweep_grid
+    from gaitforge.workers.fidelity.report import write_all
+    from gaitforge.workers.fidelity.sweep import SweepSize, run_sweep
 
     if tolerance <= 0:
         raise _fail(f"--tolerance: must be > 0 rad, got {tolerance:g}")
@@ -167,8 +166,8 @@ def stress(
     a 0.5 m drop), a stability map, and by bisection the largest stable timestep (MuJoCo)
     or loosest stable accuracy (OpenSim) per integrator."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    from workers.fidelity.grid import stress_grid
-    from workers.fidelity.stress import SCENARIOS, bisect_limits, stability_map
+    from gaitforge.workers.fidelity.grid import stress_grid
+    from gaitforge.workers.fidelity.stress import SCENARIOS, bisect_limits, stability_map
 
     scene, backend = _load(scene_name, backend)
     profiles = stress_grid(scene, backend, quick)

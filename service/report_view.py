@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
+from gaitforge.workers.sim.base import CompileReport
 from rich.console import Group
 from rich.table import Table
 from rich.text import Text
-
-from workers.sim.base import CompileReport
 
 SIZE_KEYS = (
     "dofs",

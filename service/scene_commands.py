@@ -5,12 +5,11 @@ from __future__ import annotations
 from enum import StrEnum
 
 import typer
+from gaitforge.workers.scenes import Scene, catalogue, load_scene
+from gaitforge.workers.spec_io import SpecError
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
-
-from workers.scenes import Scene, catalogue, load_scene
-from workers.spec_io import SpecError
 
 scenes_app = typer.Typer(help="The scene catalogue.", no_args_is_help=True)
 console = Console()
@@ -60,8 +59,8 @@ def show(
     backend: BackendChoice = BACKEND_OPTION,
 ) -> None:
     """Compile a scene and print what it kept, what it dropped and what that saved."""
-    from service.report_view import render_report  # lazy: imports MuJoCo
-    from workers.sim import make_simulator  # lazy: imports MuJoCo
+    from gaitforge.service.report_view import render_report  # lazy: imports MuJoCo
+    from gaitforge.workers.sim import make_simulator  # lazy: imports MuJoCo
 
     scene = _load(name, backend)
     console.print(render_report(make_simulator(scene, backend.value).report))
@@ -76,8 +75,8 @@ def check(
     seed: int = typer.Option(0, help="Seed of the random excitations."),
 ) -> None:
     """Step with random excitations: env steps/s, real-time factor and health counts."""
-    from workers.env import MuscleEnv  # lazy: imports MuJoCo
-    from workers.probe import random_excitations  # lazy: imports MuJoCo
+    from gaitforge.workers.env import MuscleEnv  # lazy: imports MuJoCo
+    from gaitforge.workers.probe import random_excitations  # lazy: imports MuJoCo
 
     if all_scenes == (name is not None):
         raise _fail("give a scene NAME or --all, not both or neither")

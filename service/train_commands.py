@@ -8,14 +8,13 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from gaitforge.learner.job import Job, load_job
+from gaitforge.workers.spec_io import SpecError
 from rich.console import Console, Group
 from rich.live import Live
 from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
-
-from learner.job import Job, load_job
-from workers.spec_io import SpecError
 
 console = Console()
 
@@ -99,7 +98,7 @@ def train(
     tensorboard: Annotated[bool, typer.Option(help="write TensorBoard scalars")] = True,
 ) -> None:
     """Train a job: its curriculum of stages, with checkpoints, recordings and TensorBoard."""
-    from learner.trainer import Trainer  # lazy: torch
+    from gaitforge.learner.trainer import Trainer  # lazy: torch
 
     try:
         job, scenes = load_job(job_file)

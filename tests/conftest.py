@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import mujoco
 import pytest
-
-from workers.sim.mjcf_models import myoleg_spec
+from gaitforge.workers.sim.mjcf_models import myoleg_spec
 
 
 @pytest.fixture(scope="session")

@@ -18,11 +18,10 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-
-from workers.rewards import TERMS, StepContext, reward_terms, weighted
-from workers.scenes import Scene, load_scene
-from workers.sim import make_simulator
-from workers.sim.base import HEALTHY, Health, SimState
+from gaitforge.workers.rewards import TERMS, StepContext, reward_terms, weighted
+from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.sim import make_simulator
+from gaitforge.workers.sim.base import HEALTHY, Health, SimState
 
 GRAVITY = 9.81
 

@@ -24,10 +24,9 @@ from collections import Counter
 from dataclasses import dataclass, field
 
 import ray
+from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
+from gaitforge.workers.scenes import Scene
 from ray.exceptions import RayActorError, RayError
-
-from workers.rollout import PolicyFactory, RolloutWorker
-from workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
 

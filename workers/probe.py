@@ -10,8 +10,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from workers.env import MuscleEnv
+from gaitforge.workers.env import MuscleEnv
 
 
 @dataclass

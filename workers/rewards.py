@@ -17,9 +17,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from workers.scenes.spec import RewardWeights
-from workers.sim.base import SimState
+from gaitforge.workers.scenes.spec import RewardWeights
+from gaitforge.workers.sim.base import SimState
 
 TERMS: tuple[str, ...] = tuple(RewardWeights.model_fields)
 

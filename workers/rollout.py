@@ -30,11 +30,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
-
-from workers.env import MuscleEnv
-from workers.policy_api import RolloutPolicy
-from workers.probe import process_rss_mib
-from workers.scenes import Scene
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.policy_api import RolloutPolicy
+from gaitforge.workers.probe import process_rss_mib
+from gaitforge.workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
 

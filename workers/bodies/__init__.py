@@ -6,14 +6,14 @@ from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 
-from workers.bodies.schema import Body
-from workers.spec_io import SpecError, load_yaml_model
+from gaitforge.workers.bodies.schema import Body
+from gaitforge.workers.spec_io import SpecError, load_yaml_model
 
 __all__ = ["Body", "available_bodies", "load_body"]
 
 
 def _data_dir() -> Path:
-    return Path(str(resources.files("workers.bodies") / "data"))
+    return Path(str(resources.files("gaitforge.workers.bodies") / "data"))
 
 
 def available_bodies() -> list[str]:

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from workers.scenes import Scene
-from workers.scenes.profiles import NAMED_PROFILES, FidelityProfile
+from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes.profiles import NAMED_PROFILES, FidelityProfile
 
 MUJOCO_INTEGRATORS = ("euler", "implicitfast", "implicit", "rk4")
 MUJOCO_STEPS = (0.00025, 0.0005, 0.001, 0.002, 0.005, 0.01, 0.02)

@@ -19,11 +19,10 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-
-from workers.scenes import Scene
-from workers.scenes.profiles import FidelityProfile
-from workers.scenes.topology import topology_for
-from workers.sim import Simulator, make_simulator
+from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes.profiles import FidelityProfile
+from gaitforge.workers.scenes.topology import topology_for
+from gaitforge.workers.sim import Simulator, make_simulator
 
 HOLD_HEIGHT = 1.0
 """m the pelvis is raised above its standing height in the held variant."""
@@ -40,7 +39,7 @@ def with_profile(scene: Scene, backend: str, profile: FidelityProfile, **update:
         SpecError: the profile does not fit the scene (e.g. a MuJoCo step that does not
             divide the control period).
     """
-    from workers.spec_io import validate_model
+    from gaitforge.workers.spec_io import validate_model
 
     raw = scene.model_dump(mode="python")
     raw.update(backends=[backend], fidelity={backend: profile.model_dump()}, **update)
@@ -117,7 +116,7 @@ def _hold_mujoco(sim: Simulator) -> None:
 
 
 def _hold_opensim(sim: Simulator) -> None:
-    from workers.bodies import load_body
+    from gaitforge.workers.bodies import load_body
 
     model, state = sim.model, sim.osim_state  # type: ignore[attr-defined]
     coords = model.getCoordinateSet()

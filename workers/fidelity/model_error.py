@@ -12,14 +12,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-
-from workers.fidelity.held import Rollout, describe, held_rollout, rms_error
-from workers.fidelity.reference import REFERENCE
+from gaitforge.workers.fidelity.held import Rollout, describe, held_rollout, rms_error
+from gaitforge.workers.fidelity.reference import REFERENCE
 
 if TYPE_CHECKING:
-    from workers.fidelity.sweep import SweepSize
-from workers.scenes import Scene
-from workers.spec_io import validate_model
+    from gaitforge.workers.fidelity.sweep import SweepSize
+from gaitforge.workers.scenes import Scene
+from gaitforge.workers.spec_io import validate_model
 
 
 @dataclass
@@ -91,7 +90,7 @@ def pruning(scene: Scene, backend: str, reference: Rollout, size: SweepSize) -> 
     ratio: unpruned over pruned env steps/s on the scene itself (with contact) at the
     scene's own profile (the one training uses), batches alternated ``size.repeats`` times,
     median."""
-    from workers.fidelity.task import task_runs
+    from gaitforge.workers.fidelity.task import task_runs
 
     raw = scene.model_dump(mode="python")
     raw["keep"] = {**raw["keep"], "joints": "all", "muscles": "all", "planar": False,

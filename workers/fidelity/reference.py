@@ -13,9 +13,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from workers.fidelity.held import Rollout, held_rollout, rms_error
-from workers.scenes import Scene
-from workers.scenes.profiles import FidelityProfile
+from gaitforge.workers.fidelity.held import Rollout, held_rollout, rms_error
+from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes.profiles import FidelityProfile
 
 MARGIN = 10.0
 """The reference's own change on refinement must be this many times below the tolerance."""

@@ -8,7 +8,7 @@ import json
 import math
 from pathlib import Path
 
-from workers.fidelity.sweep import SweepResult
+from gaitforge.workers.fidelity.sweep import SweepResult
 
 CSV_FIELDS = (
     "label", "integrator", "timestep_ms", "accuracy", "fixed_step", "steps_per_s", "realtime",

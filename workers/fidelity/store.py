@@ -13,9 +13,8 @@ import os
 from pathlib import Path
 
 import yaml
+from gaitforge.workers.scenes.profiles import FidelityProfile
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
-
-from workers.scenes.profiles import FidelityProfile
 
 ENV_DIR = "GAITFORGE_PROFILES_DIR"
 

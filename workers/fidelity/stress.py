@@ -14,12 +14,15 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-
-from workers.fidelity.grid import MUJOCO_INTEGRATORS, OPENSIM_INTEGRATORS, OPENSIM_MAX_STEP
-from workers.fidelity.held import with_profile
-from workers.scenes import Scene
-from workers.scenes.profiles import FidelityProfile
-from workers.sim import Simulator, make_simulator
+from gaitforge.workers.fidelity.grid import (
+    MUJOCO_INTEGRATORS,
+    OPENSIM_INTEGRATORS,
+    OPENSIM_MAX_STEP,
+)
+from gaitforge.workers.fidelity.held import with_profile
+from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes.profiles import FidelityProfile
+from gaitforge.workers.sim import Simulator, make_simulator
 
 logger = logging.getLogger(__name__)
 
@@ -56,8 +59,7 @@ def _perturb(sim: Simulator, backend: str, name: str) -> None:
         return
     if backend == "mujoco":
         import mujoco
-
-        from workers.fidelity.held import root_dofs_mujoco
+        from gaitforge.workers.fidelity.held import root_dofs_mujoco
 
         m, d = sim.model, sim.data  # type: ignore[attr-defined]
         if name == "spin":
@@ -70,7 +72,7 @@ def _perturb(sim: Simulator, backend: str, name: str) -> None:
                 d.qpos[lift] += DROP_HEIGHT
         mujoco.mj_forward(m, d)
         return
-    from workers.bodies import load_body
+    from gaitforge.workers.bodies import load_body
 
     model, state = sim.model, sim.osim_state  # type: ignore[attr-defined]
     coords = model.getCoordinateSet()
@@ -113,7 +115,7 @@ def stability_map(
     on_done: Callable[[str], None] | None = None,
 ) -> list[dict[str, str]]:
     """One row per profile: ``{"profile": label, scenario: cause, ...}``."""
-    from workers.fidelity.held import describe
+    from gaitforge.workers.fidelity.held import describe
 
     rows = []
     for profile in profiles:

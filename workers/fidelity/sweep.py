@@ -19,13 +19,13 @@ import platform
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
-from workers.fidelity import model_error
-from workers.fidelity.held import describe, held_rollout, rms_error
-from workers.fidelity.reference import MARGIN, Reference, converged_reference
-from workers.fidelity.task import TaskStats, difference, speed_runs
-from workers.scenes import Scene
-from workers.scenes.profiles import NAMED_PROFILES, FidelityProfile
-from workers.spec_io import SpecError
+from gaitforge.workers.fidelity import model_error
+from gaitforge.workers.fidelity.held import describe, held_rollout, rms_error
+from gaitforge.workers.fidelity.reference import MARGIN, Reference, converged_reference
+from gaitforge.workers.fidelity.task import TaskStats, difference, speed_runs
+from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes.profiles import NAMED_PROFILES, FidelityProfile
+from gaitforge.workers.spec_io import SpecError
 
 logger = logging.getLogger(__name__)
 
@@ -226,7 +226,7 @@ def remeasure(
 ) -> float:
     """The error of ``profile`` (rad, the larger of the two windows, s) against a fresh
     reference run."""
-    from workers.fidelity.reference import REFERENCE
+    from gaitforge.workers.fidelity.reference import REFERENCE
 
     ref = held_rollout(scene, backend, REFERENCE[backend], long)
     run = held_rollout(scene, backend, profile, long)

@@ -14,11 +14,10 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from workers.env import MuscleEnv
-from workers.fidelity.held import body_excitations, with_profile
-from workers.scenes import Scene
-from workers.scenes.profiles import FidelityProfile
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.fidelity.held import body_excitations, with_profile
+from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes.profiles import FidelityProfile
 
 Z95 = 1.96
 PATTERN_SEED = 1234

@@ -5,16 +5,16 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
-from workers.scenes.prune import PrunePlan, check_names, plan_pruning
-from workers.scenes.spec import Scene
-from workers.scenes.topology import topology_for
-from workers.spec_io import SpecError, load_yaml_model
+from gaitforge.workers.scenes.prune import PrunePlan, check_names, plan_pruning
+from gaitforge.workers.scenes.spec import Scene
+from gaitforge.workers.scenes.topology import topology_for
+from gaitforge.workers.spec_io import SpecError, load_yaml_model
 
 __all__ = ["PrunePlan", "Scene", "catalogue", "catalogue_file", "load_scene", "plan_pruning"]
 
 
 def _catalogue_dir() -> Path:
-    return Path(str(resources.files("workers.scenes") / "catalogue"))
+    return Path(str(resources.files("gaitforge.workers.scenes") / "catalogue"))
 
 
 def catalogue_file(name: str) -> Path:

@@ -93,7 +93,9 @@ def resolve_profile(
         return fidelity
     named = NAMED_PROFILES[backend]
     if fidelity not in named:
-        from workers.fidelity import store  # lazy: saved profiles are read only when named
+        from gaitforge.workers.fidelity import (
+            store,  # lazy: saved profiles are read only when named
+        )
 
         if fidelity == "auto":
             return store.auto(scene, backend, tolerance)

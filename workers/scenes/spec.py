@@ -5,9 +5,14 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 import numpy as np
+from gaitforge.workers.scenes.profiles import (
+    BACKENDS,
+    Backend,
+    Fidelity,
+    FidelityProfile,
+    resolve_profile,
+)
 from pydantic import BaseModel, ConfigDict, Field, model_validator
-
-from workers.scenes.profiles import BACKENDS, Backend, Fidelity, FidelityProfile, resolve_profile
 
 MJCF_BODIES: tuple[str, ...] = ("myoleg", "myoelbow")
 """Bodies loaded from MyoSuite's MJCF files (MuJoCo only); all others are neutral bodies."""

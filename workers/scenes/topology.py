@@ -9,9 +9,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import lru_cache
 
-from workers.bodies import load_body
-from workers.bodies.schema import GROUND
-from workers.scenes.spec import MJCF_BODIES
+from gaitforge.workers.bodies import load_body
+from gaitforge.workers.bodies.schema import GROUND
+from gaitforge.workers.scenes.spec import MJCF_BODIES
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ def _neutral_topology(name: str) -> Topology:
 def topology_for(body: str) -> Topology:
     """The topology of a shipped or file-given body (cached per process)."""
     if body in MJCF_BODIES:
-        from workers.sim.mjcf_topology import mjcf_topology
+        from gaitforge.workers.sim.mjcf_topology import mjcf_topology
 
         return mjcf_topology(body)
     return _neutral_topology(body)

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from workers.scenes.profiles import FidelityProfile
-from workers.sim.base import CompileReport, Health, SimState, Simulator
+from gaitforge.workers.scenes.profiles import FidelityProfile
+from gaitforge.workers.sim.base import CompileReport, Health, SimState, Simulator
 
 if TYPE_CHECKING:
-    from workers.scenes.spec import Scene
+    from gaitforge.workers.scenes.spec import Scene
 
 __all__ = [
     "CompileReport",
@@ -25,7 +25,7 @@ def make_simulator(scene: Scene, backend: str = "mujoco") -> Simulator:
     injection when the scene asks for it, in tests)."""
     sim = _backend_simulator(scene, backend)
     if scene.fault is not None:
-        from workers.sim.faults import FaultySimulator  # lazy: test-only
+        from gaitforge.workers.sim.faults import FaultySimulator  # lazy: test-only
 
         return FaultySimulator(sim, scene.fault)  # type: ignore[return-value]
     return sim
@@ -33,11 +33,11 @@ def make_simulator(scene: Scene, backend: str = "mujoco") -> Simulator:
 
 def _backend_simulator(scene: Scene, backend: str) -> Simulator:
     if backend == "mujoco":
-        from workers.sim.mujoco import MujocoSimulator
+        from gaitforge.workers.sim.mujoco import MujocoSimulator
 
         return MujocoSimulator(scene)
     if backend == "opensim":
-        from workers.sim.opensim import OpenSimSimulator  # lazy: imports OpenSim
+        from gaitforge.workers.sim.opensim import OpenSimSimulator  # lazy: imports OpenSim
 
         return OpenSimSimulator(scene)
     raise ValueError(f"backend: unknown {backend!r}; allowed: ['mujoco', 'opensim']")

@@ -6,9 +6,8 @@ from dataclasses import dataclass, field
 from typing import NamedTuple, Protocol
 
 import numpy as np
-
-from workers.scenes.profiles import FidelityProfile
-from workers.scenes.prune import PrunePlan
+from gaitforge.workers.scenes.profiles import FidelityProfile
+from gaitforge.workers.scenes.prune import PrunePlan
 
 HEALTHY = "ok"
 MAX_SPEED = 200.0

@@ -12,9 +12,8 @@ import os
 import time
 
 import numpy as np
-
-from workers.scenes.spec import FaultInjection
-from workers.sim.base import Health, Simulator
+from gaitforge.workers.scenes.spec import FaultInjection
+from gaitforge.workers.sim.base import Health, Simulator
 
 logger = logging.getLogger(__name__)
 

@@ -28,8 +28,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-
-from workers.sim.mjcf_lock import coupled_qpos
+from gaitforge.workers.sim.mjcf_lock import coupled_qpos
 
 logger = logging.getLogger(__name__)
 

@@ -13,8 +13,7 @@ from collections.abc import Sequence
 
 import mujoco
 import numpy as np
-
-from workers.sim.mjcf_lock import _HINGE_SLIDE, _joint_couplings, _name, coupled_qpos
+from gaitforge.workers.sim.mjcf_lock import _HINGE_SLIDE, _joint_couplings, _name, coupled_qpos
 
 logger = logging.getLogger(__name__)
 

@@ -12,8 +12,7 @@ from collections.abc import Iterable
 
 import mujoco
 import numpy as np
-
-from workers.sim.mjcf_lock import _delete_sensors, _rewrite_keys
+from gaitforge.workers.sim.mjcf_lock import _delete_sensors, _rewrite_keys
 
 logger = logging.getLogger(__name__)
 

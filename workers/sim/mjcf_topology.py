@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import mujoco
-
-from workers.scenes.topology import Topology
-from workers.sim.mjcf_moment_arms import muscle_spans
-from workers.sim.mjcf_sources import MJCF_SOURCES
+from gaitforge.workers.scenes.topology import Topology
+from gaitforge.workers.sim.mjcf_moment_arms import muscle_spans
+from gaitforge.workers.sim.mjcf_sources import MJCF_SOURCES
 
 FOOT_BODIES = {"foot_right": ("calcn_r", "toes_r"), "foot_left": ("calcn_l", "toes_l")}
 """Bodies whose collision geoms count as feet (MyoLeg naming)."""

@@ -13,17 +13,16 @@ from functools import lru_cache
 
 import mujoco
 import numpy as np
-
-from workers.bodies import load_body
-from workers.scenes import PrunePlan, Scene, plan_pruning
-from workers.scenes.topology import Topology, topology_for
-from workers.sim.base import HEALTHY, MAX_SPEED, BodyPose, CompileReport, Health, SimState
-from workers.sim.mjcf_contacts import model_size, restrict_contacts
-from workers.sim.mjcf_lock import lock_joints
-from workers.sim.mjcf_moment_arms import planar_muscles
-from workers.sim.mjcf_muscles import remove_muscles, strip_unused
-from workers.sim.mjcf_sources import MJCF_SOURCES
-from workers.sim.mujoco_build import CONTACT_GROUP, FLOOR, build_spec
+from gaitforge.workers.bodies import load_body
+from gaitforge.workers.scenes import PrunePlan, Scene, plan_pruning
+from gaitforge.workers.scenes.topology import Topology, topology_for
+from gaitforge.workers.sim.base import HEALTHY, MAX_SPEED, BodyPose, CompileReport, Health, SimState
+from gaitforge.workers.sim.mjcf_contacts import model_size, restrict_contacts
+from gaitforge.workers.sim.mjcf_lock import lock_joints
+from gaitforge.workers.sim.mjcf_moment_arms import planar_muscles
+from gaitforge.workers.sim.mjcf_muscles import remove_muscles, strip_unused
+from gaitforge.workers.sim.mjcf_sources import MJCF_SOURCES
+from gaitforge.workers.sim.mujoco_build import CONTACT_GROUP, FLOOR, build_spec
 
 logger = logging.getLogger(__name__)
 

@@ -22,9 +22,8 @@ import math
 
 import mujoco
 import numpy as np
-
-from workers.bodies.schema import GROUND, Body, PathPoint, WrapObject
-from workers.sim.muscle_curves import fit_mujoco_fpmax
+from gaitforge.workers.bodies.schema import GROUND, Body, PathPoint, WrapObject
+from gaitforge.workers.sim.muscle_curves import fit_mujoco_fpmax
 
 FLOOR = "floor"
 MUSCLE_RANGE = (0.75, 1.05)

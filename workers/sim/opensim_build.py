@@ -37,10 +37,9 @@ from typing import Literal
 
 import numpy as np
 import opensim
-
-from workers.bodies.schema import GROUND, Body, Dof, Joint, PathPoint, WrapObject
-from workers.scenes.prune import PrunePlan
-from workers.sim.muscle_curves import thelen_passive, thelen_passive_stiffness_at_one
+from gaitforge.workers.bodies.schema import GROUND, Body, Dof, Joint, PathPoint, WrapObject
+from gaitforge.workers.scenes.prune import PrunePlan
+from gaitforge.workers.sim.muscle_curves import thelen_passive, thelen_passive_stiffness_at_one
 
 logger = logging.getLogger(__name__)
 

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import opensim
-
-from workers.scenes.prune import PrunePlan
-from workers.scenes.topology import Topology
-from workers.sim.opensim_build import OpenSimBuild
+from gaitforge.workers.scenes.prune import PrunePlan
+from gaitforge.workers.scenes.topology import Topology
+from gaitforge.workers.sim.opensim_build import OpenSimBuild
 
 
 def full_plan(topology: Topology) -> PrunePlan:

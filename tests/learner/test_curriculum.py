@@ -1,0 +1,109 @@
+"""Curriculum: job files validated early with one-line errors, promotion rules, stages that
+change only the fidelity, and a stage recorded in metrics and checkpoints."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from gaitforge.learner.checkpoint import checkpoints, load_checkpoint
+from gaitforge.learner.curriculum import CurriculumState, EpisodeStats
+from gaitforge.learner.job import Job, PromotionRule, Stage, load_job
+from gaitforge.learner.trainer import Trainer
+from gaitforge.workers.spec_io import SpecError
+
+
+def test_a_rule_reads_from_a_string() -> None:
+    stage = Stage.model_validate(
+        {"scene": "walk-2d", "env_steps": 10, "promote": "distance >= 5 over 100"}
+    )
+    assert stage.promote == [PromotionRule(metric="distance", op=">=", value=5.0, window=100)]
+    assert str(stage.promote[0]) == "distance >= 5 over 100 episodes"
+
+
+def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> None:
+    stage = Stage.model_validate(
+        {"scene": "walk-2d", "env_steps": 1000, "promote": "fall_rate <= 0.25 over 4"}
+    )
+    state = CurriculumState()
+    for fell in (False, False, False):
+        state.episodes.append(EpisodeStats(1.0, 2.0, 10.0, fell, not fell))
+    assert state.verdict(stage) is None, "3 episodes < a window of 4"
+    state.episodes.append(EpisodeStats(1.0, 0.5, 2.0, True, False))
+    assert state.verdict(stage) == "promoted: fall_rate 0.25 <= 0.25"
+    assert state.window_mean("speed", 4) == pytest.approx((0.2 * 3 + 0.25) / 4)
+    state.episodes.append(EpisodeStats(1.0, 0.5, 2.0, True, False))
+    assert state.verdict(stage) is None
+    state.stage_env_steps = 1000
+    assert state.verdict(stage) == "budget spent"
+    both = Stage.model_validate(
+        {"scene": "walk-2d", "env_steps": 10**6,
+         "promote": ["speed >= 0.2 over 2", "fall_rate <= 0.5 over 2"]}
+    )  # fmt: skip
+    assert both.promote[1].metric == "fall_rate"
+    assert state.verdict(both) is None, "speed passes, falls 2 of 2 do not"
+    state.episodes.append(EpisodeStats(1.0, 3.0, 10.0, False, True))
+    assert state.verdict(both) == "promoted: speed 0.275 >= 0.2, fall_rate 0.5 <= 0.5"
+    assert CurriculumState.from_json(state.to_json()).to_json() == state.to_json()
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        ("stages: []", "stages: List should have at least 1 item"),
+        ("stages: [{scene: walk-2d, env_steps: 0}]", "stages.0.env_steps: Input should be"),
+        ("stages: [{scene: walk-2d, env_steps: 9, promote: 'speed > 1'}]",
+         "stages.0.promote: expected '<metric> >=|<= <value> [over <episodes>]'"),
+        ("stages: [{scene: walk-2d, env_steps: 9, promote: ['speed >= 1', 'height >= 1']}]",
+         "stages.0.promote.1.metric: Input should be"),
+        ("stages: [{scene: walk-2d, env_steps: 9, control_hz: 30}]",
+         "does not divide the control period 1/30.0 s"),
+        ("stages: [{scene: nowhere, env_steps: 9}]", "stages.0.scene: scene 'nowhere': unknown"),
+        ("stages: [{scene: walk-3d, env_steps: 9}]\nbackend: opensim",
+         "stages.0.scene: 'walk-3d' runs on ['mujoco'], not on the job's backend 'opensim'"),
+        ("stages: [{scene: walk-2d, env_steps: 9}, {scene: run-2d, env_steps: 9, "
+         "network: {hidden: [8]}}]", "a new network needs transition blend, distil or scratch"),
+        ("stages: [{scene: walk-2d, env_steps: 9, fidelity: warp}]",
+         "stages.0: fidelity: unknown profile 'warp'"),
+        ("stages: [{scene: walk-2d, env_steps: 9}]\nppo: {lr: -1}", "ppo.lr: Input should be"),
+        ("stages: [{scene: walk-2d, env_steps: 9}]\nworkers: {threads: 3}",
+         "workers.threads: Extra inputs are not permitted"),
+    ],
+)  # fmt: skip
+def test_bad_job_files_fail_early_in_one_line(tmp_path: Path, body: str, message: str) -> None:
+    path = tmp_path / "job.yaml"
+    path.write_text(f"name: j\n{body}\n")
+    with pytest.raises(SpecError) as err:
+        load_job(path)
+    assert message in str(err.value) and "\n" not in str(err.value)
+    assert str(path) in str(err.value)
+
+
+def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> None:
+    """Stand for one fast stage, promote on a rule that any episode passes, then the same
+    scene at the accurate profile (a fidelity curriculum)."""
+    job = Job.model_validate({
+        "name": "fidelity-curriculum",
+        "workers": {"num_workers": 0, "envs_per_worker": 4, "fragment_length": 100},
+        "ppo": {"batch_env_steps": 400, "minibatch_size": 200, "epochs": 1},
+        "stages": [
+            {"scene": "stand-2d", "fidelity": "fast", "env_steps": 100_000,
+             "promote": "length >= 0 over 2"},
+            {"scene": "stand-2d", "fidelity": "accurate", "env_steps": 400},
+        ],
+    })  # fmt: skip
+    trainer = Trainer(job, tmp_path, tensorboard=False)
+    assert [s.profile("mujoco").timestep for s in trainer.scenes] == [0.005, 0.0005]
+    history = trainer.run()
+    ends = [h for h in history if h["verdict"]]
+    assert [h["stage"] for h in ends] == [0, 1]
+    assert ends[0]["verdict"].startswith("promoted: length")
+    assert ends[0]["env_steps"] < 100_000 and ends[1]["verdict"] == "budget spent"
+    metas = [load_checkpoint(p)[1] for p in checkpoints(tmp_path / "checkpoints")]
+    assert [m["stage"]["index"] for m in metas][-2:] == [0, 1]
+    assert metas[-1]["scene"]["fidelity"] == "accurate"
+    recordings = sorted(p.name for p in (tmp_path / "recordings").glob("*.mcap"))
+    assert len(recordings) == 2, "one MCAP recording at each stage end"
+    # a run resumed from the last checkpoint has nothing left to do
+    resumed = Trainer(job, tmp_path, tensorboard=False)
+    assert resumed.done and resumed.run() == []

@@ -1,0 +1,312 @@
+"""Evaluation on the real MuJoCo simulator: metrics consistent with the body's motion, falls
+counted, seeded runs repeat exactly, the sweep lowers the target speed, the CLI's errors."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+import yaml
+from gaitforge.learner.checkpoint import CheckpointError, load_policy, save_checkpoint
+from gaitforge.learner.evaluate import (
+    EvaluationError,
+    evaluate_checkpoint,
+    evaluate_policy,
+    make_env,
+    resolve_checkpoint,
+    run_episode,
+    speed_sweep,
+    with_target_speed,
+)
+from gaitforge.learner.policy import BlendedPolicy, GaussianPolicy
+from gaitforge.learner.stats import Rate, Stat, t_quantile_975
+from gaitforge.service.cli import app
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.scenes import Scene, catalogue_file, load_scene
+from typer.testing import CliRunner
+
+runner = CliRunner()
+WALK_OBS, WALK_ACT = 61, 18
+
+
+def short_scene(tmp_path: Path, name: str = "walk-2d", episode_s: float = 1.5) -> Path:
+    """A catalogue scene with a shorter episode, as a YAML file under ``tmp_path``."""
+    data = yaml.safe_load(catalogue_file(name).read_text())
+    data["episode_s"] = episode_s
+    path = tmp_path / f"{name}-short.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def relaxed_policy(obs_dim: int = WALK_OBS, act_dim: int = WALK_ACT) -> GaussianPolicy:
+    """Mean excitation sigmoid(-30) ~ 1e-13: every muscle relaxed."""
+    policy = GaussianPolicy(obs_dim, act_dim, hidden=(16,))
+    with torch.no_grad():
+        last = policy.actor[-1]
+        last.weight.zero_()
+        last.bias.fill_(-30.0)
+    return policy.eval()
+
+
+def save(root: Path, policy: GaussianPolicy, scene: Scene, env_steps: int = 0, **metrics) -> Path:
+    meta = {
+        "network": policy.describe(),
+        "scene": scene.model_dump(mode="json"),
+        "config": {"backend": "mujoco"},
+        "metrics": metrics,
+    }
+    return save_checkpoint(root, env_steps, policy.state_dict(), meta, keep_last=5)
+
+
+@pytest.fixture(scope="module")
+def walk(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Scene]:
+    """A run directory with one checkpoint of a randomly initialised walk-2d policy."""
+    tmp = tmp_path_factory.mktemp("walk")
+    scene = load_scene(short_scene(tmp))
+    torch.manual_seed(0)
+    save(tmp / "run" / "checkpoints", GaussianPolicy(WALK_OBS, WALK_ACT, hidden=(16,)), scene)
+    return tmp / "run", scene
+
+
+class PelvisTrace:
+    """Observer: the pelvis forward position (m) at reset and after every step."""
+
+    def __init__(self) -> None:
+        self.forward: list[float] = []
+        self.closed = False
+
+    def _log(self, env: MuscleEnv) -> None:
+        self.forward.append(float(env.sim.state().pelvis_pos[env.sim.forward_axis]))
+
+    def on_reset(self, env: MuscleEnv, obs: np.ndarray) -> None:
+        self._log(env)
+
+    def on_step(self, env, action, obs, reward, info) -> None:
+        self._log(env)
+
+    def close(self) -> None:
+        self.closed = True
+
+
+def test_relaxed_muscles_fall_and_the_metrics_agree_with_the_motion(tmp_path: Path) -> None:
+    scene = load_scene(short_scene(tmp_path, episode_s=4.0))
+    policy = relaxed_policy()
+    env = make_env(policy, scene, "mujoco")
+    trace = PelvisTrace()
+    episode = run_episode(env, policy, seed=3, observer=trace)
+    # with every muscle relaxed the legs fold: a fall within a couple of seconds
+    assert episode.fell and not episode.truncated and episode.health == "ok"
+    assert 0.1 < episode.time_s < 2.5
+    assert episode.steps == len(trace.forward) - 1
+    assert episode.time_s == pytest.approx(episode.steps / scene.control_hz)
+    assert episode.distance_m == pytest.approx(trace.forward[-1] - trace.forward[0], abs=1e-12)
+    assert episode.mean_speed_m_s == pytest.approx(episode.distance_m / episode.time_s)
+    assert episode.effort == pytest.approx(0.0, abs=1e-12)
+    assert episode.return_ == pytest.approx(sum(episode.reward_terms.values()))
+
+    result = evaluate_policy(policy, scene, episodes=3, seed=10)
+    assert result.fall_rate.value == 1.0 and result.fall_rate.count == 3
+    assert 0.0 <= result.fall_rate.low <= result.fall_rate.high <= 1.0
+    assert result.health == {"ok": 3} and result.failure_rate.value == 0.0
+    assert [e.seed for e in result.episodes] == [10, 11, 12]
+
+
+def test_a_reach_task_never_falls_and_effort_is_the_mean_squared_excitation(
+    tmp_path: Path,
+) -> None:
+    scene = load_scene("elbow-reach")
+    policy = relaxed_policy(15, 6)
+    with torch.no_grad():
+        policy.actor[-1].bias.fill_(0.0)  # every excitation 0.5
+    result = evaluate_policy(policy, scene, episodes=2)
+    assert result.fall_rate.value == 0.0
+    for e in result.episodes:
+        assert e.truncated and e.steps == scene.steps_per_episode
+        assert e.distance_m == 0.0
+        assert e.effort == pytest.approx(0.25)
+        assert e.effort_sum == pytest.approx(0.25 * 6 * e.steps)
+
+
+def test_seeded_runs_repeat_exactly_in_both_modes(walk: tuple[Path, Scene]) -> None:
+    run, _ = walk
+    first = evaluate_checkpoint(run, episodes=2, modes=("deterministic", "stochastic"))
+    again = evaluate_checkpoint(run, episodes=2, modes=("deterministic", "stochastic"))
+    assert first.to_dict() == again.to_dict()
+    det, sto = first.results["deterministic"], first.results["stochastic"]
+    assert det.episodes[0].return_ != sto.episodes[0].return_
+    assert det.effort.mean < sto.effort.mean  # noise adds excitation^2 on average
+    assert first.scene == "walk-2d" and first.backend == "mujoco" and first.env_steps == 0
+
+
+def test_the_sweep_lowers_the_target_speed_as_asked(walk: tuple[Path, Scene]) -> None:
+    run, scene = walk
+    report = evaluate_checkpoint(run, episodes=2, sweep=[0.0, 0.15, 0.3])
+    targets = [p.target_speed_m_s for p in report.sweep]
+    assert targets == pytest.approx([1.25, 1.25 * 0.85, 1.25 * 0.7])
+    assert [p.result.target_speed_m_s for p in report.sweep] == pytest.approx(targets)
+    for p in report.sweep:
+        assert 0.0 <= p.result.fall_rate.value <= 1.0
+    # reduction 0 is the scene itself, same seeds: the same episodes
+    assert report.sweep[0].result.episodes == report.results["deterministic"].episodes
+    # the policy is told the lower target: it is in the observation
+    env = MuscleEnv(with_target_speed(scene, targets[2]))
+    obs, _ = env.reset(seed=0)
+    assert obs[env.obs_names.index("target_speed")] == pytest.approx(1.25 * 0.7)
+
+    with pytest.raises(EvaluationError, match="no target speed"):
+        speed_sweep(relaxed_policy(15, 6), load_scene("elbow-reach"))
+    with pytest.raises(EvaluationError, match=r"\[0, 1\)"):
+        evaluate_checkpoint(run, episodes=1, sweep=[0.1, 1.5])
+
+
+def test_json_is_complete(walk: tuple[Path, Scene], tmp_path: Path) -> None:
+    run, _ = walk
+    out = tmp_path / "eval.json"
+    result = runner.invoke(
+        app,
+        ["evaluate", str(run), "--episodes", "2", "--mode", "both", "--sweep",
+         "--sweep-percent", "0,20", "--per-episode", "--json", str(out)],
+        env={"COLUMNS": "200"},
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert "Speed against safety" in result.output and "fall rate" in result.output
+    assert "Episodes (stochastic)" in result.output
+    data = json.loads(out.read_text())
+    assert set(data["results"]) == {"deterministic", "stochastic"}
+    det = data["results"]["deterministic"]
+    assert len(det["episodes"]) == 2 and set(det["fall_rate"]) >= {"value", "low", "high"}
+    assert det["return"]["mean"] == pytest.approx(
+        sum(e["return"] for e in det["episodes"]) / 2, rel=1e-9
+    )
+    assert [p["target_speed_m_s"] for p in data["sweep"]] == pytest.approx([1.25, 1.0])
+
+
+def test_another_scene_must_have_the_policy_sizes(walk: tuple[Path, Scene]) -> None:
+    run, _ = walk
+    with pytest.raises(EvaluationError) as caught:
+        evaluate_checkpoint(run, scene="elbow-reach", episodes=1)
+    message = str(caught.value)
+    assert "15" in message and "6" in message and "61" in message and "18" in message
+    report = evaluate_checkpoint(run, scene="run-2d", episodes=1)  # same body, faster target
+    assert report.scene == "run-2d"
+    assert (
+        report.results["deterministic"].target_speed_m_s == load_scene("run-2d").task.target_speed
+    )
+
+
+def test_a_run_directory_gives_its_latest_or_best(tmp_path: Path) -> None:
+    scene = load_scene("elbow-reach")
+    root = tmp_path / "checkpoints"
+    policy = relaxed_policy(15, 6)
+    first = save(root, policy, scene, 100, **{"return": 5.0})
+    last = save(root, policy, scene, 200, **{"return": 1.0})
+    assert resolve_checkpoint(tmp_path) == last
+    assert resolve_checkpoint(root) == last
+    assert resolve_checkpoint(tmp_path, "best") == first
+    assert resolve_checkpoint(first) == first
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(EvaluationError, match="no checkpoint"):
+        resolve_checkpoint(tmp_path / "empty")
+    with pytest.raises(EvaluationError, match="no such file"):
+        resolve_checkpoint(tmp_path / "missing")
+
+
+def test_statistics() -> None:
+    assert t_quantile_975(1) == 12.706 and t_quantile_975(40) == pytest.approx(2.021, abs=1e-3)
+    assert t_quantile_975(120) == pytest.approx(1.980, abs=1e-3)
+    s = Stat.of([1.0, 2.0, 3.0])
+    assert s.mean == 2.0 and s.high - s.mean == pytest.approx(4.303 * 1.0 / math.sqrt(3))
+    assert Stat.of([4.0]) == Stat(4.0, 4.0, 4.0, 0.0, 1)
+    r = Rate.of(0, 10)
+    assert r.value == 0.0 and r.low == 0.0 and r.high == pytest.approx(0.2775, abs=1e-4)
+
+
+def one_line_error(args: list[str]) -> str:
+    result = runner.invoke(app, ["evaluate", *args], env={"COLUMNS": "80"})
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.output
+    return lines[0]
+
+
+def test_cli_errors_are_one_line(walk: tuple[Path, Scene], tmp_path: Path) -> None:
+    run, _ = walk
+    assert "no such file" in one_line_error([str(tmp_path / "missing")])
+    assert "episodes must be > 0" in one_line_error([str(run), "--episodes", "0"])
+    line = one_line_error([str(run), "--scene", "walk-9d"])
+    assert "walk-9d" in line and "unknown" in line
+    assert "observation size" in one_line_error([str(run), "--scene", "elbow-reach"])
+    assert "no checkpoint" in one_line_error([str(tmp_path)])
+    assert "in [0, 100)" in one_line_error([str(run), "--sweep", "--sweep-percent", "0,150"])
+    damaged = tmp_path / "damaged"
+    shutil.copytree(run, damaged)
+    ckpt = resolve_checkpoint(damaged)
+    with (ckpt / "policy.safetensors").open("ab") as f:
+        f.write(b"x")
+    line = one_line_error([str(damaged)])
+    assert "policy.safetensors" in line and "damaged" in line
+    with pytest.raises(CheckpointError):
+        evaluate_checkpoint(damaged, episodes=1)
+
+
+def test_the_first_episode_is_recorded(walk: tuple[Path, Scene], tmp_path: Path) -> None:
+    from gaitforge.learner.recording import TOPICS
+    from mcap.reader import make_reader
+
+    run, _ = walk
+    out = tmp_path / "first.mcap"
+    report = evaluate_checkpoint(run, episodes=2, record=out)
+    assert report.recording == str(out)
+    first = report.results["deterministic"].episodes[0]
+    with out.open("rb") as f:
+        reader = make_reader(f)
+        counts: dict[str, int] = {}
+        for _, channel, _ in reader.iter_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+    assert counts == dict.fromkeys(TOPICS, first.steps)
+    with out.open("rb") as f:
+        (meta,) = [m.metadata for m in make_reader(f).iter_metadata()]
+    assert meta["mode"] == "deterministic" and meta["seed"] == "0"
+    assert len(meta["checkpoint_sha256"]) == 64 and meta["scene"] == "walk-2d"
+
+
+def test_the_first_episode_as_a_video(walk: tuple[Path, Scene], tmp_path: Path) -> None:
+    video = pytest.importorskip("gaitforge.learner.video")
+    if (why := video.osmesa_available()) is not None:
+        pytest.skip(f"no offscreen rendering here: {why}")
+    run, _ = walk
+    out = tmp_path / "first.mp4"
+    report = evaluate_checkpoint(run, episodes=1, video=out)
+    assert report.video == str(out)
+    assert out.stat().st_size > 1000
+    assert out.read_bytes()[4:8] == b"ftyp"  # an MP4 container
+
+
+def test_a_checkpoint_the_trainer_wrote_mid_blend(tmp_path: Path) -> None:
+    from gaitforge.learner.job import Job
+    from gaitforge.learner.trainer import Trainer
+
+    job = Job.model_validate({
+        "name": "walk-blend", "network": {"hidden": [8]}, "checkpoint": {"every_iters": 1},
+        "workers": {"num_workers": 0, "envs_per_worker": 2, "fragment_length": 16},
+        "ppo": {"batch_env_steps": 32, "minibatch_size": 32, "epochs": 1},
+        "stages": [
+            {"scene": "walk-2d", "env_steps": 32},
+            {"scene": "walk-2d", "env_steps": 32, "transition": "blend",
+             "network": {"hidden": [16]},
+             "blend": {"ramp_env_steps": 1024, "critic_warmup_env_steps": 32, "fit_epochs": 1}},
+        ],
+    })  # fmt: skip
+    Trainer(job, tmp_path, tensorboard=False).run()
+    policy, _ = load_policy(resolve_checkpoint(tmp_path))
+    assert isinstance(policy, BlendedPolicy)  # alpha still ramping: pi_old and pi_new both act
+    report = evaluate_checkpoint(tmp_path, episodes=1, modes=("deterministic", "stochastic"))
+    assert report.scene == "walk-2d" and report.stage is not None and report.stage["index"] == 1
+    assert report.env_steps is not None and report.env_steps >= 64
+    for result in report.results.values():
+        assert result.episodes[0].steps > 0 and 0.0 <= result.fall_rate.value <= 1.0

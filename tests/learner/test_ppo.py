@@ -1,0 +1,77 @@
+"""PPO: the update is sound, refuses NaN, and learns elbow-reach in-process in seconds."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+import torch
+from gaitforge.learner.policy import GaussianPolicy
+from gaitforge.learner.ppo import (
+    PPOConfig,
+    batch_from_fragments,
+    clipped_surrogate_loss,
+    ppo_update,
+)
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.rollout import RolloutWorker
+from gaitforge.workers.scenes import load_scene
+
+
+def _elbow_factory() -> functools.partial:
+    env = MuscleEnv("elbow-reach")
+    return functools.partial(
+        GaussianPolicy, env.observation_space.shape[0], env.action_space.shape[0]
+    )
+
+
+def test_policy_acts_in_batches_and_evaluates_its_own_samples() -> None:
+    torch.manual_seed(0)
+    policy = GaussianPolicy(obs_dim=5, act_dim=3)
+    obs = torch.randn(7, 5)
+    action, logp, value = policy.act(obs)
+    assert action.shape == (7, 3) and logp.shape == (7,) and value.shape == (7,)
+    again, entropy, _ = policy.evaluate(obs, action)
+    torch.testing.assert_close(again, logp)
+    assert (entropy > -10).all()
+    mean = policy.distribution(obs).mean
+    assert ((mean >= 0) & (mean <= 1)).all()
+
+
+def test_a_nan_in_the_batch_is_refused_naming_the_tensor() -> None:
+    worker = RolloutWorker(load_scene("elbow-reach"), _elbow_factory(), num_envs=2,
+                           fragment_length=10)  # fmt: skip
+    fragment = worker.sample()
+    fragment["reward"][3, 1] = np.nan
+    with pytest.raises(FloatingPointError, match=r"^reward: contains NaN"):
+        batch_from_fragments([fragment], PPOConfig())
+
+
+def test_elbow_reach_learns_in_process() -> None:
+    """40 iterations of 800 steps (about 15 s): the mean episode return rises by more than
+    half of the way from a random policy (about -70) towards 0."""
+    torch.manual_seed(0)
+    factory = _elbow_factory()
+    worker = RolloutWorker(load_scene("elbow-reach"), factory, num_envs=8, fragment_length=100)
+    policy = factory()
+    optimizer = torch.optim.Adam(policy.parameters(), lr=3e-4)
+    cfg = PPOConfig(epochs=10, gamma=0.95)
+    returns = []
+    for version in range(40):
+        fragment = worker.sample(policy.state_dict(), version)
+        returns.append(float(fragment["episode_return"].mean()))
+        policy.norm.update(torch.from_numpy(fragment["obs"]).reshape(-1, fragment["obs"].shape[-1]))
+        ppo_update(policy, optimizer, batch_from_fragments([fragment], cfg), cfg)
+    start, end = np.mean(returns[:3]), np.mean(returns[-3:])
+    assert start < -50, f"a random policy should do badly: {start:.1f}"
+    assert end > start / 2, f"no learning: {start:.1f} -> {end:.1f}"
+
+
+def test_clipped_surrogate_against_hand_worked_numbers() -> None:
+    # r = 1.5, A = +2: min(3.0, 1.2 * 2) = 2.4;   r = 0.5, A = +1: min(0.5, 0.8) = 0.5;
+    # r = 0.5, A = -1: min(-0.5, 0.8 * -1) = -0.8; r = 1.1, A = -3: inside the range, -3.3
+    ratio = torch.tensor([1.5, 0.5, 0.5, 1.1])
+    adv = torch.tensor([2.0, 1.0, -1.0, -3.0])
+    expected = -(2.4 + 0.5 + (-0.8) + (-3.3)) / 4
+    assert clipped_surrogate_loss(ratio, adv, 0.2).item() == pytest.approx(expected)

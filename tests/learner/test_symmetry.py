@@ -1,0 +1,64 @@
+"""Mirror symmetry: the mirror image of an observation and an action, on real envs."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+from gaitforge.learner.policy import GaussianPolicy
+from gaitforge.learner.symmetry import MirrorMap, add_mirrored
+from gaitforge.workers.env import MuscleEnv
+
+
+def _map(scene: str) -> tuple[MuscleEnv, MirrorMap]:
+    env = MuscleEnv(scene)
+    lateral = 3 - env.sim.up_axis - env.sim.forward_axis
+    return env, MirrorMap.from_names(env.obs_names, env.sim.muscle_names, lateral)
+
+
+@pytest.mark.parametrize("scene", ["walk-2d", "walk-3d"])
+def test_mirroring_twice_is_the_identity_and_swaps_sides(scene: str) -> None:
+    env, mirror = _map(scene)
+    obs = torch.randn(5, len(env.obs_names))
+    torch.testing.assert_close(mirror.obs(mirror.obs(obs)), obs)
+    names = env.obs_names
+    once = mirror.obs(obs)
+    i, j = names.index("q:knee_angle_r"), names.index("q:knee_angle_l")
+    torch.testing.assert_close(once[:, i], obs[:, j])
+    k, m = names.index("grf:foot_left"), names.index("grf:foot_right")
+    torch.testing.assert_close(once[:, k], obs[:, m])
+    lateral = "xyz"[3 - env.sim.up_axis - env.sim.forward_axis]
+    v = names.index(f"pelvis_vel_{lateral}")
+    torch.testing.assert_close(once[:, v], -obs[:, v])
+    h = names.index("pelvis_height")
+    torch.testing.assert_close(once[:, h], obs[:, h])
+    muscles = env.sim.muscle_names
+    action = torch.rand(3, len(muscles))
+    flipped = mirror.action(action)
+    a = muscles.index(next(n for n in muscles if n.endswith("_r")))
+    b = muscles.index(muscles[a][:-2] + "_l")
+    torch.testing.assert_close(flipped[:, a], action[:, b])
+
+
+def test_a_body_without_sides_cannot_be_mirrored() -> None:
+    with pytest.raises(ValueError, match="no left and right muscles"):
+        _map("elbow-reach")
+
+
+def test_the_mirrored_batch_doubles_and_keeps_advantages() -> None:
+    env, mirror = _map("walk-2d")
+    policy = GaussianPolicy(len(env.obs_names), len(env.sim.muscle_names))
+    n = 6
+    batch = {
+        "obs": torch.randn(n, len(env.obs_names)),
+        "action": torch.rand(n, len(env.sim.muscle_names)),
+        "logp": torch.randn(n),
+        "value": torch.randn(n),
+        "advantage": torch.randn(n),
+        "return": torch.randn(n),
+    }
+    doubled = add_mirrored(batch, mirror, policy)
+    assert all(v.shape[0] == 2 * n for v in doubled.values())
+    torch.testing.assert_close(doubled["advantage"][n:], batch["advantage"])
+    torch.testing.assert_close(doubled["obs"][n:], mirror.obs(batch["obs"]))
+    logp, _, _ = policy.evaluate(doubled["obs"][n:], doubled["action"][n:])
+    torch.testing.assert_close(doubled["logp"][n:], logp.detach())

@@ -1,0 +1,69 @@
+"""The gaitforge CLI, run for real through typer's runner."""
+
+from __future__ import annotations
+
+from gaitforge.service.cli import app
+from typer.testing import CliRunner
+
+runner = CliRunner()
+
+
+def test_scenes_list_names_the_catalogue() -> None:
+    result = runner.invoke(app, ["scenes", "list"], env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    for name in ("elbow-reach", "walk-2d", "walk-3d", "obstacles-2d"):
+        assert name in result.output
+
+
+def test_scenes_show_prints_the_compile_report() -> None:
+    result = runner.invoke(app, ["scenes", "show", "walk-2d"], env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    assert "lumbar_extension" in result.output
+    assert "contact_pairs" in result.output
+
+
+def test_scenes_check_reports_speed_and_health() -> None:
+    result = runner.invoke(
+        app, ["scenes", "check", "elbow-reach", "--seconds", "0.5"], env={"COLUMNS": "200"}
+    )
+    assert result.exit_code == 0, result.output
+    assert "steps/s" in result.output
+    assert "elbow-reach" in result.output
+
+
+def test_unknown_scene_is_one_clear_error() -> None:
+    result = runner.invoke(app, ["scenes", "show", "walk-9d"], env={"COLUMNS": "200"})
+    assert result.exit_code == 2
+    assert "unknown" in result.output and "walk-2d" in result.output
+
+
+def test_bad_seconds_is_rejected() -> None:
+    result = runner.invoke(app, ["scenes", "check", "walk-2d", "--seconds", "-1"])
+    assert result.exit_code != 0
+    assert "seconds" in result.output
+
+
+def test_unknown_backend_is_rejected_naming_the_choices() -> None:
+    result = runner.invoke(app, ["scenes", "check", "walk-2d", "--backend", "bullet"])
+    assert result.exit_code == 2
+    assert "bullet" in result.output and "mujoco" in result.output
+
+
+def test_a_backend_the_scene_does_not_name_is_one_line() -> None:
+    result = runner.invoke(app, ["scenes", "show", "walk-3d", "--backend", "opensim"])
+    assert result.exit_code == 2
+    assert "runs on ['mujoco']" in result.output
+
+
+def test_scenes_show_on_opensim() -> None:
+    result = runner.invoke(
+        app, ["scenes", "show", "walk-2d", "--backend", "opensim"], env={"COLUMNS": "200"}
+    )
+    assert result.exit_code == 0, result.output
+    assert "rk-merson" in result.output and "lumbar_extension" in result.output
+
+
+def test_name_and_all_together_is_an_error() -> None:
+    result = runner.invoke(app, ["scenes", "check", "walk-2d", "--all"])
+    assert result.exit_code == 2
+    assert "not both" in result.output

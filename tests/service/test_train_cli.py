@@ -1,0 +1,51 @@
+"""``gaitforge train``: a real run through typer's runner, and one-line errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint
+from gaitforge.service.cli import app
+from typer.testing import CliRunner
+
+runner = CliRunner()
+JOB = """name: tiny
+ppo: {batch_env_steps: 256, minibatch_size: 128, epochs: 1}
+stages:
+  - scene: elbow-reach
+    env_steps: 100000
+"""
+
+
+def test_train_runs_a_job_and_resumes_from_its_run_dir(tmp_path: Path) -> None:
+    job = tmp_path / "job.yaml"
+    job.write_text(JOB)
+    args = ["train", str(job), "--workers", "0", "--run-dir", str(tmp_path / "run"),
+            "--max-iterations", "2", "--no-tensorboard"]  # fmt: skip
+    result = runner.invoke(app, args, env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    assert "stage 0 elbow-reach" in result.output
+    _, meta = load_checkpoint(latest_checkpoint(tmp_path / "run" / "checkpoints"))
+    assert meta["iteration"] == 2 and meta["stage"]["index"] == 0
+    again = runner.invoke(app, args, env={"COLUMNS": "200"})
+    assert again.exit_code == 0, again.output
+    _, meta = load_checkpoint(latest_checkpoint(tmp_path / "run" / "checkpoints"))
+    assert meta["iteration"] == 4, "the second run went on from the first one's checkpoint"
+
+
+@pytest.mark.parametrize(
+    ("job", "message"),
+    [
+        (JOB.replace("epochs: 1", "epochs: 0"), "ppo.epochs: Input should be greater than"),
+        (JOB.replace("epochs: 1}", "epochs: 1, mirror: true}"),
+         "ppo.mirror: stages.0 (elbow-reach): mirror: the body has no left and right muscles"),
+    ],
+)  # fmt: skip
+def test_a_bad_job_is_one_line(tmp_path: Path, job: str, message: str) -> None:
+    path = tmp_path / "job.yaml"
+    path.write_text(job)
+    result = runner.invoke(app, ["train", str(path), "--run-dir", str(tmp_path / "run")],
+                           env={"COLUMNS": "300"})  # fmt: skip
+    assert result.exit_code == 2
+    assert message in result.output and len(result.output.strip().splitlines()) == 1

@@ -1,0 +1,140 @@
+"""Restricting contacts and measuring model size, with real MuJoCo."""
+
+from __future__ import annotations
+
+import logging
+
+import mujoco
+import numpy as np
+import pytest
+from gaitforge.workers.sim.mjcf_contacts import contact_pair_mask, model_size, restrict_contacts
+from gaitforge.workers.sim.mjcf_lock import lock_joints
+from gaitforge.workers.sim.mjcf_models import (
+    FLOOR,
+    MYOLEG_FOOT_GEOMS,
+    MYOLEG_SAGITTAL_JOINTS,
+    STAND_KEY,
+    myoleg_spec,
+)
+from gaitforge.workers.sim.mjcf_moment_arms import planar_muscles
+from gaitforge.workers.sim.mjcf_muscles import remove_muscles
+from mjcf_helpers import OUT_OF_PLANE, object_names, warning_counts
+
+logger = logging.getLogger(__name__)
+
+
+def test_restrict_contacts_feet_floor() -> None:
+    spec = myoleg_spec(self_contacts=True)
+    restrict_contacts(spec, list(MYOLEG_FOOT_GEOMS), [FLOOR])
+    model = spec.compile()
+    assert model.npair == 0
+    assert model_size(model)["contact_pairs"] == len(MYOLEG_FOOT_GEOMS) * 1
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key(STAND_KEY).id)
+    data.qpos[2] -= 0.02  # sink into the floor
+    mujoco.mj_forward(model, data)
+    assert data.ncon > 0
+    feet = {model.geom(g).id for g in MYOLEG_FOOT_GEOMS}
+    floor = model.geom(FLOOR).id
+    for c in data.contact[: data.ncon]:
+        assert {int(c.geom1), int(c.geom2)} & feet and floor in (c.geom1, c.geom2)
+    with pytest.raises(KeyError):
+        restrict_contacts(spec, ["nope"], [FLOOR])
+
+
+_OVERLAP = """
+<mujoco>
+  <option><flag {flag}/></option>
+  <worldbody>
+    <geom name="w0" type="sphere" size="1"/>
+    <geom name="w1" type="sphere" size="1"/>
+    <body name="A"><joint type="hinge"/><geom name="a0" size="1"/><geom name="a1" size="1"/>
+      <body name="B"><joint type="hinge"/><geom name="b0" size="1"/>
+        <geom name="b_off" size="1" contype="2" conaffinity="2"/>
+        <body name="B_welded"><geom name="bw" size="1"/>
+          <body name="C"><joint type="slide"/><geom name="c0" size="1"/></body>
+        </body>
+      </body>
+    </body>
+    <body name="D"><freejoint/><geom name="d0" size="1"/>
+      <geom name="d_mesh_like" type="box" size="1 1 1" contype="2" conaffinity="1"/></body>
+    <body name="E"><freejoint/><geom name="e0" size="1" contype="0" conaffinity="0"/></body>
+  </worldbody>
+  <contact>
+    <exclude body1="A" body2="D"/>
+    <pair geom1="a0" geom2="b0"/>
+    <pair geom1="e0" geom2="w0"/>
+    <pair geom1="w0" geom2="d0"/>
+  </contact>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("flag", ['filterparent="enable"', 'filterparent="disable"'])
+def test_contact_pairs_match_mujoco(flag: str) -> None:
+    """Every geom overlaps every other: MuJoCo's contacts enumerate the allowed pairs."""
+    model = mujoco.MjSpec.from_string(_OVERLAP.format(flag=flag)).compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    seen = {tuple(sorted((int(c.geom1), int(c.geom2)))) for c in data.contact[: data.ncon]}
+    assert model_size(model)["contact_pairs"] == len(seen)
+    mask = contact_pair_mask(model)
+    dynamic = {(int(i), int(j)) for i, j in zip(*np.nonzero(mask), strict=True)}
+    explicit = {
+        tuple(sorted((int(a), int(b))))
+        for a, b in zip(model.pair_geom1, model.pair_geom2, strict=True)
+    }
+    assert dynamic | explicit == seen
+
+
+def test_model_size_consistent(myoleg_model: mujoco.MjModel) -> None:
+    size = model_size(myoleg_model)
+    m = myoleg_model
+    assert size["dofs"] == m.nv and size["joints"] == m.njnt and size["bodies"] == m.nbody
+    assert size["tendons"] == m.ntendon and size["geoms"] == m.ngeom
+    assert size["sites"] == m.nsite and size["muscles"] == 80
+    assert 0 < size["wrap_objects"] <= m.ngeom
+    wrap_geoms = {
+        int(o)
+        for t, o in zip(m.wrap_type, m.wrap_objid, strict=True)
+        if t in (int(mujoco.mjtWrap.mjWRAP_SPHERE), int(mujoco.mjtWrap.mjWRAP_CYLINDER))
+    }
+    assert size["wrap_objects"] == len(wrap_geoms)
+    # 20 leg collision geoms (contype 1, conaffinity 0) against the floor only
+    assert size["contact_pairs"] == 20
+
+
+def test_planar_pipeline_size_report() -> None:
+    """Lock out-of-plane joints, drop out-of-plane muscles: logs the size at each step."""
+    spec = myoleg_spec()
+    sizes = {"full": model_size(spec.compile())}
+    lock_joints(
+        spec,
+        dict.fromkeys([f"{j}_{s}" for s in "rl" for j in ("subtalar_angle", "mtp_angle")], 0.0),
+    )
+    sizes["locked subtalar+mtp"] = model_size(spec.compile())
+    model = spec.compile()
+    kept = planar_muscles(
+        model,
+        list(MYOLEG_SAGITTAL_JOINTS),
+        out_of_plane_joints=[j for j in OUT_OF_PLANE if "subtalar" not in j],
+    )
+    names = object_names(model, mujoco.mjtObj.mjOBJ_ACTUATOR, model.nu)
+    remove_muscles(spec, [n for n in names if n not in kept])
+    lock_joints(
+        spec,
+        dict.fromkeys([f"{j}_{s}" for s in "rl" for j in ("hip_adduction", "hip_rotation")], 0.0),
+    )
+    restrict_contacts(spec, list(MYOLEG_FOOT_GEOMS), [FLOOR])
+    model = spec.compile()
+    sizes["planar"] = model_size(model)
+    for label, size in sizes.items():
+        logger.info("%s: %s", label, size)
+    assert sizes["planar"]["muscles"] == len(kept) < 80
+    assert sizes["planar"]["dofs"] == 34 - 8
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key(STAND_KEY).id)
+    for _ in range(50):
+        data.ctrl[:] = 0.2
+        mujoco.mj_step(model, data)
+    assert warning_counts(data) == {}

@@ -1,0 +1,128 @@
+"""The worker pool on a real local Ray: fragments keep coming, weights and scenes reach live
+actors, and crashing, hanging and NaN-ing simulators never stop the run."""
+
+from __future__ import annotations
+
+import functools
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+import ray
+import torch
+from gaitforge.workers.policy_api import UniformExcitationPolicy
+from gaitforge.workers.pool import WorkerPool
+from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.scenes.spec import FaultInjection
+
+POLICY = functools.partial(UniformExcitationPolicy, 6)  # elbow-reach has 6 muscles
+
+
+@pytest.fixture(scope="module", autouse=True)
+def local_ray() -> Iterator[None]:
+    ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR")
+    yield
+    ray.shutdown()
+
+
+def _faulty(**fault: float) -> Scene:
+    return load_scene("elbow-reach").model_copy(update={"fault": FaultInjection(**fault)})
+
+
+def _collect(pool: WorkerPool, n: int) -> list[tuple[dict, int]]:
+    return [pool.next_fragment(timeout_s=120) for _ in range(n)]
+
+
+def _collect_until(pool: WorkerPool, event: str, most: int = 100) -> int:
+    """Collect until ``pool.stats.<event>`` is non-zero (at most ``most`` fragments)."""
+    for n in range(most):
+        if getattr(pool.stats, event):
+            return n
+        pool.next_fragment(timeout_s=120)
+    return most
+
+
+def test_fragments_arrive_with_the_policy_version_and_new_weights_reach_the_actors() -> None:
+    pool = WorkerPool(load_scene("elbow-reach"), POLICY, num_workers=2, fragment_length=16)
+    try:
+        first = _collect(pool, 4)
+        assert {version for _, version in first} == {-1}
+        seen = {frag["worker"] for frag, _ in first}
+        deadline = time.monotonic() + 90  # actors start seconds apart on 2 busy cores
+        while seen != {0, 1} and time.monotonic() < deadline:
+            seen.add(pool.next_fragment(timeout_s=120)[0]["worker"])
+        assert seen == {0, 1}
+        policy = UniformExcitationPolicy(6)
+        with torch.no_grad():
+            policy.centre.fill_(0.95)  # mean excitation 0.5 before, about 0.8 after
+        version = pool.set_weights(policy.state_dict())
+        later = _collect(pool, 6)
+        newest = [frag for frag, v in later if v == version]
+        assert newest, "new weights never reached the actors"
+        assert all(frag["action"].mean() > 0.7 for frag in newest)
+        assert pool.stats.actors_started == 2 and pool.stats.actor_deaths == 0
+    finally:
+        pool.close()
+
+
+def test_a_new_scene_reaches_live_actors_without_restarting_them() -> None:
+    pool = WorkerPool(load_scene("elbow-reach"), POLICY, num_workers=2, fragment_length=8)
+    try:
+        _collect(pool, 2)
+        pool.set_scene(load_scene("elbow-reach").model_copy(update={"episode_s": 0.1}))
+        frags = [frag for frag, _ in _collect(pool, 6)]
+        assert any(frag["truncated"].sum() > 0 for frag in frags[-2:])  # 5-step episodes
+        assert pool.stats.actors_started == 2
+    finally:
+        pool.close()
+
+
+def test_crashing_simulators_are_replaced_and_collection_goes_on() -> None:
+    # 64 env steps a fragment: about one fragment in eight aborts its actor
+    pool = WorkerPool(_faulty(abort_prob=0.002), POLICY, num_workers=2, fragment_length=16)
+    try:
+        _collect_until(pool, "actor_deaths")
+        _collect(pool, 4)  # and collection goes on
+        assert pool.stats.actor_deaths >= 1
+        assert pool.stats.actors_started == 2 + pool.stats.actor_deaths
+        assert pool.stats.reissued >= pool.stats.actor_deaths
+    finally:
+        pool.close()
+
+
+def test_a_hung_simulator_times_out_and_is_replaced() -> None:
+    pool = WorkerPool(
+        _faulty(hang_prob=0.002), POLICY, num_workers=2, fragment_length=16, timeout_s=4.0
+    )
+    try:
+        _collect_until(pool, "timeouts")
+        _collect(pool, 4)
+        assert pool.stats.timeouts >= 1
+        assert pool.stats.actors_started == 2 + pool.stats.timeouts + pool.stats.actor_deaths
+    finally:
+        pool.close()
+
+
+def test_nan_steps_are_counted_and_never_reach_the_fragments() -> None:
+    pool = WorkerPool(_faulty(nan_prob=0.02), POLICY, num_workers=2, fragment_length=32)
+    try:
+        frags = [frag for frag, _ in _collect(pool, 6)]
+        assert sum(pool.stats.health.values()) >= 1
+        assert all(np.isfinite(frag["obs"]).all() for frag in frags)
+        assert all(np.isfinite(frag["reward"]).all() for frag in frags)
+    finally:
+        pool.close()
+
+
+def test_worn_actors_are_recycled() -> None:
+    pool = WorkerPool(
+        load_scene("elbow-reach"), POLICY, num_workers=1, fragment_length=16, max_worker_steps=100
+    )
+    try:
+        _collect(pool, 10)  # 64 env steps a fragment: worn after the second one
+        assert pool.stats.recycled >= 2
+        assert pool.stats.actors_started >= 2
+        assert pool.stats.actor_deaths == 0 and pool.stats.reissued == 0
+    finally:
+        pool.close()
