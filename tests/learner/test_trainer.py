@@ -29,7 +29,7 @@ def elbow_job(num_workers: int = 0, envs: int = 4, batch: int = 200) -> Job:
 TRAIN_FOREVER = """
 import sys
 from pathlib import Path
-from tests.test_trainer import elbow_job
+from tests.learner.test_trainer import elbow_job
 from gaitforge.learner.trainer import Trainer
 Trainer(elbow_job(), Path(sys.argv[1]), tensorboard=False).run()
 """
