@@ -6,14 +6,15 @@ Layout of ``<root>/ckpt-<env steps, 12 digits>/``:
     normalizer.safetensors   the observation normaliser's statistics (``norm.*``)
     optimizer.safetensors    the optimizer's state (Adam moments), when given; its
                              param groups go into meta.json under "optimizer_param_groups"
-    meta.json                caller's metadata (job and scene spec, stage, env steps,
-                             metrics, blending lineage, network config) + package versions
+    meta.json                ``learner.checkpoint_meta.CheckpointMeta`` (job and scene spec,
+                             stage, env steps, metrics, blending lineage, network config,
+                             package versions, schema version)
     manifest.json            sha256 of each file above
 
 It is written into a temporary directory beside the target, each file fsynced, then
 renamed into place: a reader sees a whole checkpoint or none. The last ``keep_last`` and the
-best (by ``meta["metrics"][best_metric]``) are kept. Loading checks every hash and fails
-loudly, naming the file and the reason.
+best (:func:`select_checkpoint`) are kept. Loading checks every hash and fails loudly, naming
+the file and the reason.
 """
 
 from __future__ import annotations
@@ -24,10 +25,19 @@ import logging
 import os
 import shutil
 import tempfile
+from collections.abc import Mapping
 from importlib import metadata
 from pathlib import Path
+from typing import Any, Literal
 
 import torch
+from gaitforge.learner.checkpoint_meta import (
+    META_FILE,
+    CheckpointError,
+    CheckpointMeta,
+    parse_meta,
+    read_meta,
+)
 from gaitforge.learner.policy import ActorCritic, build_policy
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
@@ -36,13 +46,22 @@ logger = logging.getLogger(__name__)
 
 PREFIX = "ckpt-"
 NORM_PREFIX = "norm."
-FILES = ("policy.safetensors", "normalizer.safetensors", "meta.json")
+FILES = ("policy.safetensors", "normalizer.safetensors", META_FILE)
 OPTIMIZER_FILE = "optimizer.safetensors"
 PACKAGES = ("gaitforge", "torch", "mujoco", "opensim", "ray", "gymnasium")
 
-
-class CheckpointError(RuntimeError):
-    """A checkpoint is missing, damaged or inconsistent; the message names the file."""
+__all__ = [
+    "CheckpointError",
+    "CheckpointMeta",
+    "checkpoints",
+    "latest_checkpoint",
+    "load_checkpoint",
+    "load_optimizer_state",
+    "load_policy",
+    "read_meta",
+    "save_checkpoint",
+    "select_checkpoint",
+]
 
 
 def _sha256(path: Path) -> str:
@@ -71,13 +90,21 @@ def save_checkpoint(
     root: Path,
     env_steps: int,
     state: dict[str, torch.Tensor],
-    meta: dict,
+    meta: CheckpointMeta | Mapping[str, Any],
     keep_last: int = 3,
     best_metric: str | None = None,
     optimizer_state: dict | None = None,
 ) -> Path:
     """Write ``state`` (a policy ``state_dict``), ``meta`` and, if given, an optimizer's
-    ``state_dict`` as a checkpoint under ``root``."""
+    ``state_dict`` as a checkpoint under ``root``; keep the last ``keep_last`` and the best by
+    ``best_metric``. ``meta``'s ``env_steps``, ``versions`` and ``optimizer_param_groups`` are
+    set here; a mapping is validated as :class:`CheckpointMeta` first.
+
+    Raises:
+        CheckpointError: ``meta`` does not validate.
+    """
+    if not isinstance(meta, CheckpointMeta):
+        meta = parse_meta(dict(meta), "meta")
     root.mkdir(parents=True, exist_ok=True)
     target = root / f"{PREFIX}{env_steps:012d}"
     tmp = Path(tempfile.mkdtemp(prefix=".tmp-", dir=root))
@@ -86,13 +113,14 @@ def save_checkpoint(
         save_file({k: v for k, v in tensors.items() if not k.startswith(NORM_PREFIX)},
                   tmp / FILES[0])  # fmt: skip
         save_file({k: v for k, v in tensors.items() if k.startswith(NORM_PREFIX)}, tmp / FILES[1])
-        full_meta = {**meta, "env_steps": env_steps, "versions": _versions()}
+        update: dict[str, Any] = {"env_steps": env_steps, "versions": _versions()}
         files = list(FILES)
         if optimizer_state is not None:
             save_file(_flatten_optimizer(optimizer_state), tmp / OPTIMIZER_FILE)
-            full_meta["optimizer_param_groups"] = optimizer_state["param_groups"]
+            update["optimizer_param_groups"] = optimizer_state["param_groups"]
             files.append(OPTIMIZER_FILE)
-        (tmp / FILES[2]).write_text(json.dumps(full_meta, indent=2, sort_keys=True, default=str))
+        full_meta = meta.model_copy(update=update)
+        (tmp / FILES[2]).write_text(full_meta.to_json())
         manifest = {name: _sha256(tmp / name) for name in files}
         (tmp / "manifest.json").write_text(json.dumps(manifest, indent=2))
         for name in (*files, "manifest.json"):
@@ -109,8 +137,9 @@ def save_checkpoint(
     return target
 
 
-def load_checkpoint(path: Path) -> tuple[dict[str, torch.Tensor], dict]:
-    """The ``state_dict`` and metadata of the checkpoint directory ``path``.
+def load_checkpoint(path: Path) -> tuple[dict[str, torch.Tensor], CheckpointMeta]:
+    """The ``state_dict`` and metadata (any schema version, migrated) of the checkpoint
+    directory ``path``.
 
     Raises:
         CheckpointError: naming the file that is missing, damaged or does not match.
@@ -132,7 +161,7 @@ def load_checkpoint(path: Path) -> tuple[dict[str, torch.Tensor], dict]:
         state = {**load_file(path / FILES[0]), **load_file(path / FILES[1])}
     except SafetensorError as exc:
         raise CheckpointError(f"{path}: unreadable safetensors ({exc})") from None
-    return state, json.loads((path / FILES[2]).read_text())
+    return state, read_meta(path)
 
 
 def load_optimizer_state(path: Path) -> dict | None:
@@ -141,7 +170,9 @@ def load_optimizer_state(path: Path) -> dict | None:
     file = path / OPTIMIZER_FILE
     if not file.exists():
         return None
-    meta = json.loads((path / FILES[2]).read_text())
+    groups = read_meta(path).optimizer_param_groups
+    if groups is None:
+        raise CheckpointError(f"{path / META_FILE}: no 'optimizer_param_groups' for {file}")
     state: dict[int, dict[str, torch.Tensor]] = {}
     try:
         flat = load_file(file)
@@ -150,7 +181,7 @@ def load_optimizer_state(path: Path) -> dict | None:
     for key, tensor in flat.items():
         index, name = key.split(".", 1)
         state.setdefault(int(index), {})[name] = tensor
-    return {"state": state, "param_groups": meta["optimizer_param_groups"]}
+    return {"state": state, "param_groups": groups}
 
 
 def _flatten_optimizer(optimizer_state: dict) -> dict[str, torch.Tensor]:
@@ -163,14 +194,14 @@ def _flatten_optimizer(optimizer_state: dict) -> dict[str, torch.Tensor]:
     return flat
 
 
-def load_policy(path: Path) -> tuple[ActorCritic, dict]:
-    """The policy of checkpoint ``path``, rebuilt from ``meta["network"]`` and loaded (eval
+def load_policy(path: Path) -> tuple[ActorCritic, CheckpointMeta]:
+    """The policy of checkpoint ``path``, rebuilt from ``meta.network`` and loaded (eval
     mode), and the checkpoint's metadata."""
     state, meta = load_checkpoint(path)
-    if "network" not in meta:
+    if meta.network is None:
         raise CheckpointError(f"{path / FILES[2]}: no 'network' description to rebuild from")
     try:
-        policy = build_policy(meta["network"])
+        policy = build_policy(meta.network)
         policy.load_state_dict(state)
     except (KeyError, ValueError, RuntimeError) as exc:
         raise CheckpointError(f"{path}: weights do not fit meta.json's network ({exc})") from None
@@ -183,19 +214,38 @@ def checkpoints(root: Path) -> list[Path]:
     return sorted(p for p in root.glob(f"{PREFIX}*") if (p / "manifest.json").exists())
 
 
-def latest_checkpoint(root: Path) -> Path | None:
+def select_checkpoint(
+    root: Path, pick: Literal["latest", "best"] = "latest", metric: str = "return"
+) -> Path | None:
+    """The checkpoint under ``root`` (a checkpoints directory) to use: the newest
+    (``"latest"``), or the one with the highest finite ``metrics[metric]`` (``"best"``; a
+    tie goes to the newest; checkpoints whose metadata does not read are skipped). None if
+    there is none to choose."""
     found = checkpoints(root)
-    return found[-1] if found else None
+    if pick == "latest":
+        return found[-1] if found else None
+    scored = []
+    for path in found:
+        try:
+            value = read_meta(path).metric(metric)
+        except CheckpointError as exc:
+            logger.debug("%s: skipped choosing the best (%s)", path, exc)
+            continue
+        if value is not None:
+            scored.append((value, path.name, path))
+    return max(scored)[2] if scored else None
+
+
+def latest_checkpoint(root: Path) -> Path | None:
+    """The newest checkpoint under ``root`` (``select_checkpoint(root, "latest")``)."""
+    return select_checkpoint(root, "latest")
 
 
 def _prune(root: Path, keep_last: int, best_metric: str | None) -> None:
     found = checkpoints(root)
     keep = set(found[-keep_last:])
-    if best_metric is not None:
-        scored = [(p, json.loads((p / FILES[2]).read_text()).get("metrics", {})) for p in found]
-        scored = [(p, m[best_metric]) for p, m in scored if best_metric in m]
-        if scored:
-            keep.add(max(scored, key=lambda pm: pm[1])[0])
+    if best_metric is not None and (best := select_checkpoint(root, "best", best_metric)):
+        keep.add(best)
     for path in found:
         if path not in keep:
             shutil.rmtree(path)

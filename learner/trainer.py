@@ -37,6 +37,7 @@ from gaitforge.learner.checkpoint import (
     load_optimizer_state,
     save_checkpoint,
 )
+from gaitforge.learner.checkpoint_meta import CheckpointMeta
 from gaitforge.learner.curriculum import CurriculumState, StageIO, check_stages
 from gaitforge.learner.distil import fit_student
 from gaitforge.learner.job import Job, Stage, resolve_scenes
@@ -135,18 +136,19 @@ class Trainer:
         if latest is None:
             return
         state, meta = load_checkpoint(latest)
-        self.policy = build_policy(meta["network"])
+        meta.check_resumable(latest)
+        self.policy = build_policy(meta.network)
         self.policy.load_state_dict(state)
         self.optimizer = self._new_optimizer()
         optimizer_state = load_optimizer_state(latest)
         if optimizer_state is not None:
             self.optimizer.load_state_dict(optimizer_state)
-        self.obs_names = meta["obs_names"]
-        self.iteration, self.env_steps = int(meta["iteration"]), int(meta["env_steps"])
-        self.curriculum = CurriculumState.from_json(meta["curriculum"])
-        self.blend_start = int(meta.get("blend_start", 0))
-        self.lineage = meta["lineage"]
-        if meta["metrics"].get("verdict"):  # written at a stage's end, before moving on
+        self.obs_names = meta.obs_names
+        self.iteration, self.env_steps = int(meta.iteration or 0), meta.env_steps
+        self.curriculum = CurriculumState.from_json(meta.curriculum.model_dump())
+        self.blend_start = meta.blend_start
+        self.lineage = [entry.model_dump() for entry in meta.lineage]
+        if meta.metrics.get("verdict"):  # written at a stage's end, before moving on
             self.curriculum.advance()
         logger.info(
             "resumed from %s: stage %d, iteration %d, %d env steps",
@@ -369,7 +371,7 @@ class Trainer:
     def _checkpoint(self, metrics: dict) -> Path:
         self._checkpointed_at = self.iteration
         flat = {k: v for k, v in metrics.items() if not isinstance(v, dict)}
-        meta = {
+        meta = CheckpointMeta.model_validate({
             "iteration": self.iteration,
             "job": self.job.model_dump(mode="json"),
             "config": {"backend": self.job.backend},
@@ -385,7 +387,7 @@ class Trainer:
             "network": self.policy.describe(),
             "obs_names": self.obs_names,
             "metrics": flat,
-        }
+        })  # fmt: skip
         return save_checkpoint(
             self.checkpoint_dir, self.env_steps, self.policy.state_dict(), meta,
             keep_last=self.job.checkpoint.keep_last, best_metric="return",

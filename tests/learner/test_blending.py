@@ -112,5 +112,5 @@ def test_stage_transitions_build_the_new_network(tmp_path: Path, transition: str
     # whatever the transition, the run ends on pi_new alone, saved with its lineage
     policy, meta = load_policy(latest_checkpoint(tmp_path / "checkpoints"))
     assert isinstance(policy, GaussianPolicy) and policy.hidden == (32, 32)
-    assert [entry["transition"] for entry in meta["lineage"]] == ["initial", transition]
-    assert meta["stage"]["index"] == 1
+    assert [entry.transition for entry in meta.lineage] == ["initial", transition]
+    assert meta.stage.index == 1

@@ -100,8 +100,8 @@ def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> 
     assert ends[0]["verdict"].startswith("promoted: length")
     assert ends[0]["env_steps"] < 100_000 and ends[1]["verdict"] == "budget spent"
     metas = [load_checkpoint(p)[1] for p in checkpoints(tmp_path / "checkpoints")]
-    assert [m["stage"]["index"] for m in metas][-2:] == [0, 1]
-    assert metas[-1]["scene"]["fidelity"] == "accurate"
+    assert [m.stage.index for m in metas][-2:] == [0, 1]
+    assert metas[-1].scene["fidelity"] == "accurate"
     recordings = sorted(p.name for p in (tmp_path / "recordings").glob("*.mcap"))
     assert len(recordings) == 2, "one MCAP recording at each stage end"
     # a run resumed from the last checkpoint has nothing left to do

@@ -55,8 +55,8 @@ def test_resume_after_sigkill_continues_the_step_count(tmp_path: Path) -> None:
         os.kill(learner.pid, signal.SIGKILL)
         learner.wait()
     _, meta = load_checkpoint(latest_checkpoint(tmp_path / "checkpoints"))
-    killed_at, steps_at = meta["iteration"], meta["env_steps"]
-    assert meta["scene"]["name"] == "elbow-reach"
+    killed_at, steps_at = meta.iteration, meta.env_steps
+    assert meta.scene_spec().name == "elbow-reach"
 
     resumed = Trainer(elbow_job(), tmp_path, tensorboard=False)
     assert (resumed.iteration, resumed.env_steps) == (killed_at, steps_at)
@@ -65,7 +65,7 @@ def test_resume_after_sigkill_continues_the_step_count(tmp_path: Path) -> None:
     assert [h["iteration"] for h in history] == [killed_at + 1, killed_at + 2]
     assert history[0]["env_steps"] == steps_at + 200
     _, final = load_checkpoint(latest_checkpoint(tmp_path / "checkpoints"))
-    assert final["iteration"] == killed_at + 2 and final["env_steps"] == steps_at + 400
+    assert final.iteration == killed_at + 2 and final.env_steps == steps_at + 400
 
 
 def test_the_loop_runs_over_a_ray_pool(tmp_path: Path) -> None:

@@ -27,11 +27,11 @@ def test_train_runs_a_job_and_resumes_from_its_run_dir(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     assert "stage 0 elbow-reach" in result.output
     _, meta = load_checkpoint(latest_checkpoint(tmp_path / "run" / "checkpoints"))
-    assert meta["iteration"] == 2 and meta["stage"]["index"] == 0
+    assert meta.iteration == 2 and meta.stage.index == 0
     again = runner.invoke(app, args, env={"COLUMNS": "200"})
     assert again.exit_code == 0, again.output
     _, meta = load_checkpoint(latest_checkpoint(tmp_path / "run" / "checkpoints"))
-    assert meta["iteration"] == 4, "the second run went on from the first one's checkpoint"
+    assert meta.iteration == 4, "the second run went on from the first one's checkpoint"
 
 
 @pytest.mark.parametrize(
