@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -104,6 +105,7 @@ class Trainer:
         self.history: list[dict] = []
         self._min_version = 0
         self._checkpointed_at = 0
+        self._stop = threading.Event()
         self.scalars = ScalarLog(run_dir / "tb", enabled=tensorboard)
         self._resume()
 
@@ -181,11 +183,17 @@ class Trainer:
 
     # ---- the loop -------------------------------------------------------------------------
 
+    def request_stop(self) -> None:
+        """Ask :meth:`run` to stop once the current iteration ends (it then writes a
+        checkpoint and returns). Safe from a signal handler or another thread."""
+        self._stop.set()
+
     def run(
         self, max_iterations: int | None = None, max_seconds: float | None = None
     ) -> list[dict]:
         """Train until the last stage ends, or ``max_iterations`` more iterations, or
-        ``max_seconds`` of wall-clock time (checked between iterations)."""
+        ``max_seconds`` of wall-clock time, or :meth:`request_stop` (checked between
+        iterations); the last iteration is checkpointed."""
         if self.done:
             return self.history
         sampler = self._make_sampler()
@@ -193,6 +201,8 @@ class Trainer:
         deadline = None if max_seconds is None else time.monotonic() + max_seconds
         try:
             while not self.done and (stop_at is None or self.iteration < stop_at):
+                if self._stop.is_set():
+                    break
                 if deadline is not None and time.monotonic() > deadline:
                     break
                 if not self.curriculum.entered:
