@@ -25,7 +25,7 @@ import re
 from pathlib import Path
 from typing import Annotated, Literal
 
-from gaitforge.learner.ppo import PPOConfig
+from gaitforge.learner.ppo import PPOSettings
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.scenes.profiles import Fidelity
 from gaitforge.workers.spec_io import SpecError, format_validation_error, load_yaml_model
@@ -134,41 +134,6 @@ class Stage(_Strict):
         return self
 
 
-class PPOSpec(_Strict):
-    """PPO settings (``learner.ppo.PPOConfig``) plus schedules and batch size."""
-
-    gamma: Annotated[float, Field(gt=0, le=1)] = 0.99
-    lam: Annotated[float, Field(ge=0, le=1)] = 0.95
-    clip: Annotated[float, Field(gt=0, le=1)] = 0.2
-    value_coef: Annotated[float, Field(ge=0)] = 0.5
-    entropy_coef: Annotated[float, Field(ge=0)] = 0.0
-    entropy_coef_end: Annotated[float, Field(ge=0)] | None = None
-    """entropy weight at the end of each stage (linear schedule); None: constant"""
-    lr: Annotated[float, Field(gt=0, le=1)] = 3e-4
-    lr_end: Annotated[float, Field(gt=0, le=1)] | None = None
-    """learning rate at the end of each stage (linear schedule); None: constant"""
-    epochs: Annotated[int, Field(ge=1, le=100)] = 5
-    minibatch_size: Annotated[int, Field(ge=1)] = 2048
-    max_grad_norm: Annotated[float, Field(gt=0)] = 0.5
-    target_kl: Annotated[float, Field(gt=0)] | None = 0.03
-    batch_env_steps: Annotated[int, Field(ge=1)] = 8192
-    """env steps gathered per update (whole fragments: at least this many)"""
-    mirror: bool = False
-    """add each sample's left-right mirror image to the batch (bilateral bodies)"""
-
-    def config(self, batch_size: int, progress: float) -> PPOConfig:
-        """The PPO update's settings ``progress`` (0..1) through a stage."""
-        lr_end = self.lr if self.lr_end is None else self.lr_end
-        ent_end = self.entropy_coef if self.entropy_coef_end is None else self.entropy_coef_end
-        return PPOConfig(
-            gamma=self.gamma, lam=self.lam, clip=self.clip, value_coef=self.value_coef,
-            entropy_coef=self.entropy_coef + (ent_end - self.entropy_coef) * progress,
-            lr=self.lr + (lr_end - self.lr) * progress, epochs=self.epochs,
-            minibatches=max(1, round(batch_size / self.minibatch_size)),
-            max_grad_norm=self.max_grad_norm, target_kl=self.target_kl,
-        )  # fmt: skip
-
-
 class WorkersSpec(_Strict):
     num_workers: Annotated[int, Field(ge=0, le=4096)] | None = None
     """Ray rollout actors (None: the cluster's CPUs less one; 0: one in-process worker)"""
@@ -193,7 +158,8 @@ class Job(_Strict):
     backend: Literal["mujoco", "opensim"] = "mujoco"
     seed: int = 0
     network: NetworkSpec = NetworkSpec()
-    ppo: PPOSpec = PPOSpec()
+    ppo: PPOSettings = PPOSettings()
+    """PPO settings and schedules (``learner.ppo.PPOSettings``)"""
     workers: WorkersSpec = WorkersSpec()
     checkpoint: CheckpointSpec = CheckpointSpec()
     stages: list[Stage] = Field(min_length=1)

@@ -4,47 +4,80 @@ early stop on KL; a batch is built from rollout fragments with :func:`batch_from
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 import torch
 from gaitforge.learner.gae import compute_gae
 from gaitforge.learner.policy import GaussianPolicy
+from pydantic import BaseModel, ConfigDict, Field
 
 
-@dataclass(frozen=True)
-class PPOConfig:
-    """PPO hyper-parameters (CleanRL's names and defaults where they exist)."""
+class PPOSettings(BaseModel):
+    """PPO settings: the job file's ``ppo:`` section (CleanRL's names and defaults where they
+    exist), validated with bounds. ``lr`` and ``entropy_coef`` may follow a linear schedule
+    over each stage (to ``lr_end``, ``entropy_coef_end``); :meth:`at` gives the settings at one
+    point of a stage, which :func:`ppo_update` takes."""
 
-    gamma: float = 0.99
-    """discount per control step"""
-    lam: float = 0.95
-    """GAE lambda"""
-    clip: float = 0.2
-    """surrogate clipping range"""
-    value_coef: float = 0.5
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    gamma: Annotated[float, Field(gt=0, le=1)] = 0.99
+    """discount per control step (dimensionless)"""
+    lam: Annotated[float, Field(ge=0, le=1)] = 0.95
+    """GAE lambda (dimensionless)"""
+    clip: Annotated[float, Field(gt=0, le=1)] = 0.2
+    """surrogate clipping range: ratios are clipped to [1 - clip, 1 + clip]"""
+    value_coef: Annotated[float, Field(ge=0)] = 0.5
     """weight of the value loss"""
-    entropy_coef: float = 0.0
-    """weight of the entropy bonus"""
-    lr: float = 3e-4
-    """Adam learning rate"""
-    epochs: int = 5
+    entropy_coef: Annotated[float, Field(ge=0)] = 0.0
+    """weight of the entropy bonus (at the start of each stage)"""
+    entropy_coef_end: Annotated[float, Field(ge=0)] | None = None
+    """entropy weight at the end of each stage (linear schedule); None: constant"""
+    lr: Annotated[float, Field(gt=0, le=1)] = 3e-4
+    """Adam learning rate (at the start of each stage)"""
+    lr_end: Annotated[float, Field(gt=0, le=1)] | None = None
+    """learning rate at the end of each stage (linear schedule); None: constant"""
+    epochs: Annotated[int, Field(ge=1, le=100)] = 5
     """passes over each batch"""
-    minibatches: int = 4
-    """minibatches per pass"""
-    max_grad_norm: float = 0.5
+    minibatch_size: Annotated[int, Field(ge=1)] = 2048
+    """samples per minibatch (env steps, mirrored ones included): a batch of N samples is
+    cut into max(1, round(N / minibatch_size)) minibatches"""
+    max_grad_norm: Annotated[float, Field(gt=0)] = 0.5
     """gradient clipping (L2 norm), of the actor's and the critic's parameters apart"""
-    target_kl: float | None = 0.03
-    """stop the epochs early once the approximate KL exceeds this"""
+    target_kl: Annotated[float, Field(gt=0)] | None = 0.03
+    """stop the epochs early once the approximate KL exceeds this; None: never"""
+    batch_env_steps: Annotated[int, Field(ge=1)] = 8192
+    """env steps gathered per update (whole fragments: at least this many)"""
+    mirror: bool = False
+    """add each sample's left-right mirror image to the batch (bilateral bodies)"""
+
+    def at(self, progress: float) -> PPOSettings:
+        """These settings ``progress`` (0..1, env steps of the stage over its budget) through
+        a stage: ``lr`` and ``entropy_coef`` at that point of their schedules (and the
+        schedules' ends dropped, so that the result is constant)."""
+        progress = min(1.0, max(0.0, progress))
+        lr_end = self.lr if self.lr_end is None else self.lr_end
+        ent_end = self.entropy_coef if self.entropy_coef_end is None else self.entropy_coef_end
+        return self.model_copy(update={
+            "lr": self.lr + (lr_end - self.lr) * progress,
+            "entropy_coef": self.entropy_coef + (ent_end - self.entropy_coef) * progress,
+            "lr_end": None,
+            "entropy_coef_end": None,
+        })  # fmt: skip
+
+    def minibatches(self, samples: int) -> int:
+        """How many minibatches a batch of ``samples`` samples is cut into."""
+        return max(1, round(samples / self.minibatch_size))
 
 
 FROM_ENV = ("obs", "action", "logp", "value", "reward", "bootstrap_value", "last_value")
 """Fragment arrays checked before any arithmetic, so a NaN is named where it entered."""
 
 
-def batch_from_fragments(fragments: list[dict], cfg: PPOConfig) -> dict[str, torch.Tensor]:
+def batch_from_fragments(fragments: list[dict], cfg: PPOSettings) -> dict[str, torch.Tensor]:
     """Flatten fragments ``[T, K, ...]`` into one batch ``[N, ...]`` with advantages and
-    returns (GAE per fragment, bootstrapped on truncation and at the fragment end)."""
+    returns (GAE per fragment with ``cfg.gamma`` and ``cfg.lam``, bootstrapped on truncation
+    and at the fragment end)."""
     parts: dict[str, list[np.ndarray]] = {k: [] for k in ("obs", "action", "logp", "value")}
     advantages, returns = [], []
     for f in fragments:
@@ -93,10 +126,12 @@ def ppo_update(
     policy: GaussianPolicy,
     optimizer: torch.optim.Optimizer,
     batch: dict[str, torch.Tensor],
-    cfg: PPOConfig,
+    cfg: PPOSettings,
     generator: torch.Generator | None = None,
 ) -> dict[str, float]:
-    """Several epochs of minibatch PPO on ``batch``; returns the last losses and KL."""
+    """Several epochs of minibatch PPO on ``batch`` with ``cfg`` (``settings.at(progress)``:
+    its ``lr`` is the optimizer's business, set by the caller); returns the last losses and
+    KL."""
     n = batch["obs"].shape[0]
     adv = batch["advantage"]
     adv = (adv - adv.mean()) / (adv.std() + 1e-8)
@@ -104,7 +139,7 @@ def ppo_update(
     for epoch in range(cfg.epochs):
         order = torch.randperm(n, generator=generator)
         kls = []
-        for idx in order.chunk(cfg.minibatches):
+        for idx in order.chunk(cfg.minibatches(n)):
             logp, entropy, value = policy.evaluate(batch["obs"][idx], batch["action"][idx])
             log_ratio = logp - batch["logp"][idx]
             ratio = log_ratio.exp()

@@ -235,7 +235,7 @@ class Trainer:
         gathered_s = time.perf_counter() - start
         obs = np.concatenate([f["obs"].reshape(-1, f["obs"].shape[-1]) for f in fragments])
         progress = min(1.0, self.curriculum.stage_env_steps / stage.env_steps)
-        cfg = ppo.config(batch_size=len(obs) * (2 if ppo.mirror else 1), progress=progress)
+        cfg = ppo.at(progress)
         for group in self.optimizer.param_groups:
             group["lr"] = cfg.lr
         batch = batch_from_fragments(fragments, cfg)
@@ -328,7 +328,7 @@ class Trainer:
         self.policy = blended
         self._switch_policy(sampler, io)
         fragments = self._gather(sampler, max(1, stage.blend.critic_warmup_env_steps))
-        batch = batch_from_fragments(fragments, self.job.ppo.config(1, 0.0))
+        batch = batch_from_fragments(fragments, self.job.ppo)
         student.norm.update(batch["obs"])
         with torch.no_grad():
             student.log_std.copy_(blended.distribution(batch["obs"][:1]).stddev.log()[0])

@@ -9,7 +9,7 @@ import pytest
 import torch
 from gaitforge.learner.policy import GaussianPolicy
 from gaitforge.learner.ppo import (
-    PPOConfig,
+    PPOSettings,
     batch_from_fragments,
     clipped_surrogate_loss,
     ppo_update,
@@ -45,7 +45,7 @@ def test_a_nan_in_the_batch_is_refused_naming_the_tensor() -> None:
     fragment = worker.sample()
     fragment["reward"][3, 1] = np.nan
     with pytest.raises(FloatingPointError, match=r"^reward: contains NaN"):
-        batch_from_fragments([fragment], PPOConfig())
+        batch_from_fragments([fragment], PPOSettings())
 
 
 def test_elbow_reach_learns_in_process() -> None:
@@ -56,7 +56,7 @@ def test_elbow_reach_learns_in_process() -> None:
     worker = RolloutWorker(load_scene("elbow-reach"), factory, num_envs=8, fragment_length=100)
     policy = factory()
     optimizer = torch.optim.Adam(policy.parameters(), lr=3e-4)
-    cfg = PPOConfig(epochs=10, gamma=0.95)
+    cfg = PPOSettings(epochs=10, gamma=0.95, minibatch_size=200)
     returns = []
     for version in range(40):
         fragment = worker.sample(policy.state_dict(), version)
@@ -75,3 +75,15 @@ def test_clipped_surrogate_against_hand_worked_numbers() -> None:
     adv = torch.tensor([2.0, 1.0, -1.0, -3.0])
     expected = -(2.4 + 0.5 + (-0.8) + (-3.3)) / 4
     assert clipped_surrogate_loss(ratio, adv, 0.2).item() == pytest.approx(expected)
+
+
+def test_schedules_are_applied_by_the_settings() -> None:
+    ppo = PPOSettings(lr=1e-3, lr_end=2e-4, entropy_coef=0.01, entropy_coef_end=0.0)
+    half = ppo.at(0.5)
+    assert half.lr == pytest.approx(6e-4) and half.entropy_coef == pytest.approx(0.005)
+    assert half.lr_end is None and half.at(1.0) == half, "a point of a schedule is constant"
+    assert ppo.at(2.0).lr == pytest.approx(2e-4) and ppo.at(0.0).lr == pytest.approx(1e-3)
+    assert PPOSettings(lr=1e-3).at(0.7).lr == pytest.approx(1e-3), "no lr_end: constant"
+    assert (ppo.minibatches(8192), ppo.minibatches(100), ppo.minibatches(5000)) == (4, 1, 2)
+    with pytest.raises(ValueError, match="lr"):
+        PPOSettings(lr=-1.0)
