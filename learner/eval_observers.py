@@ -1,13 +1,15 @@
-"""What watches an evaluation episode: an MCAP recorder, a video writer, or several at once;
-and the one-line error type of evaluation."""
+"""What watches an evaluation episode (observers of ``workers.episode``): the statistics of
+each episode, an MCAP recorder, a video writer; and the one-line error type of evaluation."""
 
 from __future__ import annotations
 
 import importlib
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from gaitforge.learner.evaluate_results import EpisodeResult
+from gaitforge.workers.episode import EpisodeObserver, EpisodeSummary, Observer
 
 if TYPE_CHECKING:
     from gaitforge.workers.env import MuscleEnv
@@ -17,37 +19,37 @@ class EvaluationError(ValueError):
     """Bad evaluation input (path, scene, sizes, options); the message is one line."""
 
 
-class EpisodeObserver(Protocol):
-    """Sees every step of one episode (a recorder or a video writer); ``action`` is the
-    excitation applied, clipped to [0, 1]."""
+class EpisodeMetrics(Observer):
+    """An episode's evaluation statistics: effort (sum of excitation^2 as applied) and each
+    weighted reward term summed over the steps; :attr:`result` once the episode ended."""
 
-    def on_reset(self, env: Any, obs: np.ndarray) -> None: ...
+    def __init__(self) -> None:
+        self.result: EpisodeResult | None = None
+        self._effort_sum = 0.0
+        self._terms: dict[str, float] = {}
+        self._n_muscles = 0
 
-    def on_step(
-        self, env: Any, action: np.ndarray, obs: np.ndarray, reward: float, info: dict
-    ) -> None: ...
-
-    def close(self) -> None: ...
-
-
-class McapObserver:
-    """Records one episode to an MCAP file with ``learner.recording.EpisodeRecorder``."""
-
-    def __init__(self, path: Path, env: MuscleEnv, metadata: dict[str, str]) -> None:
-        from gaitforge.learner.recording import EpisodeRecorder  # lazy: imports foxglove
-
-        self.recorder = EpisodeRecorder(path, env, metadata)
-
-    def on_reset(self, env: MuscleEnv, obs: np.ndarray) -> None:
-        pass
+    def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
+        self.result, self._effort_sum, self._terms = None, 0.0, {}
+        self._n_muscles = int(env.action_space.shape[0])
 
     def on_step(
-        self, env: MuscleEnv, action: np.ndarray, obs: np.ndarray, reward: float, info: dict
+        self,
+        env: MuscleEnv,
+        action: np.ndarray,
+        obs: np.ndarray,
+        reward: float,
+        terminated: bool,
+        truncated: bool,
+        info: dict[str, Any],
     ) -> None:
-        self.recorder.log_step(env, action, info.get("reward_terms"), info)
+        self._effort_sum += float(np.sum(action**2))
+        for name, value in info.get("reward_terms", {}).items():
+            self._terms[name] = self._terms.get(name, 0.0) + float(value)
 
-    def close(self) -> None:
-        self.recorder.close()
+    def on_end(self, summary: EpisodeSummary | None) -> None:
+        if summary is not None:
+            self.result = EpisodeResult.of(summary, self._effort_sum, self._terms, self._n_muscles)
 
 
 def check_recording_available(record: bool, video: bool) -> None:
@@ -62,28 +64,26 @@ def check_recording_available(record: bool, video: bool) -> None:
             raise EvaluationError(f"{option}: recording not available yet ({exc})") from None
 
 
-class VideoObserver:
-    """Renders one episode to an MP4 with ``learner.video.VideoRecorder`` (offscreen, CPU)."""
+def mcap_observer(path: Path, env: MuscleEnv, metadata: dict[str, str]) -> EpisodeObserver:
+    """An MCAP recorder of one episode of ``env`` (``learner.recording.EpisodeRecorder``)."""
+    from gaitforge.learner.recording import EpisodeRecorder  # lazy: imports foxglove
 
-    def __init__(self, path: Path, env: MuscleEnv) -> None:
-        from gaitforge.learner.video import VideoRecorder  # lazy: imports the renderer
+    return EpisodeRecorder(path, env, metadata)
 
-        try:
-            self.video = VideoRecorder(path, env)
-        except (RuntimeError, ValueError) as exc:
-            first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise EvaluationError(f"--video: {first}") from None
 
-    def on_reset(self, env: MuscleEnv, obs: np.ndarray) -> None:
-        self.video.capture(env)
+def video_observer(path: Path, env: MuscleEnv) -> EpisodeObserver:
+    """An MP4 of one episode of ``env`` (``learner.video.VideoRecorder``, offscreen, CPU).
 
-    def on_step(
-        self, env: MuscleEnv, action: np.ndarray, obs: np.ndarray, reward: float, info: dict
-    ) -> None:
-        self.video.capture(env)
+    Raises:
+        EvaluationError: no renderer here, or a scene it cannot render (one line).
+    """
+    from gaitforge.learner.video import VideoRecorder  # lazy: imports the renderer
 
-    def close(self) -> None:
-        self.video.close()
+    try:
+        return VideoRecorder(path, env)
+    except (RuntimeError, ValueError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise EvaluationError(f"--video: {first}") from None
 
 
 def recording_metadata(ckpt: Path, mode: str, seed: int) -> dict[str, str]:
@@ -94,30 +94,3 @@ def recording_metadata(ckpt: Path, mode: str, seed: int) -> dict[str, str]:
 
     return {"source": "gaitforge evaluate", **checkpoint_metadata(ckpt), "mode": mode,
             "seed": str(seed)}  # fmt: skip
-
-
-class Fanout:
-    """Several observers as one; each is closed even if another fails."""
-
-    def __init__(self, observers: list[EpisodeObserver]) -> None:
-        self.observers = observers
-
-    def on_reset(self, env: Any, obs: np.ndarray) -> None:
-        for o in self.observers:
-            o.on_reset(env, obs)
-
-    def on_step(
-        self, env: Any, action: np.ndarray, obs: np.ndarray, reward: float, info: dict
-    ) -> None:
-        for o in self.observers:
-            o.on_step(env, action, obs, reward, info)
-
-    def close(self) -> None:
-        errors = []
-        for o in self.observers:
-            try:
-                o.close()
-            except Exception as exc:  # close the others, then raise the first
-                errors.append(exc)
-        if errors:
-            raise errors[0]

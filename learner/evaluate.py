@@ -10,197 +10,69 @@ The *speed-against-safety sweep* lowers the scene's target speed (m/s) by fracti
 20, 30 % by default) and evaluates at each: the target speed is in the observation, so the
 same policy is asked to go slower, and the fall rate at each speed says what speed buys.
 
-Everything runs in-process on one env (no Ray). Results are dataclasses; ``to_dict()`` gives
-JSON-able dicts and :func:`write_json` a file.
-
-Units: distance m (pelvis forward displacement, end minus start), speed m/s (distance over
-episode time), time s (control steps / control_hz), effort 1 (mean over steps and muscles of
-excitation^2, the excitation as applied, clipped to [0, 1]), effort_sum (sum of excitation^2
-over steps and muscles), return (sum of the scene's weighted reward terms).
+Everything runs in-process on one env (no Ray), through the one episode loop
+(``workers.episode``): the statistics are an observer (``learner.eval_observers``), and so are
+the MCAP recording and the video of the first episode. Results are dataclasses
+(``learner.evaluate_results``, units there); ``to_dict()`` gives JSON-able dicts and
+:func:`write_json` a file.
 """
 
 from __future__ import annotations
 
-import json
 import logging
-import math
-from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Literal
 
 import numpy as np
 import torch
-from gaitforge.learner.checkpoint import (
-    CheckpointError,
-    checkpoints,
-    latest_checkpoint,
-    load_policy,
-)
+from gaitforge.learner.checkpoint import checkpoints, load_policy, select_checkpoint
+from gaitforge.learner.checkpoint_meta import META_FILE, CheckpointMeta
 from gaitforge.learner.eval_observers import (
-    EpisodeObserver,
+    EpisodeMetrics,
     EvaluationError,
-    Fanout,
-    McapObserver,
-    VideoObserver,
     check_recording_available,
+    mcap_observer,
     recording_metadata,
+    video_observer,
+)
+from gaitforge.learner.evaluate_results import (
+    MODES,
+    EpisodeResult,
+    EvaluationReport,
+    Mode,
+    ModeResult,
+    SweepPoint,
+    write_json,
 )
 from gaitforge.learner.policy import ActorCritic
-from gaitforge.learner.stats import Rate, Stat
+from gaitforge.workers.episode import Act, EpisodeObserver, EpisodeRunner
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.spec_io import SpecError
 
-if TYPE_CHECKING:
-    from gaitforge.workers.env import MuscleEnv
+__all__ = [
+    "MODES",
+    "EpisodeResult",
+    "EvaluationError",
+    "EvaluationReport",
+    "Mode",
+    "ModeResult",
+    "SweepPoint",
+    "evaluate_checkpoint",
+    "evaluate_episode",
+    "evaluate_policy",
+    "make_runner",
+    "policy_act",
+    "resolve_checkpoint",
+    "speed_sweep",
+    "with_target_speed",
+    "write_json",
+]
 
 logger = logging.getLogger(__name__)
 
-Mode = Literal["deterministic", "stochastic"]
-MODES: tuple[Mode, ...] = ("deterministic", "stochastic")
 DEFAULT_REDUCTIONS: tuple[float, ...] = (0.0, 0.1, 0.2, 0.3)
 """fractions by which the sweep lowers the target speed"""
-
-
-# ---- results --------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class EpisodeResult:
-    """One episode.
-
-    Attributes:
-        seed: the env's reset seed.
-        steps: control steps taken.
-        time_s: simulated time, s (steps / control_hz).
-        distance_m: pelvis forward displacement, end minus start, m.
-        mean_speed_m_s: distance_m / time_s, m/s.
-        fell: ended by a fall (pelvis below the scene's ``min_pelvis_height``).
-        health: the health cause the episode ended with ("ok" unless the simulator failed).
-        truncated: reached the episode's length (``episode_s``).
-        return_: sum of the weighted reward terms.
-        effort: mean over steps and muscles of excitation^2 (1).
-        effort_sum: sum over steps and muscles of excitation^2 (1).
-        reward_terms: each weighted term summed over the episode.
-    """
-
-    seed: int
-    steps: int
-    time_s: float
-    distance_m: float
-    mean_speed_m_s: float
-    fell: bool
-    health: str
-    truncated: bool
-    return_: float
-    effort: float
-    effort_sum: float
-    reward_terms: dict[str, float]
-
-
-@dataclass(frozen=True)
-class ModeResult:
-    """N episodes in one action mode at one target speed, and their aggregates (see
-    :class:`EpisodeResult` for units)."""
-
-    mode: Mode
-    scene: str
-    backend: str
-    target_speed_m_s: float | None
-    episodes: list[EpisodeResult]
-    distance_m: Stat
-    mean_speed_m_s: Stat
-    time_s: Stat
-    steps: Stat
-    return_: Stat
-    effort: Stat
-    effort_sum: Stat
-    fall_rate: Rate
-    failure_rate: Rate
-    """episodes ended by a simulator failure (health other than "ok")"""
-    health: dict[str, int]
-    """episodes by the health cause they ended with ("ok" included)"""
-
-    @classmethod
-    def of(
-        cls,
-        mode: Mode,
-        scene: Scene,
-        backend: str,
-        episodes: list[EpisodeResult],
-    ) -> ModeResult:
-        n = len(episodes)
-
-        def stat(name: str) -> Stat:
-            return Stat.of([float(getattr(e, name)) for e in episodes])
-
-        return cls(
-            mode=mode,
-            scene=scene.name,
-            backend=backend,
-            target_speed_m_s=scene.task.target_speed,
-            episodes=episodes,
-            distance_m=stat("distance_m"),
-            mean_speed_m_s=stat("mean_speed_m_s"),
-            time_s=stat("time_s"),
-            steps=stat("steps"),
-            return_=stat("return_"),
-            effort=stat("effort"),
-            effort_sum=stat("effort_sum"),
-            fall_rate=Rate.of(sum(e.fell for e in episodes), n),
-            failure_rate=Rate.of(sum(e.health != "ok" for e in episodes), n),
-            health=dict(sorted(Counter(e.health for e in episodes).items())),
-        )
-
-
-@dataclass(frozen=True)
-class SweepPoint:
-    """The evaluation at target speed ``(1 - reduction) * nominal`` (m/s)."""
-
-    reduction: float
-    target_speed_m_s: float
-    result: ModeResult
-
-
-@dataclass(frozen=True)
-class EvaluationReport:
-    """A checkpoint's evaluation: one :class:`ModeResult` per mode at the scene's own target
-    speed and, if asked, the speed-against-safety sweep (in ``sweep_mode``)."""
-
-    checkpoint: str | None
-    env_steps: int | None
-    scene: str
-    backend: str
-    seed: int
-    results: dict[str, ModeResult]
-    sweep: list[SweepPoint] = field(default_factory=list)
-    sweep_mode: Mode | None = None
-    stage: dict | None = None
-    recording: str | None = None
-    """MCAP file of the first episode, if one was written"""
-    video: str | None = None
-    """MP4 file of the first episode, if one was written"""
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-able: NaN written as null, the field ``return_`` as ``"return"``."""
-        return _finite(asdict(self))
-
-
-def _finite(x: Any) -> Any:
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {("return" if k == "return_" else k): _finite(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_finite(v) for v in x]
-    return x
-
-
-def write_json(report: EvaluationReport, path: Path) -> None:
-    """Write ``report.to_dict()`` to ``path`` (indented JSON)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(report.to_dict(), indent=2) + "\n")
 
 
 # ---- running --------------------------------------------------------------------------------
@@ -214,98 +86,71 @@ def policy_sizes(policy: ActorCritic) -> tuple[int, int]:
     return int(desc["obs_dim"]), int(desc["act_dim"])
 
 
-def make_env(
+def make_runner(
     policy: ActorCritic, scene: Scene, backend: str, obs_names: list[str] | None = None
-) -> MuscleEnv:
-    """A ``MuscleEnv`` for ``scene`` on ``backend``, checked against the policy's sizes.
+) -> EpisodeRunner:
+    """An :class:`EpisodeRunner` (one env) for ``scene`` on ``backend``, checked against the
+    policy's sizes; a warning if ``obs_names`` (the checkpoint's) differ from the env's.
 
     Raises:
         EvaluationError: the backend is not one of the scene's, or the observation or action
             size differs from the policy's (naming both).
     """
-    from gaitforge.workers.env import MuscleEnv  # lazy: imports the simulators
-
     if backend not in scene.backends:
         raise EvaluationError(f"backend {backend!r}: scene {scene.name!r} runs on {scene.backends}")
-    env = MuscleEnv(scene, backend)
+    runner = EpisodeRunner(scene, backend)
     obs_dim, act_dim = policy_sizes(policy)
-    env_obs, env_act = env.observation_space.shape[0], env.action_space.shape[0]
+    env_obs, env_act = len(runner.obs_names), len(runner.act_names)
     if (env_obs, env_act) != (obs_dim, act_dim):
-        env.close()
+        runner.close()
         raise EvaluationError(
             f"scene {scene.name!r} on {backend} has observation size {env_obs} and action size "
             f"{env_act}; the policy expects observation size {obs_dim} and action size {act_dim}"
         )
-    if obs_names is not None and list(obs_names) != env.obs_names:
+    if obs_names is not None and list(obs_names) != runner.obs_names:
         logger.warning(
             "scene %r: observation names differ from the checkpoint's (same sizes); the "
             "policy may read the wrong inputs",
             scene.name,
         )
-    return env
+    return runner
 
 
-@torch.inference_mode()
-def run_episode(
-    env: MuscleEnv,
-    policy: ActorCritic,
-    seed: int,
-    mode: Mode = "deterministic",
-    observer: EpisodeObserver | None = None,
-) -> EpisodeResult:
-    """One episode from ``env.reset(seed=seed)``; stochastic actions come from a generator
-    seeded with ``seed``, so an episode repeats exactly in either mode."""
+def policy_act(policy: ActorCritic, mode: Mode, seed: int) -> Act:
+    """``policy`` as an episode's actions: observation [n_obs] -> excitations [n_muscles]
+    (float64), the mean in ``deterministic`` mode, else a sample drawn with a generator seeded
+    with ``seed`` (so an episode repeats exactly in either mode)."""
     if mode not in MODES:
         raise EvaluationError(f"mode {mode!r}: expected one of {list(MODES)}")
     generator = torch.Generator().manual_seed(seed)
-    obs, _ = env.reset(seed=seed)
-    if observer is not None:
-        observer.on_reset(env, obs)
-    steps, ret, effort_sum = 0, 0.0, 0.0
-    terms: dict[str, float] = {}
-    info: dict = {}
-    fell = truncated = False
-    health = "ok"
-    while True:
+
+    @torch.inference_mode()
+    def act(obs: np.ndarray) -> np.ndarray:
         x = torch.as_tensor(obs, dtype=torch.float32).unsqueeze(0)
         if mode == "deterministic":
-            action_t = policy.mean_action(x)
+            action = policy.mean_action(x)
         else:
             dist = policy.distribution(x)
             noise = torch.randn(dist.mean.shape, generator=generator, dtype=dist.mean.dtype)
-            action_t = dist.mean + dist.stddev * noise
-        action = action_t[0].numpy().astype(np.float64)
-        obs, reward, terminated, truncated, info = env.step(action)
-        applied = np.clip(np.nan_to_num(action), 0.0, 1.0)
-        steps += 1
-        ret += reward
-        effort_sum += float(np.sum(applied**2))
-        for name, value in info.get("reward_terms", {}).items():
-            terms[name] = terms.get(name, 0.0) + float(value)
-        if observer is not None:
-            observer.on_step(env, applied, obs, reward, info)
-        health = info.get("health", "ok")
-        fell = bool(info.get("fell", False))
-        if terminated or truncated:
-            break
-    # the env's pelvis displacement since reset (at the last healthy state if the sim failed)
-    distance = float(info.get("distance", 0.0))
-    time_s = steps * env.dt
-    n_muscles = max(1, env.action_space.shape[0])
-    return EpisodeResult(
-        seed=seed,
-        steps=steps,
-        time_s=time_s,
-        distance_m=distance,
-        mean_speed_m_s=distance / time_s if time_s > 0 else 0.0,
-        fell=fell,
-        health=health,
-        truncated=bool(truncated) and not fell and health == "ok",
-        return_=float(ret),
-        effort=effort_sum / (steps * n_muscles) if steps else 0.0,
-        effort_sum=effort_sum,
-        reward_terms=terms,
-    )
+            action = dist.mean + dist.stddev * noise
+        return action[0].numpy().astype(np.float64)
+
+    return act
+
+
+def evaluate_episode(
+    runner: EpisodeRunner,
+    policy: ActorCritic,
+    seed: int,
+    mode: Mode = "deterministic",
+    observers: Sequence[EpisodeObserver] = (),
+) -> EpisodeResult:
+    """One episode from ``reset(seed=seed)`` (stochastic actions seeded with ``seed`` too),
+    shown to ``observers`` besides the statistics."""
+    metrics = EpisodeMetrics()
+    runner.run(policy_act(policy, mode, seed), seed, [metrics, *observers])
+    assert metrics.result is not None
+    return metrics.result
 
 
 ProgressFn = Callable[[str, int, int], None]
@@ -320,34 +165,29 @@ def evaluate_policy(
     episodes: int = 10,
     mode: Mode = "deterministic",
     seed: int = 0,
-    env: MuscleEnv | None = None,
-    observer: EpisodeObserver | None = None,
+    runner: EpisodeRunner | None = None,
+    observers: Sequence[EpisodeObserver] = (),
     progress: ProgressFn | None = None,
     label: str | None = None,
 ) -> ModeResult:
     """``episodes`` episodes (seeds ``seed .. seed + episodes - 1``) of ``policy`` on
-    ``scene``; ``observer`` (if any) sees the first episode. ``env`` may be given to reuse one
-    built by :func:`make_env` for this scene."""
+    ``scene``; ``observers`` see the first episode. ``runner`` may be given to reuse one
+    built by :func:`make_runner` for this scene (it stays open)."""
     if episodes <= 0:
         raise EvaluationError(f"episodes must be > 0, got {episodes}")
-    own_env = env is None
-    env = make_env(policy, scene, backend) if env is None else env
+    own_runner = runner is None
+    runner = make_runner(policy, scene, backend) if runner is None else runner
     label = label or f"{scene.name} {mode}"
     try:
         results = []
         for i in range(episodes):
-            if i == 0 and observer is not None:
-                try:
-                    results.append(run_episode(env, policy, seed, mode, observer))
-                finally:
-                    observer.close()
-            else:
-                results.append(run_episode(env, policy, seed + i, mode))
+            watching = observers if i == 0 else ()
+            results.append(evaluate_episode(runner, policy, seed + i, mode, watching))
             if progress is not None:
                 progress(label, i + 1, episodes)
     finally:
-        if own_env:
-            env.close()
+        if own_runner:
+            runner.close()
     result = ModeResult.of(mode, scene, backend, results)
     logger.info(
         "%s: distance %.2f m, speed %.2f m/s, fall rate %.0f %%, return %.1f",
@@ -415,7 +255,7 @@ def resolve_checkpoint(path: Path, pick: Literal["latest", "best"] = "latest",
                        best_metric: str = "return") -> Path:  # fmt: skip
     """The checkpoint directory ``path`` names: a checkpoint itself, or a run directory (with
     ``checkpoints/`` under it) or a checkpoints directory, from which the latest or the best
-    (highest ``meta["metrics"][best_metric]``) is taken.
+    (highest ``metrics[best_metric]``) is taken (``learner.checkpoint.select_checkpoint``).
 
     Raises:
         EvaluationError: nothing there, or no checkpoint under it.
@@ -427,27 +267,15 @@ def resolve_checkpoint(path: Path, pick: Literal["latest", "best"] = "latest",
     if (path / "manifest.json").exists() or path.name.startswith("ckpt-"):
         return path
     root = path / "checkpoints" if (path / "checkpoints").is_dir() else path
-    found = checkpoints(root)
-    if not found:
+    if not checkpoints(root):
         raise EvaluationError(f"{path}: no checkpoint in it (looked in {root})")
-    if pick == "latest":
-        latest = latest_checkpoint(root)
-        assert latest is not None
-        return latest
-    scored = []
-    for ckpt in found:
-        try:
-            value = json.loads((ckpt / "meta.json").read_text())["metrics"][best_metric]
-        except (OSError, json.JSONDecodeError, KeyError, TypeError):
-            continue
-        if isinstance(value, int | float) and math.isfinite(value):
-            scored.append((float(value), ckpt))
-    if not scored:
+    chosen = select_checkpoint(root, pick, best_metric)
+    if chosen is None:
         raise EvaluationError(f"{root}: no checkpoint has metric {best_metric!r} to pick the best")
-    return max(scored, key=lambda vc: (vc[0], vc[1].name))[1]
+    return chosen
 
 
-def _scene_of(meta: dict, path: Path, override: str | Path | Scene | None) -> Scene:
+def _scene_of(meta: CheckpointMeta, path: Path, override: str | Path | Scene | None) -> Scene:
     if isinstance(override, Scene):
         return override
     if override is not None:
@@ -455,13 +283,7 @@ def _scene_of(meta: dict, path: Path, override: str | Path | Scene | None) -> Sc
             return load_scene(override)
         except SpecError as exc:
             raise EvaluationError(str(exc)) from None
-    if "scene" not in meta:
-        raise CheckpointError(f"{path / 'meta.json'}: no 'scene'; give a scene to evaluate on")
-    try:
-        return Scene.model_validate(meta["scene"])
-    except ValueError as exc:
-        first = str(exc).splitlines()[0]
-        raise CheckpointError(f"{path / 'meta.json'}: scene does not validate ({first})") from None
+    return meta.scene_spec(path / META_FILE)
 
 
 def evaluate_checkpoint(
@@ -511,29 +333,30 @@ def evaluate_checkpoint(
     ckpt = resolve_checkpoint(Path(path), pick)
     policy, meta = load_policy(ckpt)
     chosen = _scene_of(meta, ckpt, scene)
-    backend = backend or meta.get("config", {}).get("backend") or "mujoco"
+    backend = backend or meta.backend
     sweep_list = None if sweep is None else list(sweep)
     if sweep_list is not None:
         _check_sweep(chosen, sweep_list)
     results: dict[str, ModeResult] = {}
     for k, mode in enumerate(modes):
-        env = make_env(policy, chosen, backend, meta.get("obs_names") if scene else None)
-        try:
+        with make_runner(policy, chosen, backend, meta.obs_names if scene else None) as run:
             watching: list[EpisodeObserver] = []
             if k == 0:
                 watching = list(observers)
                 info = recording_metadata(ckpt, mode, seed)
-                if record is not None:
-                    watching.append(McapObserver(record, env, info))
-                if video is not None:
-                    watching.append(VideoObserver(video, env))
-            observer = Fanout(watching) if watching else None
+                try:
+                    if record is not None:
+                        watching.append(mcap_observer(record, run.env, info))
+                    if video is not None:
+                        watching.append(video_observer(video, run.env))
+                except BaseException:
+                    for observer in watching[len(observers) :]:
+                        observer.on_end(None)  # close the recording already opened
+                    raise
             results[mode] = evaluate_policy(
-                policy, chosen, backend, episodes=episodes, mode=mode, seed=seed, env=env,
-                observer=observer, progress=progress,
+                policy, chosen, backend, episodes=episodes, mode=mode, seed=seed, runner=run,
+                observers=watching, progress=progress,
             )  # fmt: skip
-        finally:
-            env.close()
     points: list[SweepPoint] = []
     if sweep_list is not None:
         points = speed_sweep(
@@ -542,14 +365,14 @@ def evaluate_checkpoint(
         )  # fmt: skip
     return EvaluationReport(
         checkpoint=str(ckpt),
-        env_steps=meta.get("env_steps"),
+        env_steps=meta.env_steps,
         scene=chosen.name,
         backend=backend,
         seed=seed,
         results=results,
         sweep=points,
         sweep_mode=sweep_mode if sweep_list is not None else None,
-        stage=meta.get("stage"),
+        stage=None if meta.stage is None else meta.stage.model_dump(),
         recording=None if record is None else str(record),
         video=None if video is None else str(video),
     )

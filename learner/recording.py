@@ -41,7 +41,7 @@ import json
 import logging
 import math
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from contextlib import ExitStack
 from pathlib import Path
 from types import TracebackType
@@ -67,7 +67,9 @@ from foxglove.messages import (
     Timestamp,
     Vector3,
 )
+from gaitforge.learner.checkpoint_meta import META_FILE, read_meta
 from gaitforge.workers.env import GRAVITY, MuscleEnv
+from gaitforge.workers.episode import Act, EpisodeObserver, EpisodeSummary, run_episode
 from gaitforge.workers.rewards import TERMS
 from gaitforge.workers.sim.base import HEALTHY, SimState
 
@@ -159,23 +161,22 @@ def checkpoint_metadata(path: str | os.PathLike[str]) -> dict[str, str]:
     """Recording metadata naming a checkpoint directory (``learner.checkpoint`` layout):
     ``checkpoint`` (its path), ``checkpoint_sha256`` (sha256 of its ``manifest.json``, which
     holds the sha256 of every file: one hash for the whole checkpoint), ``policy_sha256``, and
-    ``stage``, ``env_steps`` from ``meta.json`` when there. Reads JSON only, unpickles nothing;
-    a missing manifest raises ``FileNotFoundError`` naming it."""
+    ``stage`` (JSON), ``env_steps`` from ``meta.json`` when there
+    (``learner.checkpoint_meta.read_meta``). Reads JSON only, unpickles nothing; a missing
+    manifest raises ``FileNotFoundError`` naming it."""
     root = Path(path)
     manifest_bytes = (root / "manifest.json").read_bytes()
     manifest = json.loads(manifest_bytes)
-    meta: dict[str, Any] = {}
-    if (root / "meta.json").exists():
-        meta = json.loads((root / "meta.json").read_text())
     out = {
         "checkpoint": str(root),
         "checkpoint_sha256": hashlib.sha256(manifest_bytes).hexdigest(),
         "policy_sha256": str(manifest.get("policy.safetensors", "")),
     }
-    for key in ("stage", "env_steps"):
-        if key in meta:
-            value = meta[key]
-            out[key] = value if isinstance(value, str) else json.dumps(value, default=str)
+    if (root / META_FILE).exists():
+        meta = read_meta(root)
+        if meta.stage is not None:
+            out["stage"] = json.dumps(meta.stage.model_dump(mode="json"), sort_keys=True)
+        out["env_steps"] = str(meta.env_steps)
     return out
 
 
@@ -185,10 +186,11 @@ def checkpoint_metadata(path: str | os.PathLike[str]) -> dict[str, str]:
 class EpisodeRecorder:
     """Writes one episode of ``env`` to an MCAP file at ``path``.
 
-    Call :meth:`log_step` after every ``env.step`` (it reads the simulator directly, so call
-    it before the next ``step`` or ``reset``), then :meth:`close`; or use it as a context
-    manager. ``metadata`` (strings; e.g. ``{"checkpoint": sha256, "stage": "walk"}``) goes
-    into the ``gaitforge`` metadata record beside scene, backend, profile, body and rates.
+    An episode observer (``workers.episode``); or by hand: call :meth:`log_step` after every
+    ``env.step`` (it reads the simulator directly, so call it before the next ``step`` or
+    ``reset``), then :meth:`close`, or use it as a context manager. ``metadata`` (strings;
+    e.g. ``{"checkpoint": sha256, "stage": "walk"}``) goes into the ``gaitforge`` metadata
+    record beside scene, backend, profile, body and rates.
     An existing file at ``path`` is overwritten; parent directories are created.
     """
 
@@ -265,6 +267,26 @@ class EpisodeRecorder:
             self._log_geometry(env, state, log_time)
         self._log_scalars(state if finite else None, action, terms, info, log_time)
         self.steps += 1
+
+    def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
+        """Episode observer (``workers.episode``): nothing is logged at reset."""
+
+    def on_step(
+        self,
+        env: MuscleEnv,
+        action: np.ndarray,
+        obs: np.ndarray,
+        reward: float,
+        terminated: bool,
+        truncated: bool,
+        info: dict[str, Any],
+    ) -> None:
+        """Episode observer: :meth:`log_step` with the step's reward terms."""
+        self.log_step(env, action, info.get("reward_terms"), info)
+
+    def on_end(self, summary: EpisodeSummary | None) -> None:
+        """Episode observer: :meth:`close`."""
+        self.close()
 
     def close(self) -> None:
         """Finish the file (summary, index); idempotent."""
@@ -473,7 +495,7 @@ class EpisodeRecorder:
 
 def record_episode(
     env: MuscleEnv,
-    act_fn: Callable[[np.ndarray], np.ndarray],
+    act_fn: Act,
     path: str | os.PathLike[str] | None,
     seed: int,
     metadata: Mapping[str, str] | None = None,
@@ -481,48 +503,36 @@ def record_episode(
     video_path: str | os.PathLike[str] | None = None,
     video_size: tuple[int, int] = (640, 480),
 ) -> dict[str, Any]:
-    """Reset ``env`` with ``seed``, run ``act_fn`` (observation [n_obs] -> excitations
-    [n_muscles] in [0, 1]) until the episode ends or ``max_steps``, and record it to the
-    MCAP ``path`` and/or render it to the MP4 ``video_path`` (width, height ``video_size``
-    pixels; see :mod:`learner.video`). Either may be None.
+    """One episode of ``act_fn`` (observation [n_obs] -> excitations [n_muscles] in [0, 1])
+    on ``env`` from ``env.reset(seed=seed)`` (``workers.episode.run_episode``) until it ends
+    or ``max_steps``, recorded to the MCAP ``path`` and/or rendered to the MP4 ``video_path``
+    (width, height ``video_size`` pixels; see :mod:`learner.video`). Either may be None.
 
     Returns a summary: ``path``, ``video_path``, ``steps``, ``frames`` (video frames),
     ``sim_time`` (s), ``return`` (sum of rewards), ``distance`` (m), ``fell``, ``health``
     (cause of the last step), ``terminated``, ``truncated``.
     """
-    obs, _ = env.reset(seed=seed)
-    limit = max_steps if max_steps is not None else env.scene.steps_per_episode
-    total, info, steps = 0.0, {"health": HEALTHY}, 0
-    terminated = truncated = False
-    with ExitStack() as stack:
-        recorder = stack.enter_context(EpisodeRecorder(path, env, metadata)) if path else None
-        video = None
+    observers: list[EpisodeObserver] = []
+    video = None
+    with ExitStack() as stack:  # closes what was opened if a later one fails to open
+        if path is not None:
+            observers.append(stack.enter_context(EpisodeRecorder(path, env, metadata)))
         if video_path is not None:
             from gaitforge.learner.video import VideoRecorder  # lazy: needs a GL context
 
             video = stack.enter_context(VideoRecorder(video_path, env, *video_size))
-            video.capture(env)
-        for _ in range(limit):
-            action = np.asarray(act_fn(obs), dtype=np.float64)
-            obs, reward, terminated, truncated, info = env.step(action)
-            steps += 1
-            if recorder is not None:
-                recorder.log_step(env, action, info.get("reward_terms"), info)
-            if video is not None:
-                video.capture(env)
-            total += reward
-            if terminated or truncated:
-                break
+            observers.append(video)
+        summary = run_episode(env, act_fn, seed, observers, max_steps)
     return {
         "path": None if path is None else str(path),
         "video_path": None if video_path is None else str(video_path),
         "frames": 0 if video is None else video.frames,
-        "steps": steps,
-        "sim_time": float(info.get("sim_time", 0.0)),
-        "return": total,
-        "distance": float(info.get("distance", 0.0)),
-        "fell": bool(info.get("fell", False)),
-        "health": str(info.get("health", HEALTHY)),
-        "terminated": bool(terminated),
-        "truncated": bool(truncated),
+        "steps": summary.steps,
+        "sim_time": summary.sim_time_s,
+        "return": summary.return_,
+        "distance": summary.distance_m,
+        "fell": summary.fell,
+        "health": summary.health,
+        "terminated": summary.terminated,
+        "truncated": summary.truncated,
     }

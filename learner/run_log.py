@@ -9,9 +9,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 from gaitforge.learner.policy import ActorCritic
-from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.episode import EpisodeRunner
 from gaitforge.workers.scenes import Scene
 
 if TYPE_CHECKING:
@@ -71,20 +70,18 @@ def record_policy(
     policy: ActorCritic, scene: Scene, backend: str, checkpoint: Path, path: Path, seed: int
 ) -> Path | None:
     """One deterministic episode of ``policy`` on ``scene`` as MCAP at ``path``, with the
-    checkpoint it shows named in the metadata. A failure is logged, never raised: a recording
-    must not stop training."""
-    from gaitforge.learner.recording import checkpoint_metadata, record_episode  # lazy: foxglove
-
-    def act(obs: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            return policy.mean_action(torch.from_numpy(obs).float()[None])[0].numpy()
+    checkpoint it shows named in the metadata (the episode loop of ``workers.episode``, the
+    recorder its observer). A failure is logged, never raised: a recording must not stop
+    training."""
+    from gaitforge.learner.evaluate import policy_act
+    from gaitforge.learner.recording import EpisodeRecorder, checkpoint_metadata  # lazy: foxglove
 
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        env = MuscleEnv(scene, backend)
-        summary = record_episode(env, act, path, seed, checkpoint_metadata(checkpoint))
+        with EpisodeRunner(scene, backend) as runner:
+            recorder = EpisodeRecorder(path, runner.env, checkpoint_metadata(checkpoint))
+            summary = runner.run(policy_act(policy, "deterministic", seed), seed, [recorder])
     except Exception:
         logger.exception("recording %s failed; training goes on", path)
         return None
-    logger.info("recorded %s: %.2f m in %.1f s", path, summary["distance"], summary["sim_time"])
+    logger.info("recorded %s: %.2f m in %.1f s", path, summary.distance_m, summary.sim_time_s)
     return path

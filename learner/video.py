@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -31,7 +30,7 @@ import imageio_ffmpeg
 import mujoco
 import numpy as np
 from gaitforge.workers.env import MuscleEnv
-from gaitforge.workers.sim.base import HEALTHY
+from gaitforge.workers.episode import Act, EpisodeSummary, run_episode
 from gaitforge.workers.sim.mujoco import OBSTACLE_PREFIX, MujocoSimulator
 
 logger = logging.getLogger(__name__)
@@ -128,7 +127,8 @@ class MujocoReplay:
 class VideoRecorder:
     """Renders frames of ``env`` into an MP4 at ``path``.
 
-    Call :meth:`capture` after ``reset`` and after every ``step``; one call in ``every`` makes
+    An episode observer (``workers.episode``); or by hand: call :meth:`capture` after
+    ``reset`` and after every ``step``; one call in ``every`` makes
     a frame (default: the control rate brought near 30 fps), played at ``control_hz / every``
     frames per second, i.e. in real time. Then :meth:`close` (or use a ``with`` block). The
     file is written from the first frame on: with no frame, none is made. :meth:`render`
@@ -239,6 +239,27 @@ class VideoRecorder:
         mujoco.mjr_render(self._viewport, scene, self._context)
         mujoco.mjr_readPixels(self._pixels, None, self._viewport, self._context)
         return np.flipud(self._pixels).copy()
+
+    def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
+        """Episode observer (``workers.episode``): :meth:`capture` the reset pose."""
+        self.capture(env)
+
+    def on_step(
+        self,
+        env: MuscleEnv,
+        action: np.ndarray,
+        obs: np.ndarray,
+        reward: float,
+        terminated: bool,
+        truncated: bool,
+        info: dict[str, Any],
+    ) -> None:
+        """Episode observer: :meth:`capture` the step."""
+        self.capture(env)
+
+    def on_end(self, summary: EpisodeSummary | None) -> None:
+        """Episode observer: :meth:`close`."""
+        self.close()
 
     def close(self) -> None:
         """Finish the MP4 and free the GL resources; idempotent."""
@@ -359,7 +380,7 @@ class VideoRecorder:
 
 def record_video(
     env: MuscleEnv,
-    act_fn: Callable[[np.ndarray], np.ndarray],
+    act_fn: Act,
     path: str | os.PathLike[str],
     seed: int,
     max_steps: int | None = None,
@@ -368,30 +389,21 @@ def record_video(
     every: int | None = None,
     antialias: bool = False,
 ) -> dict[str, Any]:
-    """Reset ``env`` with ``seed``, run ``act_fn`` (observation [n_obs] -> excitations
-    [n_muscles] in [0, 1]) until the episode ends or ``max_steps``, and render it to ``path``.
+    """One episode of ``act_fn`` (observation [n_obs] -> excitations [n_muscles] in [0, 1])
+    on ``env`` from ``env.reset(seed=seed)`` (``workers.episode.run_episode``) until it ends
+    or ``max_steps``, rendered to ``path``.
 
     Returns ``path``, ``frames``, ``fps``, ``steps``, ``return``, ``distance`` (m),
     ``health`` (cause of the last step).
     """
-    obs, _ = env.reset(seed=seed)
-    limit = max_steps if max_steps is not None else env.scene.steps_per_episode
-    total, steps, info = 0.0, 0, {"health": HEALTHY}
     with VideoRecorder(path, env, width, height, every, antialias=antialias) as video:
-        video.capture(env)
-        for _ in range(limit):
-            obs, reward, terminated, truncated, info = env.step(act_fn(obs))
-            total += reward
-            steps += 1
-            video.capture(env)
-            if terminated or truncated:
-                break
+        summary = run_episode(env, act_fn, seed, [video], max_steps)
     return {
         "path": str(path),
         "frames": video.frames,
         "fps": video.fps,
-        "steps": steps,
-        "return": total,
-        "distance": float(info.get("distance", 0.0)),
-        "health": str(info.get("health", HEALTHY)),
+        "steps": summary.steps,
+        "return": summary.return_,
+        "distance": summary.distance_m,
+        "health": summary.health,
     }

@@ -16,10 +16,10 @@ from gaitforge.learner.checkpoint import CheckpointError, load_policy, save_chec
 from gaitforge.learner.evaluate import (
     EvaluationError,
     evaluate_checkpoint,
+    evaluate_episode,
     evaluate_policy,
-    make_env,
+    make_runner,
     resolve_checkpoint,
-    run_episode,
     speed_sweep,
     with_target_speed,
 )
@@ -27,6 +27,7 @@ from gaitforge.learner.policy import BlendedPolicy, GaussianPolicy
 from gaitforge.learner.stats import Rate, Stat, t_quantile_975
 from gaitforge.service.cli import app
 from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.episode import EpisodeSummary, Observer
 from gaitforge.workers.scenes import Scene, catalogue_file, load_scene
 from typer.testing import CliRunner
 
@@ -73,32 +74,34 @@ def walk(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Scene]:
     return tmp / "run", scene
 
 
-class PelvisTrace:
+class PelvisTrace(Observer):
     """Observer: the pelvis forward position (m) at reset and after every step."""
 
     def __init__(self) -> None:
         self.forward: list[float] = []
-        self.closed = False
+        self.ended: list[EpisodeSummary | None] = []
 
     def _log(self, env: MuscleEnv) -> None:
         self.forward.append(float(env.sim.state().pelvis_pos[env.sim.forward_axis]))
 
-    def on_reset(self, env: MuscleEnv, obs: np.ndarray) -> None:
+    def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict) -> None:
         self._log(env)
 
-    def on_step(self, env, action, obs, reward, info) -> None:
+    def on_step(self, env, action, obs, reward, terminated, truncated, info) -> None:
         self._log(env)
 
-    def close(self) -> None:
-        self.closed = True
+    def on_end(self, summary: EpisodeSummary | None) -> None:
+        self.ended.append(summary)
 
 
 def test_relaxed_muscles_fall_and_the_metrics_agree_with_the_motion(tmp_path: Path) -> None:
     scene = load_scene(short_scene(tmp_path, episode_s=4.0))
     policy = relaxed_policy()
-    env = make_env(policy, scene, "mujoco")
     trace = PelvisTrace()
-    episode = run_episode(env, policy, seed=3, observer=trace)
+    with make_runner(policy, scene, "mujoco") as runner:
+        episode = evaluate_episode(runner, policy, seed=3, observers=[trace])
+    assert len(trace.ended) == 1 and trace.ended[0] is not None
+    assert trace.ended[0].steps == episode.steps and trace.ended[0].fell
     # with every muscle relaxed the legs fold: a fall within a couple of seconds
     assert episode.fell and not episode.truncated and episode.health == "ok"
     assert 0.1 < episode.time_s < 2.5

@@ -5,6 +5,7 @@ Real simulators (walk-2d on MuJoCo and OpenSim) driven by uniform random excitat
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import imageio_ffmpeg
@@ -163,9 +164,10 @@ def test_a_z_up_body_stays_as_it_is(tmp_path: Path) -> None:
 
 def test_checkpoint_metadata_names_the_checkpoint(tmp_path: Path) -> None:
     state = {"w": torch.ones(3), "norm.mean": torch.zeros(3)}
-    ckpt = save_checkpoint(tmp_path / "run", 1000, state, {"stage": "walk"})
+    stage = {"index": 1, "name": "walk", "env_steps": 400}
+    ckpt = save_checkpoint(tmp_path / "run", 1000, state, {"stage": stage})
     meta = checkpoint_metadata(ckpt)
-    assert meta["checkpoint"] == str(ckpt) and meta["stage"] == "walk"
+    assert meta["checkpoint"] == str(ckpt) and json.loads(meta["stage"]) == stage
     assert meta["env_steps"] == "1000"
     assert len(meta["checkpoint_sha256"]) == 64 and len(meta["policy_sha256"]) == 64
     env = MuscleEnv("walk-2d", backend="mujoco")

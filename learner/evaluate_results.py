@@ -1,0 +1,187 @@
+"""Evaluation results: one episode, N episodes in one action mode with their 95 % intervals,
+the speed-against-safety sweep's points, and a checkpoint's report; JSON out.
+
+Units: distance m (pelvis forward displacement, end minus start), speed m/s (distance over
+episode time), time s (control steps / control_hz), effort 1 (mean over steps and muscles of
+excitation^2, the excitation as applied, clipped to [0, 1]), effort_sum (sum of excitation^2
+over steps and muscles), return (sum of the scene's weighted reward terms).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import Counter
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+from gaitforge.learner.stats import Rate, Stat
+from gaitforge.workers.episode import EpisodeSummary
+from gaitforge.workers.scenes import Scene
+
+Mode = Literal["deterministic", "stochastic"]
+MODES: tuple[Mode, ...] = ("deterministic", "stochastic")
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    """One episode.
+
+    Attributes:
+        seed: the env's reset seed.
+        steps: control steps taken.
+        time_s: simulated time, s (steps / control_hz).
+        distance_m: pelvis forward displacement, end minus start, m.
+        mean_speed_m_s: distance_m / time_s, m/s.
+        fell: ended by a fall (pelvis below the scene's ``min_pelvis_height``).
+        health: the health cause the episode ended with ("ok" unless the simulator failed).
+        truncated: reached the episode's length (``episode_s``).
+        return_: sum of the weighted reward terms.
+        effort: mean over steps and muscles of excitation^2 (1).
+        effort_sum: sum over steps and muscles of excitation^2 (1).
+        reward_terms: each weighted term summed over the episode.
+    """
+
+    seed: int
+    steps: int
+    time_s: float
+    distance_m: float
+    mean_speed_m_s: float
+    fell: bool
+    health: str
+    truncated: bool
+    return_: float
+    effort: float
+    effort_sum: float
+    reward_terms: dict[str, float]
+
+    @classmethod
+    def of(
+        cls,
+        summary: EpisodeSummary,
+        effort_sum: float,
+        reward_terms: dict[str, float],
+        n_muscles: int,
+    ) -> EpisodeResult:
+        """From the loop's summary, the episode's sum of excitation^2 and each weighted term's
+        sum; ``n_muscles`` is the action's size."""
+        steps, time_s, distance = summary.steps, summary.time_s, summary.distance_m
+        return cls(
+            seed=summary.seed,
+            steps=steps,
+            time_s=time_s,
+            distance_m=distance,
+            mean_speed_m_s=distance / time_s if time_s > 0 else 0.0,
+            fell=summary.fell,
+            health=summary.health,
+            truncated=summary.truncated and not summary.fell and summary.health == "ok",
+            return_=summary.return_,
+            effort=effort_sum / (steps * max(1, n_muscles)) if steps else 0.0,
+            effort_sum=effort_sum,
+            reward_terms=reward_terms,
+        )
+
+
+@dataclass(frozen=True)
+class ModeResult:
+    """N episodes in one action mode at one target speed, and their aggregates (see
+    :class:`EpisodeResult` for units)."""
+
+    mode: Mode
+    scene: str
+    backend: str
+    target_speed_m_s: float | None
+    episodes: list[EpisodeResult]
+    distance_m: Stat
+    mean_speed_m_s: Stat
+    time_s: Stat
+    steps: Stat
+    return_: Stat
+    effort: Stat
+    effort_sum: Stat
+    fall_rate: Rate
+    failure_rate: Rate
+    """episodes ended by a simulator failure (health other than "ok")"""
+    health: dict[str, int]
+    """episodes by the health cause they ended with ("ok" included)"""
+
+    @classmethod
+    def of(
+        cls,
+        mode: Mode,
+        scene: Scene,
+        backend: str,
+        episodes: list[EpisodeResult],
+    ) -> ModeResult:
+        n = len(episodes)
+
+        def stat(name: str) -> Stat:
+            return Stat.of([float(getattr(e, name)) for e in episodes])
+
+        return cls(
+            mode=mode,
+            scene=scene.name,
+            backend=backend,
+            target_speed_m_s=scene.task.target_speed,
+            episodes=episodes,
+            distance_m=stat("distance_m"),
+            mean_speed_m_s=stat("mean_speed_m_s"),
+            time_s=stat("time_s"),
+            steps=stat("steps"),
+            return_=stat("return_"),
+            effort=stat("effort"),
+            effort_sum=stat("effort_sum"),
+            fall_rate=Rate.of(sum(e.fell for e in episodes), n),
+            failure_rate=Rate.of(sum(e.health != "ok" for e in episodes), n),
+            health=dict(sorted(Counter(e.health for e in episodes).items())),
+        )
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    """The evaluation at target speed ``(1 - reduction) * nominal`` (m/s)."""
+
+    reduction: float
+    target_speed_m_s: float
+    result: ModeResult
+
+
+@dataclass(frozen=True)
+class EvaluationReport:
+    """A checkpoint's evaluation: one :class:`ModeResult` per mode at the scene's own target
+    speed and, if asked, the speed-against-safety sweep (in ``sweep_mode``)."""
+
+    checkpoint: str | None
+    env_steps: int | None
+    scene: str
+    backend: str
+    seed: int
+    results: dict[str, ModeResult]
+    sweep: list[SweepPoint] = field(default_factory=list)
+    sweep_mode: Mode | None = None
+    stage: dict | None = None
+    recording: str | None = None
+    """MCAP file of the first episode, if one was written"""
+    video: str | None = None
+    """MP4 file of the first episode, if one was written"""
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able: NaN written as null, the field ``return_`` as ``"return"``."""
+        return _finite(asdict(self))
+
+
+def _finite(x: Any) -> Any:
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {("return" if k == "return_" else k): _finite(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_finite(v) for v in x]
+    return x
+
+
+def write_json(report: EvaluationReport, path: Path) -> None:
+    """Write ``report.to_dict()`` to ``path`` (indented JSON)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(report.to_dict(), indent=2) + "\n")
