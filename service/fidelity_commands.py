@@ -69,10 +69,9 @@ def sweep(
     """Measure every profile of the grid; write CSV, JSON and a Pareto plot; recommend and
     save the fastest profile within tolerance."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    from gaitforge.workers.fidelity import store
-    from gaitforge.workers.fidelity.grid import sweep_grid
+    from gaitforge.workers.fidelity.grid import SweepSize, sweep_grid
     from gaitforge.workers.fidelity.report import write_all
-    from gaitforge.workers.fidelity.sweep import SweepSize, run_sweep
+    from gaitforge.workers.fidelity.sweep import run_sweep, save_recommendation
 
     if tolerance <= 0:
         raise _fail(f"--tolerance: must be > 0 rad, got {tolerance:g}")
@@ -136,13 +135,8 @@ def sweep(
             f"recommended: {best.label} ({best.steps_per_s:.0f} steps/s, "
             f"error {best.error:.3g} rad)"
         )
-        if save:
-            saved = store.SavedProfile(
-                name=store.saved_name(scene.name, backend, tolerance), scene=scene.name,
-                backend=backend, tolerance=tolerance, profile=best.profile(),
-                error=best.error, steps_per_s=best.steps_per_s,
-            )  # fmt: skip
-            path = store.save(saved)
+        if save and (written := save_recommendation(result)) is not None:
+            saved, path = written
             line += f"; saved as {saved.name!r} ({path})"
         console.print(line, soft_wrap=True)
     if result.challenge is not None:

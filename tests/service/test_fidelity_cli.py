@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 import yaml
 from gaitforge.service.cli import app
-from gaitforge.workers.fidelity.store import ENV_DIR
 from gaitforge.workers.fidelity.sweep import remeasure
 from gaitforge.workers.scenes import catalogue_file, load_scene
+from gaitforge.workers.scenes.saved_profiles import ENV_DIR
 from gaitforge.workers.spec_io import SpecError
 from typer.testing import CliRunner
 

@@ -1,6 +1,9 @@
-"""The grids of fidelity profiles a sweep measures, per backend (full and ``--quick``)."""
+"""What a sweep measures: the grids of fidelity profiles per backend (full and ``--quick``),
+and how long it measures each (``SweepSize``)."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.scenes.profiles import NAMED_PROFILES, FidelityProfile
@@ -14,6 +17,32 @@ OPENSIM_FIXED = (("rk2", 0.001), ("semi-explicit-euler2", 0.001))
 """(integrator, s): fixed-step runs, for the integrators whose fixed-step mode is useful."""
 OPENSIM_MAX_STEP = 0.01
 """s: OpenSim's largest internal step in every error-controlled profile of the grid."""
+
+
+@dataclass
+class SweepSize:
+    """How long each measurement runs.
+
+    Attributes:
+        short: s, the short error window; long: s, the long one (the held rollout length).
+        seeds: task runs per profile; task_s: s simulated per task run.
+        repeats: batches of task runs timed per profile (speed = their median).
+    """
+
+    short: float = 0.5
+    long: float = 2.0
+    seeds: int = 8
+    task_s: float = 1.0
+    repeats: int = 3
+
+    @classmethod
+    def for_run(cls, backend: str, quick: bool) -> SweepSize:
+        if quick:
+            return cls(short=0.1, long=0.5, seeds=2, task_s=0.2, repeats=1)
+        if backend == "opensim":
+            return cls(short=0.5, long=2.0, seeds=4, task_s=0.5, repeats=1)
+        return cls()
+
 
 QUICK_MUJOCO = (("implicitfast", 0.002), ("euler", 0.001), ("rk4", 0.001))
 QUICK_OPENSIM = (("rk-merson", 1e-2), ("rk-merson", 1e-3))

@@ -19,9 +19,9 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.scenes.profiles import FidelityProfile
-from gaitforge.workers.scenes.topology import topology_for
 from gaitforge.workers.sim import Simulator, make_simulator
 
 HOLD_HEIGHT = 1.0

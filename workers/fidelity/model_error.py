@@ -9,14 +9,12 @@ joint-angle difference (rad, over the dofs both runs share) and the speed of eac
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
+from gaitforge.workers.fidelity.grid import SweepSize
 from gaitforge.workers.fidelity.held import Rollout, describe, held_rollout, rms_error
 from gaitforge.workers.fidelity.reference import REFERENCE
-
-if TYPE_CHECKING:
-    from gaitforge.workers.fidelity.sweep import SweepSize
+from gaitforge.workers.fidelity.task import task_runs
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.spec_io import validate_model
 
@@ -90,8 +88,6 @@ def pruning(scene: Scene, backend: str, reference: Rollout, size: SweepSize) -> 
     ratio: unpruned over pruned env steps/s on the scene itself (with contact) at the
     scene's own profile (the one training uses), batches alternated ``size.repeats`` times,
     median."""
-    from gaitforge.workers.fidelity.task import task_runs
-
     raw = scene.model_dump(mode="python")
     raw["keep"] = {**raw["keep"], "joints": "all", "muscles": "all", "planar": False,
                    "lock_at": {}, "contacts": "all", "visuals": True}  # fmt: skip

@@ -14,12 +14,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from gaitforge.workers.bodies import load_body
 from gaitforge.workers.fidelity.grid import (
     MUJOCO_INTEGRATORS,
     OPENSIM_INTEGRATORS,
     OPENSIM_MAX_STEP,
 )
-from gaitforge.workers.fidelity.held import with_profile
+from gaitforge.workers.fidelity.held import describe, root_dofs_mujoco, with_profile
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.scenes.profiles import FidelityProfile
 from gaitforge.workers.sim import Simulator, make_simulator
@@ -58,8 +59,7 @@ def _perturb(sim: Simulator, backend: str, name: str) -> None:
     if name not in ("spin", "drop"):
         return
     if backend == "mujoco":
-        import mujoco
-        from gaitforge.workers.fidelity.held import root_dofs_mujoco
+        import mujoco  # lazy: the OpenSim path needs no MuJoCo
 
         m, d = sim.model, sim.data  # type: ignore[attr-defined]
         if name == "spin":
@@ -72,8 +72,6 @@ def _perturb(sim: Simulator, backend: str, name: str) -> None:
                 d.qpos[lift] += DROP_HEIGHT
         mujoco.mj_forward(m, d)
         return
-    from gaitforge.workers.bodies import load_body
-
     model, state = sim.model, sim.osim_state  # type: ignore[attr-defined]
     coords = model.getCoordinateSet()
     if name == "spin":
@@ -115,8 +113,6 @@ def stability_map(
     on_done: Callable[[str], None] | None = None,
 ) -> list[dict[str, str]]:
     """One row per profile: ``{"profile": label, scenario: cause, ...}``."""
-    from gaitforge.workers.fidelity.held import describe
-
     rows = []
     for profile in profiles:
         row = {"profile": describe(profile)}

@@ -18,41 +18,23 @@ import logging
 import platform
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
 from gaitforge.workers.fidelity import model_error
+from gaitforge.workers.fidelity.grid import SweepSize
 from gaitforge.workers.fidelity.held import describe, held_rollout, rms_error
-from gaitforge.workers.fidelity.reference import MARGIN, Reference, converged_reference
+from gaitforge.workers.fidelity.reference import (
+    MARGIN,
+    REFERENCE,
+    Reference,
+    converged_reference,
+)
 from gaitforge.workers.fidelity.task import TaskStats, difference, speed_runs
-from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes import Scene, saved_profiles
 from gaitforge.workers.scenes.profiles import NAMED_PROFILES, FidelityProfile
 from gaitforge.workers.spec_io import SpecError
 
 logger = logging.getLogger(__name__)
-
-
-@dataclass
-class SweepSize:
-    """How long each measurement runs.
-
-    Attributes:
-        short: s, the short error window; long: s, the long one (the held rollout length).
-        seeds: task runs per profile; task_s: s simulated per task run.
-        repeats: batches of task runs timed per profile (speed = their median).
-    """
-
-    short: float = 0.5
-    long: float = 2.0
-    seeds: int = 8
-    task_s: float = 1.0
-    repeats: int = 3
-
-    @classmethod
-    def for_run(cls, backend: str, quick: bool) -> SweepSize:
-        if quick:
-            return cls(short=0.1, long=0.5, seeds=2, task_s=0.2, repeats=1)
-        if backend == "opensim":
-            return cls(short=0.5, long=2.0, seeds=4, task_s=0.5, repeats=1)
-        return cls()
 
 
 @dataclass
@@ -105,6 +87,21 @@ class SweepResult:
         rec = self.recommended
         out["recommended"] = {**asdict(rec), "error": rec.error} if rec else None
         return out
+
+
+def save_recommendation(result: SweepResult) -> tuple[saved_profiles.SavedProfile, Path] | None:
+    """Save the recommended profile, if any, as ``<scene>-<backend>-tol<tolerance>`` in the
+    profile directory (``workers.scenes.saved_profiles``), where scenes find it by name or
+    with ``fidelity: auto``; returns it and its file."""
+    best = result.recommended
+    if best is None:
+        return None
+    saved = saved_profiles.SavedProfile(
+        name=saved_profiles.saved_name(result.scene, result.backend, result.tolerance),
+        scene=result.scene, backend=result.backend, tolerance=result.tolerance,
+        profile=best.profile(), error=best.error, steps_per_s=best.steps_per_s,
+    )  # fmt: skip
+    return saved, saved_profiles.save(saved)
 
 
 def _task_summary(stats: TaskStats, ref: TaskStats) -> dict[str, float]:
@@ -226,8 +223,6 @@ def remeasure(
 ) -> float:
     """The error of ``profile`` (rad, the larger of the two windows, s) against a fresh
     reference run."""
-    from gaitforge.workers.fidelity.reference import REFERENCE
-
     ref = held_rollout(scene, backend, REFERENCE[backend], long)
     run = held_rollout(scene, backend, profile, long)
     dt = 1.0 / scene.control_hz

@@ -5,9 +5,9 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
+from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.scenes.prune import PrunePlan, check_names, plan_pruning
 from gaitforge.workers.scenes.spec import Scene
-from gaitforge.workers.scenes.topology import topology_for
 from gaitforge.workers.spec_io import SpecError, load_yaml_model
 
 __all__ = ["PrunePlan", "Scene", "catalogue", "catalogue_file", "load_scene", "plan_pruning"]

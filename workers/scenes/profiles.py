@@ -4,7 +4,9 @@ A scene names a profile (``fidelity: default``), spells one out
 (``fidelity: {integrator: rk4, timestep: 0.001}``), or gives one per backend
 (``fidelity: {mujoco: fast, opensim: {integrator: rk-merson, timestep: 0.01, accuracy: 5e-5}}``).
 ``gaitforge fidelity sweep`` saves measured profiles that a scene names the same way, or
-picks with ``fidelity: auto`` and ``fidelity_tolerance`` (``workers.fidelity.store``).
+picks with ``fidelity: auto`` and ``fidelity_tolerance`` (``workers.scenes.saved_profiles``).
+A scene is resolved on the driver, where it is loaded (``Scene.resolved``): its fidelity
+becomes one concrete ``FidelityProfile`` before it reaches an actor or a checkpoint.
 
 MuJoCo integrates with a fixed ``timestep``. OpenSim's integrators are error-controlled:
 ``accuracy`` is the error tolerance and ``timestep`` the largest internal step.
@@ -68,43 +70,14 @@ NAMED_PROFILES: dict[str, dict[str, FidelityProfile]] = {
 Fidelity = str | FidelityProfile | dict[Backend, str | FidelityProfile]
 
 
-def resolve_profile(
-    fidelity: Fidelity, backend: str, scene: str | None = None, tolerance: float | None = None
-) -> FidelityProfile:
-    """A scene's fidelity field, resolved for ``backend``; raises ``ValueError`` if invalid.
-
-    Besides the names above, a name may be a profile saved by ``gaitforge fidelity sweep``,
-    and ``auto`` picks the saved one for ``scene`` within ``tolerance`` (rad); see
-    ``workers.fidelity.store``.
-    """
-    if isinstance(fidelity, dict):
-        if backend not in fidelity:
-            raise ValueError(f"fidelity: no profile for backend {backend!r}")
-        return resolve_profile(fidelity[backend], backend, scene, tolerance)  # type: ignore[index]
-    if isinstance(fidelity, FidelityProfile):
-        allowed = INTEGRATORS[backend]
-        if fidelity.integrator not in allowed:
-            raise ValueError(
-                f"fidelity.integrator: {fidelity.integrator!r} is not a {backend} integrator; "
-                f"allowed: {list(allowed)}"
-            )
-        if backend == "opensim" and fidelity.accuracy is None and not fidelity.fixed_step:
-            raise ValueError("fidelity.accuracy: OpenSim's integrators need an accuracy")
-        return fidelity
-    named = NAMED_PROFILES[backend]
-    if fidelity not in named:
-        from gaitforge.workers.fidelity import (
-            store,  # lazy: saved profiles are read only when named
-        )
-
-        if fidelity == "auto":
-            return store.auto(scene, backend, tolerance)
-        saved = store.by_name(fidelity, backend)
-        if saved is not None:
-            return saved
+def check_profile(profile: FidelityProfile, backend: str) -> FidelityProfile:
+    """``profile`` if it is a valid setting for ``backend``; raises ``ValueError`` if not."""
+    allowed = INTEGRATORS[backend]
+    if profile.integrator not in allowed:
         raise ValueError(
-            f"fidelity: unknown profile {fidelity!r} for backend {backend!r}; "
-            f"allowed: {sorted(named)}, a saved profile, auto, or an explicit "
-            "{integrator, timestep}"
+            f"fidelity.integrator: {profile.integrator!r} is not a {backend} integrator; "
+            f"allowed: {list(allowed)}"
         )
-    return named[fidelity]
+    if backend == "opensim" and profile.accuracy is None and not profile.fixed_step:
+        raise ValueError("fidelity.accuracy: OpenSim's integrators need an accuracy")
+    return profile

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from gaitforge.workers.bodies.topology import Topology
 from gaitforge.workers.scenes.spec import Scene
-from gaitforge.workers.scenes.topology import Topology
 
 
 @dataclass(frozen=True)

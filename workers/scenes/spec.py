@@ -1,21 +1,22 @@
-"""The Scene spec: what a training scene is made of, validated once when it is loaded."""
+"""The Scene spec: what a training scene is made of, validated once when it is loaded, and
+resolved on the driver (``Scene.resolved``) before it goes anywhere else."""
 
 from __future__ import annotations
 
 from typing import Annotated, Literal
 
 import numpy as np
+from gaitforge.workers.bodies.topology import MJCF_BODIES
+from gaitforge.workers.scenes import saved_profiles
 from gaitforge.workers.scenes.profiles import (
     BACKENDS,
+    NAMED_PROFILES,
     Backend,
     Fidelity,
     FidelityProfile,
-    resolve_profile,
+    check_profile,
 )
 from pydantic import BaseModel, ConfigDict, Field, model_validator
-
-MJCF_BODIES: tuple[str, ...] = ("myoleg", "myoelbow")
-"""Bodies loaded from MyoSuite's MJCF files (MuJoCo only); all others are neutral bodies."""
 
 NonNegative = Annotated[float, Field(ge=0)]
 
@@ -141,6 +142,11 @@ class Scene(_Strict):
     fidelity_tolerance: Annotated[float, Field(gt=0)] | None = Field(
         default=None, description="rad: RMS joint-angle error allowed with fidelity: auto"
     )
+    fidelity_name: str | None = Field(
+        default=None,
+        description="set by Scene.resolved: the name the profile was resolved from "
+        "(built-in or saved profile, 'auto: <saved>'); None for an explicit one. For records",
+    )
     tendon: Literal["rigid", "compliant"] = Field(
         default="rigid", description="OpenSim muscles' tendons (MuJoCo's are always rigid)"
     )
@@ -174,7 +180,74 @@ class Scene(_Strict):
         return round(self.episode_s * self.control_hz)
 
     def profile(self, backend: str) -> FidelityProfile:
-        return resolve_profile(self.fidelity, backend, self.name, self.fidelity_tolerance)
+        """The concrete fidelity profile on ``backend``; raises ``ValueError`` if invalid.
+
+        On an unresolved scene, a saved name or ``auto`` reads this machine's profile
+        directory: only the driver should ask (see :meth:`resolved`).
+        """
+        return resolve_profile(self.fidelity, backend, self.name, self.fidelity_tolerance)[0]
+
+    @property
+    def is_resolved(self) -> bool:
+        """Whether the fidelity is one concrete profile (no name, ``auto`` or mapping)."""
+        return isinstance(self.fidelity, FidelityProfile) and len(self.backends) == 1
+
+    def resolved(self, backend: str) -> Scene:
+        """This scene on ``backend`` only, its fidelity replaced by the concrete profile it
+        names (built-in or saved name, ``auto``, per-backend mapping); ``fidelity_name``
+        keeps the name. Call it where the scene is loaded, on the driver: saved profiles are
+        that machine's files, and a resolved scene reads none, so it runs alike on every
+        node and a checkpoint records the setting that ran. A resolved scene is returned
+        as it is.
+
+        Raises:
+            ValueError: the scene does not run on ``backend``, or its fidelity does not
+                resolve there (one line).
+        """
+        if self.is_resolved and self.backends == [backend]:
+            return self
+        if backend not in self.backends:
+            raise ValueError(f"backend {backend!r}: scene {self.name!r} runs on {self.backends}")
+        profile, name = resolve_profile(self.fidelity, backend, self.name, self.fidelity_tolerance)
+        return self.model_copy(
+            update={
+                "fidelity": profile,
+                "fidelity_name": name or self.fidelity_name,
+                "backends": [backend],
+            }
+        )
+
+
+def resolve_profile(
+    fidelity: Fidelity, backend: str, scene: str | None = None, tolerance: float | None = None
+) -> tuple[FidelityProfile, str | None]:
+    """A scene's fidelity field resolved for ``backend``, and the name it came by (None for an
+    explicit profile); raises ``ValueError`` (one line) if it does not resolve.
+
+    Besides the built-in names (``NAMED_PROFILES``), a name may be a profile saved by
+    ``gaitforge fidelity sweep``, and ``auto`` picks the saved one for ``scene`` within
+    ``tolerance`` (rad); both read this machine's profile directory (``saved_profiles``).
+    """
+    if isinstance(fidelity, dict):
+        if backend not in fidelity:
+            raise ValueError(f"fidelity: no profile for backend {backend!r}")
+        return resolve_profile(fidelity[backend], backend, scene, tolerance)  # type: ignore[index]
+    if isinstance(fidelity, FidelityProfile):
+        return check_profile(fidelity, backend), None
+    named = NAMED_PROFILES[backend]
+    if fidelity in named:
+        return named[fidelity], fidelity
+    if fidelity == "auto":
+        saved = saved_profiles.auto(scene, backend, tolerance)
+        return saved.profile, f"auto: {saved.name}"
+    found = saved_profiles.by_name(fidelity, backend)
+    if found is not None:
+        return found.profile, fidelity
+    raise ValueError(
+        f"fidelity: unknown profile {fidelity!r} for backend {backend!r}; "
+        f"allowed: {sorted(named)}, a saved profile, auto, or an explicit "
+        "{integrator, timestep}"
+    )
 
 
 __all__ = [

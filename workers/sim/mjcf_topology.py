@@ -1,11 +1,25 @@
-"""Topology of MyoSuite's MJCF bodies, read from their compiled MuJoCo models."""
+"""Topology of MyoSuite's MJCF bodies, read from their compiled MuJoCo models.
+
+The scenes layer reads it as committed data (``workers/bodies/data/topology/<body>.yaml``,
+see ``workers.bodies.topology``) and never compiles a model for it. This module writes that
+data, once per myo-sim version, and ``tests/workers/sim/test_mjcf_topology.py`` checks it:
+
+    python -m gaitforge.workers.sim.mjcf_topology --write
+"""
 
 from __future__ import annotations
 
+import argparse
+import logging
+from pathlib import Path
+
 import mujoco
-from gaitforge.workers.scenes.topology import Topology
+import yaml
+from gaitforge.workers.bodies.topology import MJCF_BODIES, Topology, topology_file
 from gaitforge.workers.sim.mjcf_moment_arms import muscle_spans
 from gaitforge.workers.sim.mjcf_sources import MJCF_SOURCES
+
+logger = logging.getLogger(__name__)
 
 FOOT_BODIES = {"foot_right": ("calcn_r", "toes_r"), "foot_left": ("calcn_l", "toes_l")}
 """Bodies whose collision geoms count as feet (MyoLeg naming)."""
@@ -22,7 +36,7 @@ def dependent_joints(model: mujoco.MjModel) -> dict[str, str]:
 
 def mjcf_topology(body: str) -> Topology:
     """Dofs (free root and equality-driven joints excluded), muscle spans, colliding geoms
-    and which of them are feet."""
+    and which of them are feet, from the installed myo-sim model."""
     model = MJCF_SOURCES[body]().compile()
     dependent = dependent_joints(model)
     root_dofs: list[str] = []
@@ -60,3 +74,40 @@ def mjcf_topology(body: str) -> Topology:
         contact_geoms=colliding,
         feet=feet,
     )
+
+
+def topology_yaml(body: str) -> str:
+    """The committed form of ``body``'s topology, as written by ``--write``."""
+    header = (
+        f"# Topology of MyoSuite's {body} (myo-sim), written by\n"
+        "# python -m gaitforge.workers.sim.mjcf_topology --write; do not edit by hand.\n"
+    )
+    return header + yaml.safe_dump(mjcf_topology(body).to_data(), sort_keys=False)
+
+
+def write_all() -> list[Path]:
+    """Write every MJCF body's topology file; returns the files."""
+    paths = []
+    for body in MJCF_BODIES:
+        path = topology_file(body)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(topology_yaml(body))
+        paths.append(path)
+    return paths
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--write", action="store_true", help="write the topology files")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    if not args.write:
+        parser.print_help()
+        return 2
+    for path in write_all():
+        logger.info("wrote %s", path)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -14,8 +14,8 @@ from functools import lru_cache
 import mujoco
 import numpy as np
 from gaitforge.workers.bodies import load_body
+from gaitforge.workers.bodies.topology import Topology, topology_for
 from gaitforge.workers.scenes import PrunePlan, Scene, plan_pruning
-from gaitforge.workers.scenes.topology import Topology, topology_for
 from gaitforge.workers.sim.base import HEALTHY, MAX_SPEED, BodyPose, CompileReport, Health, SimState
 from gaitforge.workers.sim.mjcf_contacts import model_size, restrict_contacts
 from gaitforge.workers.sim.mjcf_lock import lock_joints

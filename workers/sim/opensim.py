@@ -24,8 +24,8 @@ import time
 import numpy as np
 import opensim
 from gaitforge.workers.bodies import available_bodies, load_body
+from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.scenes import Scene, plan_pruning
-from gaitforge.workers.scenes.topology import topology_for
 from gaitforge.workers.sim.base import HEALTHY, MAX_SPEED, BodyPose, CompileReport, Health, SimState
 from gaitforge.workers.sim.opensim_build import PARKED, build_model
 from gaitforge.workers.sim.opensim_size import full_plan, model_size

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import opensim
+from gaitforge.workers.bodies.topology import Topology
 from gaitforge.workers.scenes.prune import PrunePlan
-from gaitforge.workers.scenes.topology import Topology
 from gaitforge.workers.sim.opensim_build import OpenSimBuild
 
 

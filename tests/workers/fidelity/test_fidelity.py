@@ -93,9 +93,9 @@ def test_every_stress_scenario_runs_healthy_at_the_default_profile() -> None:
 def test_pruning_check_measures_the_error_pruning_introduces() -> None:
     """walk-3d welds the subtalar and toe joints: on the held variant the unpruned body
     moves them, so the kept joints' trajectories differ by a small, non-zero amount."""
+    from gaitforge.workers.fidelity.grid import SweepSize
     from gaitforge.workers.fidelity.model_error import pruning
     from gaitforge.workers.fidelity.reference import REFERENCE
-    from gaitforge.workers.fidelity.sweep import SweepSize
 
     scene = load_scene("walk-3d")
     size = SweepSize(short=0.1, long=0.2, seeds=1, task_s=0.2, repeats=1)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import mujoco
 import pytest
+from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.scenes import Scene, load_scene
-from gaitforge.workers.scenes.topology import topology_for
 from gaitforge.workers.sim.mujoco import MujocoSimulator
 
 GAIT2D_MUSCLES = 18

@@ -29,9 +29,9 @@ import opensim
 import pytest
 from gaitforge.workers.bodies import load_body
 from gaitforge.workers.bodies.schema import Body
+from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.scenes import load_scene, plan_pruning
 from gaitforge.workers.scenes.prune import PrunePlan
-from gaitforge.workers.scenes.topology import topology_for
 from gaitforge.workers.sim.mujoco_build import build_spec
 from gaitforge.workers.sim.opensim_build import OpenSimBuild, build_model
 

@@ -1,10 +1,14 @@
 """Saved fidelity profiles: what ``gaitforge fidelity sweep`` recommends, by name.
 
-A sweep saves its recommendation as ``<scene>-<backend>-tol<tolerance>`` (one YAML file)
-in the profile directory: ``$GAITFORGE_PROFILES_DIR`` if set, else ``~/.gaitforge/profiles``.
-A scene then uses it by name (``fidelity: walk-2d-mujoco-tol0.01``) or asks for
-``fidelity: auto`` with ``fidelity_tolerance: 0.01`` (rad): the saved profile for that
-scene and backend with the largest tolerance not above the one asked, fastest on a tie.
+A sweep (``workers.fidelity``) saves its recommendation through this module as
+``<scene>-<backend>-tol<tolerance>`` (one YAML file) in the profile directory:
+``$GAITFORGE_PROFILES_DIR`` if set, else ``~/.gaitforge/profiles``. A scene then uses it by
+name (``fidelity: walk-2d-mujoco-tol0.01``) or asks for ``fidelity: auto`` with
+``fidelity_tolerance: 0.01`` (rad): the saved profile for that scene and backend with the
+largest tolerance not above the one asked, fastest on a tie.
+
+These files are user state on the machine that loads the scene. They are read only there,
+on the driver, when the scene is resolved (``Scene.resolved``); worker nodes never read them.
 """
 
 from __future__ import annotations
@@ -64,7 +68,7 @@ def load_all() -> list[SavedProfile]:
     return found
 
 
-def by_name(name: str, backend: str) -> FidelityProfile | None:
+def by_name(name: str, backend: str) -> SavedProfile | None:
     """The saved profile ``name`` for ``backend``; ``None`` if there is none.
 
     Raises:
@@ -77,11 +81,11 @@ def by_name(name: str, backend: str) -> FidelityProfile | None:
                     f"fidelity: saved profile {name!r} is for backend {saved.backend!r}, "
                     f"not {backend!r}"
                 )
-            return saved.profile
+            return saved
     return None
 
 
-def auto(scene: str | None, backend: str, tolerance: float | None) -> FidelityProfile:
+def auto(scene: str | None, backend: str, tolerance: float | None) -> SavedProfile:
     """The saved profile ``fidelity: auto`` resolves to; ``ValueError`` (one line) if none."""
     if scene is None or tolerance is None:
         raise ValueError("fidelity: auto needs fidelity_tolerance (rad), e.g. 0.01")
@@ -96,4 +100,4 @@ def auto(scene: str | None, backend: str, tolerance: float | None) -> FidelityPr
             f"<= {tolerance:g} in {profiles_dir()}; run: gaitforge fidelity sweep {scene} "
             f"--backend {backend} --tolerance {tolerance:g}"
         )
-    return max(fits, key=lambda s: (s.tolerance, s.steps_per_s)).profile
+    return max(fits, key=lambda s: (s.tolerance, s.steps_per_s))
