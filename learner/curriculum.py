@@ -15,22 +15,33 @@ from dataclasses import dataclass, field
 import numpy as np
 from gaitforge.learner.job import Stage
 from gaitforge.learner.symmetry import MirrorMap
-from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes.io_names import (
+    action_names,
+    lateral_axis,
+    needs_planar_muscles,
+    observation_names,
+)
 from gaitforge.workers.spec_io import SpecError
 
 WINDOW_MAX = 10_000
 
 
 class StageIO:
-    """Observation and muscle names of a stage's scene (from one probe env)."""
+    """Observation and muscle names of a stage's scene on ``backend``, and its lateral axis,
+    asked of the scene (``workers.scenes.io_names``): no env is built. A ``keep.planar``
+    scene on MuJoCo has its in-plane muscles measured on the unpruned model first."""
 
     def __init__(self, scene: Scene, backend: str) -> None:
-        env = MuscleEnv(scene, backend)
-        self.obs_names: list[str] = list(env.obs_names)
-        self.act_names: list[str] = list(env.sim.muscle_names)
-        self.lateral_axis = 3 - env.sim.up_axis - env.sim.forward_axis
-        env.close()
+        planar = None
+        if needs_planar_muscles(scene, backend):
+            from gaitforge.workers.sim.mujoco import planar_muscles_of  # lazy: imports mujoco
+
+            planar = planar_muscles_of(scene)
+        self.obs_names: list[str] = observation_names(scene, backend, planar)
+        self.act_names: list[str] = action_names(scene, backend, planar)
+        self.lateral_axis = lateral_axis(scene.body)
 
 
 def check_stages(io: list[StageIO], scene_names: list[str], mirror: bool) -> list[MirrorMap | None]:
@@ -83,9 +94,8 @@ class EpisodeStats:
         }[name]
 
 
-def episodes_of(fragment: dict, scene: Scene) -> list[EpisodeStats]:
+def episodes_of(fragment: Fragment, scene: Scene) -> list[EpisodeStats]:
     """The episodes that ended in ``fragment`` (a rollout fragment of ``scene``)."""
-    lengths = fragment["episode_length"]
     return [
         EpisodeStats(
             float(r),
@@ -95,10 +105,10 @@ def episodes_of(fragment: dict, scene: Scene) -> list[EpisodeStats]:
             int(n) >= scene.steps_per_episode,
         )
         for r, d, n, f in zip(
-            fragment["episode_return"],
-            fragment["episode_distance"],
-            lengths,
-            fragment["episode_fell"],
+            fragment.episode_return,
+            fragment.episode_distance,
+            fragment.episode_length,
+            fragment.episode_fell,
             strict=True,
         )
     ]
@@ -114,8 +124,8 @@ class CurriculumState:
     """the stage's transition (scene push, new network) is done"""
     episodes: deque[EpisodeStats] = field(default_factory=lambda: deque(maxlen=WINDOW_MAX))
 
-    def add(self, fragment: dict, scene: Scene) -> None:
-        self.stage_env_steps += int(fragment["steps"])
+    def add(self, fragment: Fragment, scene: Scene) -> None:
+        self.stage_env_steps += fragment.steps
         self.episodes.extend(episodes_of(fragment, scene))
 
     def window_mean(self, metric: str, window: int) -> float:

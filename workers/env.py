@@ -20,6 +20,7 @@ import gymnasium as gym
 import numpy as np
 from gaitforge.workers.rewards import TERMS, StepContext, reward_terms, weighted
 from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.scenes.io_names import observation_layout
 from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.base import HEALTHY, Health, SimState
 
@@ -113,17 +114,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def _observation_names(self) -> list[str]:
         sim = self.sim
-        names = [f"q:{d}" for d in sim.dof_names] + [f"qd:{d}" for d in sim.dof_names]
-        if self._locomotion:
-            names += ["pelvis_height", *(f"pelvis_up_{a}" for a in "xyz")]
-            names += [f"pelvis_vel_{a}" for a in "xyz"] + [f"pelvis_angvel_{a}" for a in "xyz"]
-            names += [f"grf:{f}" for f in sim.foot_names]
-        names += [f"act:{m}" for m in sim.muscle_names]
-        names += [f"prev_exc:{m}" for m in sim.muscle_names]
-        names += ["target_speed"] if self._locomotion else ["reach_target"]
-        if self.scene.obstacles is not None:
-            names += ["obstacle_dx", "obstacle_height", "obstacle_radius"]
-        return names
+        return observation_layout(self.scene, sim.dof_names, sim.foot_names, sim.muscle_names)
 
     def _observe(self, s: SimState) -> np.ndarray:
         parts = [s.dof_pos, s.dof_vel]

@@ -78,3 +78,22 @@ def test_a_failing_episode_still_ends_every_observer() -> None:
         run_episode(env, act, 0, logs)
     for log in logs:
         assert log.calls == ["reset", "step", "step", "end"] and log.summary is None
+
+
+def test_the_learner_builds_envs_only_through_the_runner() -> None:
+    """Outside ``workers`` (the pool's actors), envs are built by :class:`EpisodeRunner`."""
+    import ast
+    from pathlib import Path
+
+    import gaitforge.learner
+
+    builders = {"MuscleEnv", "make_simulator", "make"}
+    found = []
+    for path in Path(gaitforge.learner.__path__[0]).glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call):
+                func = node.func
+                name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+                if name in builders and not (name == "make" and "gym" not in ast.unparse(func)):
+                    found.append(f"{path.name}:{node.lineno}: {ast.unparse(node)}")
+    assert not found, found

@@ -79,12 +79,25 @@ def _add_obstacles(spec: mujoco.MjSpec, count: int) -> list[str]:
     return names
 
 
+def _sagittal(scene: Scene) -> tuple[str, ...]:
+    """With ``keep.planar``, the scene's kept dofs (they do not depend on the planar muscle
+    set, so a plan without it gives them); else none."""
+    if not scene.keep.planar:
+        return ()
+    return tuple(plan_pruning(scene, topology_for(scene.body)).kept_dofs)
+
+
+def planar_muscles_of(scene: Scene) -> list[str] | None:
+    """With ``keep.planar``, the body's muscles that act in the plane of the scene's kept
+    dofs, measured on the unpruned model (cached; no simulator built); else None. What
+    ``workers.scenes.io_names`` needs for such a scene on MuJoCo."""
+    return _full_model_facts(scene.body, _sagittal(scene))[1] if scene.keep.planar else None
+
+
 def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology]:
     """Compile ``scene`` to a pruned model, with the report of what was removed."""
     topology = topology_for(scene.body)
-    # kept dofs do not depend on the planar muscle set, so that plan is needed only for it
-    sagittal = tuple(plan_pruning(scene, topology).kept_dofs) if scene.keep.planar else ()
-    size_full, planar = _full_model_facts(scene.body, sagittal)
+    size_full, planar = _full_model_facts(scene.body, _sagittal(scene))
     plan: PrunePlan = plan_pruning(scene, topology, planar if scene.keep.planar else None)
     spec = source_spec(scene.body)
     dropped = lock_joints(spec, plan.locked_dofs)

@@ -1,0 +1,61 @@
+"""Observation and action names from the scene alone equal the built env's, for every
+catalogue scene on every backend; asking needs no simulator."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.scenes import catalogue, load_scene
+from gaitforge.workers.scenes.io_names import (
+    action_names,
+    lateral_axis,
+    needs_planar_muscles,
+    observation_names,
+    world_axes,
+)
+from gaitforge.workers.sim.mujoco import planar_muscles_of
+
+CASES = [(name, backend) for name in catalogue() for backend in load_scene(name).backends]
+
+
+@pytest.mark.parametrize(("name", "backend"), CASES)
+def test_names_equal_the_built_envs(name: str, backend: str) -> None:
+    scene = load_scene(name)
+    planar = planar_muscles_of(scene) if needs_planar_muscles(scene, backend) else None
+    env = MuscleEnv(scene, backend)
+    try:
+        assert observation_names(scene, backend, planar) == env.obs_names
+        assert action_names(scene, backend, planar) == env.sim.muscle_names
+        assert world_axes(scene.body) == (env.sim.up_axis, env.sim.forward_axis)
+        assert lateral_axis(scene.body) == 3 - env.sim.up_axis - env.sim.forward_axis
+    finally:
+        env.close()
+
+
+def test_a_planar_scene_on_mujoco_asks_for_the_measured_muscles() -> None:
+    scene = load_scene("walk-3d-planar")
+    assert needs_planar_muscles(scene, "mujoco")
+    with pytest.raises(ValueError, match="planar"):
+        observation_names(scene, "mujoco")
+    planar = planar_muscles_of(scene)
+    assert planar is not None and 0 < len(action_names(scene, "mujoco", planar)) < 80
+
+
+def test_no_simulator_is_imported_to_ask() -> None:
+    code = (
+        "import sys\n"
+        "from gaitforge.workers.scenes import catalogue, load_scene\n"
+        "from gaitforge.workers.scenes.io_names import needs_planar_muscles, observation_names\n"
+        "for name in catalogue():\n"
+        "    scene = load_scene(name)\n"
+        "    for backend in scene.backends:\n"
+        "        if not needs_planar_muscles(scene, backend):\n"
+        "            assert observation_names(scene, backend)\n"
+        "loaded = [m for m in ('mujoco', 'opensim') if m in sys.modules]\n"
+        "assert not loaded, loaded\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
