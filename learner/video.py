@@ -1,9 +1,10 @@
-"""MP4 videos of episodes, rendered offscreen on the CPU with MuJoCo and OSMesa.
+"""MP4 videos of episodes, rendered offscreen on the CPU with MuJoCo (``mujoco.Renderer``)
+and OSMesa.
 
 Rendering needs Debian's ``libosmesa6`` (``make`` installs it where apt-get exists) and
-``MUJOCO_GL=osmesa``, the default here: the renderer builds its OSMesa context itself, since
+``MUJOCO_GL=osmesa``, the default here: the renderer is handed an OSMesa context class, since
 ``mujoco`` picks its default context class once, when it is imported (long before this module,
-by the simulators), and sets ``MUJOCO_GL`` (``os.environ.setdefault``) once that worked.
+by the simulators), and ``MUJOCO_GL`` is set (``os.environ.setdefault``) once that worked.
 Set ``MUJOCO_GL=egl`` (a GPU) or ``glfw`` before starting the process to use those instead.
 Frames go to ffmpeg (bundled by ``imageio-ffmpeg``) as H.264, yuv420p.
 
@@ -20,6 +21,7 @@ names; a scene without a MuJoCo backend cannot be rendered.
 
 from __future__ import annotations
 
+import importlib
 import logging
 import os
 from pathlib import Path
@@ -44,13 +46,17 @@ BONE_RADIUS = 0.015
 SKELETON_RGBA = np.array([0.85, 0.85, 0.8, 1.0], dtype=np.float32)
 
 
-def _gl_context(width: int, height: int) -> Any:
-    """A GL context for offscreen rendering: OSMesa unless ``MUJOCO_GL`` names another.
+def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
+    """A ``mujoco.Renderer`` on a GL context of ``MUJOCO_GL``'s kind, OSMesa by default.
 
-    ``MUJOCO_GL`` is set (``setdefault``) only once a context was made, so that a machine
-    without OSMesa never hands the setting to child processes (whose ``import mujoco`` would
-    then try to load OSMesa)."""
+    ``mujoco.Renderer`` takes its context class from ``MUJOCO_GL`` as it was when ``mujoco``
+    was imported (by the simulators, long before this), so the class is handed to it here.
+    ``MUJOCO_GL`` is then set (``setdefault``), only once a context was made, so that a
+    machine without OSMesa never hands the setting to child processes (whose
+    ``import mujoco`` would then try to load OSMesa)."""
     backend = (os.environ.get("MUJOCO_GL") or "osmesa").lower()
+    gl_context = importlib.import_module(mujoco.Renderer.__module__).gl_context
+    default = gl_context.GLContext
     try:
         if backend == "osmesa":
             from mujoco.osmesa import GLContext  # sets PYOPENGL_PLATFORM=osmesa if unset
@@ -58,23 +64,26 @@ def _gl_context(width: int, height: int) -> Any:
             from mujoco.egl import GLContext  # type: ignore[no-redef]
         else:
             from mujoco.glfw import GLContext  # type: ignore[no-redef]
-        context = GLContext(width, height)
+        gl_context.GLContext = GLContext
+        room = max(1000, 4 * model.ngeom + 4 * model.nbody + 200)  # + tendons, skeleton
+        renderer = mujoco.Renderer(model, height, width, max_geom=room)
     except Exception as exc:
         raise RuntimeError(
             f"cannot create a {backend} GL context for offscreen rendering "
             f"({type(exc).__name__}: {exc}); on Debian: apt-get install -y libosmesa6"
         ) from exc
+    finally:
+        gl_context.GLContext = default
     os.environ.setdefault("MUJOCO_GL", backend)
-    return context
+    return renderer
 
 
 def osmesa_available() -> str | None:
     """None when offscreen rendering works here, else why not (for test skips, messages)."""
     try:
-        context = _gl_context(16, 16)
+        _renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 16, 16).close()
     except RuntimeError as exc:
         return str(exc)
-    context.free()
     return None
 
 
@@ -174,23 +183,18 @@ class VideoRecorder:
         m.vis.global_.offheight = max(m.vis.global_.offheight, self.height)
         if not antialias:  # multisampling triples the time of a software-rendered frame
             m.vis.quality.offsamples = 0
-        self._gl = _gl_context(self.width, self.height)
-        self._gl.make_current()
-        self._context = mujoco.MjrContext(m, mujoco.mjtFontScale.mjFONTSCALE_100)
-        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._context)
-        self._scene = mujoco.MjvScene(m, maxgeom=max(1000, 4 * m.ngeom + 4 * m.nbody + 200))
+        self._renderer = _renderer(m, self.width, self.height)
+        self._scene = self._renderer.scene
         self._option = mujoco.MjvOption()
         self._option.flags[mujoco.mjtVisFlag.mjVIS_TENDON] = 1
+        self._option.geomgroup[:4] = 1
         self._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = int(antialias)
         self._scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = int(antialias)
         self._tendon_act = np.full(m.ntendon, -1, dtype=int)
         for i in range(m.nu):
             if int(m.actuator_trntype[i]) == int(mujoco.mjtTrn.mjTRN_TENDON):
                 self._tendon_act[m.actuator_trnid[i, 0]] = m.actuator_actadr[i]
-        self._option.geomgroup[:4] = 1
         self._camera = mujoco.MjvCamera()
-        self._viewport = mujoco.MjrRect(0, 0, self.width, self.height)
-        self._pixels = np.empty((self.height, self.width, 3), dtype=np.uint8)
         if m.nlight == 0:  # bodies built from neutral specs have no lights: a brighter headlight
             m.vis.headlight.ambient[:] = 0.45
             m.vis.headlight.diffuse[:] = 0.7
@@ -225,20 +229,14 @@ class VideoRecorder:
         """[height, width, 3] uint8 RGB image of the env's current state."""
         if self._replay is not None:
             self._replay.pose(env)
-        m, d, scene = self._model, self._data, self._scene
-        self._gl.make_current()
-        mujoco.mjv_updateScene(
-            m, d, self._option, None, self._camera, mujoco.mjtCatBit.mjCAT_ALL, scene
-        )
+        self._renderer.update_scene(self._data, self._camera, self._option)
         self._colour_tendons()
         target = self._target()
         self._place_camera(target)
         if self._pelvis >= 0:  # locomotion: progress along the floor
             self._add_floor_stripes(target)
         self._add_skeleton()
-        mujoco.mjr_render(self._viewport, scene, self._context)
-        mujoco.mjr_readPixels(self._pixels, None, self._viewport, self._context)
-        return np.flipud(self._pixels).copy()
+        return self._renderer.render()
 
     def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
         """Episode observer (``workers.episode``): :meth:`capture` the reset pose."""
@@ -268,8 +266,7 @@ class VideoRecorder:
         self._closed = True
         if self._writer is not None:
             self._writer.close()
-        self._context.free()
-        self._gl.free()
+        self._renderer.close()
         logger.info("video: %d frames at %.1f fps to %s", self.frames, self.fps, self.path)
 
     def __enter__(self) -> VideoRecorder:
@@ -318,12 +315,16 @@ class VideoRecorder:
             cam.forward[:] = look
             cam.up[:] = cam_up
 
-    def _add_geom(self) -> mujoco.MjvGeom | None:
+    def _add_geom(
+        self, kind: mujoco.mjtGeom, size: np.ndarray, pos: np.ndarray, rgba: np.ndarray
+    ) -> mujoco.MjvGeom | None:
+        """Append a geom (world frame, unrotated) to the scene; None when it is full."""
         scene = self._scene
         if scene.ngeom >= scene.maxgeom:
             return None
         geom = scene.geoms[scene.ngeom]
         scene.ngeom += 1
+        mujoco.mjv_initGeom(geom, kind, size, pos, np.eye(3).ravel(), rgba)
         return geom
 
     def _add_floor_stripes(self, target: np.ndarray) -> None:
@@ -333,49 +334,26 @@ class VideoRecorder:
         size = np.zeros(3)
         size[forward], size[lateral], size[up] = STRIPE_SPACING / 8, 0.6, 0.001
         for k in range(centre - 12, centre + 13):
-            geom = self._add_geom()
-            if geom is None:
-                return
             pos = np.zeros(3)
             pos[forward], pos[lateral], pos[up] = k * STRIPE_SPACING, target[lateral], 0.001
             shade = 0.3 if k % 2 else 0.45
             rgba = np.array([shade, shade, shade + 0.05, 1.0], dtype=np.float32)
-            mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_BOX, size, pos, np.eye(3).ravel(), rgba)
+            if self._add_geom(mujoco.mjtGeom.mjGEOM_BOX, size, pos, rgba) is None:
+                return
 
     def _add_skeleton(self) -> None:
         m, d = self._model, self._data
+        capsule, sphere = mujoco.mjtGeom.mjGEOM_CAPSULE, mujoco.mjtGeom.mjGEOM_SPHERE
         for body in range(1, m.nbody):
             parent = m.body_parentid[body]
             if parent > 0 and np.linalg.norm(d.xpos[body] - d.xpos[parent]) > 1e-6:
-                geom = self._add_geom()
-                if geom is None:
+                bone = self._add_geom(capsule, np.zeros(3), np.zeros(3), SKELETON_RGBA)
+                if bone is None:
                     return
-                mujoco.mjv_initGeom(
-                    geom,
-                    mujoco.mjtGeom.mjGEOM_CAPSULE,
-                    np.zeros(3),
-                    np.zeros(3),
-                    np.eye(3).ravel(),
-                    SKELETON_RGBA,
-                )
-                mujoco.mjv_connector(
-                    geom,
-                    mujoco.mjtGeom.mjGEOM_CAPSULE,
-                    BONE_RADIUS,
-                    d.xpos[parent],
-                    d.xpos[body],
-                )
-            geom = self._add_geom()
-            if geom is None:
+                mujoco.mjv_connector(bone, capsule, BONE_RADIUS, d.xpos[parent], d.xpos[body])
+            joint = np.array([2 * BONE_RADIUS, 0, 0])
+            if self._add_geom(sphere, joint, d.xpos[body], SKELETON_RGBA) is None:
                 return
-            mujoco.mjv_initGeom(
-                geom,
-                mujoco.mjtGeom.mjGEOM_SPHERE,
-                np.array([2 * BONE_RADIUS, 0, 0]),
-                d.xpos[body],
-                np.eye(3).ravel(),
-                SKELETON_RGBA,
-            )
 
 
 def record_video(
