@@ -125,7 +125,7 @@ def raw_rate(scene_name: str, backend: str, seconds: float, progress: Progress) 
 
 def pool_rate(args: argparse.Namespace, actors: int, act_dim: int, progress: Progress) -> float:
     pool = WorkerPool(
-        load_scene(args.scene),
+        load_scene(args.scene).resolved(),
         functools.partial(UniformExcitationPolicy, act_dim),
         backend=args.backend,
         num_workers=actors,

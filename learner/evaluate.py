@@ -276,14 +276,20 @@ def resolve_checkpoint(path: Path, pick: Literal["latest", "best"] = "latest",
 
 
 def _scene_of(meta: CheckpointMeta, path: Path, override: str | Path | Scene | None) -> Scene:
+    """The scene to evaluate on, resolved here (``Scene.resolved``), where it is loaded."""
     if isinstance(override, Scene):
-        return override
-    if override is not None:
+        scene = override
+    elif override is not None:
         try:
-            return load_scene(override)
+            scene = load_scene(override)
         except SpecError as exc:
             raise EvaluationError(str(exc)) from None
-    return meta.scene_spec(path / META_FILE)
+    else:
+        scene = meta.scene_spec(path / META_FILE)
+    try:
+        return scene.resolved()
+    except ValueError as exc:
+        raise EvaluationError(f"{path}: {exc}") from None
 
 
 def evaluate_checkpoint(

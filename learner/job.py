@@ -183,7 +183,9 @@ def load_job(path: Path) -> tuple[Job, list[Scene]]:
 
 
 def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> list[Scene]:
-    """Each stage's scene, checked against the job's backend."""
+    """Each stage's scene, checked against the job's backend and resolved on this machine
+    (``Scene.resolved``: named, saved and ``auto`` fidelity profiles become concrete ones),
+    so that actors on any node and the checkpoints get the profile chosen here."""
     scenes = []
     for i, stage in enumerate(job.stages):
         ref = stage.scene
@@ -206,5 +208,8 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
             except ValidationError as err:
                 message = format_validation_error(f"{source}: stages.{i}", err)
                 raise SpecError(message.replace(": <root>:", ":")) from None
-        scenes.append(scene)
+        try:
+            scenes.append(scene.resolved())
+        except ValueError as exc:
+            raise SpecError(f"{source}: stages.{i}.scene: {exc}") from None
     return scenes

@@ -312,12 +312,10 @@ class EpisodeRecorder:
 
     def _metadata(self, env: MuscleEnv, extra: Mapping[str, str]) -> dict[str, str]:
         scene = env.scene
-        fidelity = scene.fidelity
-        profile = fidelity if isinstance(fidelity, str) else "custom"
         meta = {
             "scene": scene.name,
             "backend": env.backend,
-            "profile": profile,
+            "profile": scene.profile_name(env.backend),
             "profile_detail": env.sim.report.profile.model_dump_json(),
             "body": scene.body,
             "control_hz": str(scene.control_hz),

@@ -82,7 +82,8 @@ class Trainer:
     ) -> None:
         self.job = job
         self.run_dir = run_dir
-        self.scenes = scenes if scenes is not None else resolve_scenes(job)
+        # resolved here, on the driver: actors and checkpoints get concrete fidelity profiles
+        self.scenes = [s.resolved() for s in scenes] if scenes is not None else resolve_scenes(job)
         self.on_iteration = on_iteration
         self.io = [StageIO(scene, job.backend) for scene in self.scenes]
         self.mirrors = check_stages(self.io, [scene.name for scene in self.scenes], job.ppo.mirror)

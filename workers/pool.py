@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import ray
 from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
 from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes.profiles import FidelityProfile
 from ray.exceptions import RayActorError, RayError
 
 logger = logging.getLogger(__name__)
@@ -164,6 +165,11 @@ class WorkerPool:
     def node_ids(self) -> list[str]:
         """The Ray node of each live actor (blocks until all have started)."""
         return ray.get([slot.actor.node_id.remote() for slot in self._slots], timeout=120)
+
+    def sim_profiles(self) -> list[FidelityProfile]:
+        """The fidelity profile each live actor's simulators integrate with (blocks until
+        all have started)."""
+        return ray.get([slot.actor.sim_profile.remote() for slot in self._slots], timeout=120)
 
     def close(self) -> None:
         for slot in self._slots:

@@ -34,6 +34,7 @@ from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.policy_api import RolloutPolicy
 from gaitforge.workers.probe import process_rss_mib
 from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes.profiles import FidelityProfile
 
 logger = logging.getLogger(__name__)
 
@@ -47,7 +48,8 @@ class _EpisodeTally:
 
 
 class RolloutWorker:
-    """Owns ``num_envs`` envs of ``scene`` on ``backend`` and a policy copy."""
+    """Owns ``num_envs`` envs of ``scene`` on ``backend`` and a policy copy. The scene must
+    be resolved (``Scene.resolved``, on the driver): an actor looks up no fidelity profile."""
 
     def __init__(
         self,
@@ -72,7 +74,7 @@ class RolloutWorker:
         self._build_envs(scene, num_envs)
 
     def _build_envs(self, scene: Scene, num_envs: int) -> None:
-        self.scene = scene
+        self.scene = scene.require_resolved("RolloutWorker")
         self.envs = [MuscleEnv(scene, self.backend) for _ in range(num_envs)]
         self._obs = np.stack(
             [env.reset(seed=self.seed * 10_000 + i)[0] for i, env in enumerate(self.envs)]
@@ -169,6 +171,10 @@ class RolloutWorker:
             pid=os.getpid(),
         )
         return out
+
+    def sim_profile(self) -> FidelityProfile:
+        """The fidelity profile this worker's simulators integrate with."""
+        return self.envs[0].sim.report.profile
 
     def node_id(self) -> str:
         """The Ray node this worker runs on ("local" outside Ray)."""

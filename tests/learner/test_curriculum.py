@@ -10,6 +10,7 @@ from gaitforge.learner.checkpoint import checkpoints, load_checkpoint
 from gaitforge.learner.curriculum import CurriculumState, EpisodeStats
 from gaitforge.learner.job import Job, PromotionRule, Stage, load_job
 from gaitforge.learner.trainer import Trainer
+from gaitforge.workers.scenes.profiles import NAMED_PROFILES
 from gaitforge.workers.spec_io import SpecError
 
 
@@ -101,7 +102,10 @@ def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> 
     assert ends[0]["env_steps"] < 100_000 and ends[1]["verdict"] == "budget spent"
     metas = [load_checkpoint(p)[1] for p in checkpoints(tmp_path / "checkpoints")]
     assert [m.stage.index for m in metas][-2:] == [0, 1]
-    assert metas[-1].scene["fidelity"] == "accurate"
+    # the checkpoint holds the resolved scene: the concrete profile, and the name it came by
+    accurate = NAMED_PROFILES["mujoco"]["accurate"].model_dump(mode="json")
+    assert metas[-1].scene["fidelity"] == {"mujoco": accurate}
+    assert metas[-1].scene["fidelity_names"] == {"mujoco": "accurate"}
     recordings = sorted(p.name for p in (tmp_path / "recordings").glob("*.mcap"))
     assert len(recordings) == 2, "one MCAP recording at each stage end"
     # a run resumed from the last checkpoint has nothing left to do

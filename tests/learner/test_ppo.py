@@ -40,7 +40,7 @@ def test_policy_acts_in_batches_and_evaluates_its_own_samples() -> None:
 
 
 def test_a_nan_in_the_batch_is_refused_naming_the_tensor() -> None:
-    worker = RolloutWorker(load_scene("elbow-reach"), _elbow_factory(), num_envs=2,
+    worker = RolloutWorker(load_scene("elbow-reach").resolved(), _elbow_factory(), num_envs=2,
                            fragment_length=10)  # fmt: skip
     fragment = worker.sample()
     fragment["reward"][3, 1] = np.nan
@@ -53,7 +53,9 @@ def test_elbow_reach_learns_in_process() -> None:
     half of the way from a random policy (about -70) towards 0."""
     torch.manual_seed(0)
     factory = _elbow_factory()
-    worker = RolloutWorker(load_scene("elbow-reach"), factory, num_envs=8, fragment_length=100)
+    worker = RolloutWorker(
+        load_scene("elbow-reach").resolved(), factory, num_envs=8, fragment_length=100
+    )
     policy = factory()
     optimizer = torch.optim.Adam(policy.parameters(), lr=3e-4)
     cfg = PPOSettings(epochs=10, gamma=0.95, minibatch_size=200)

@@ -17,6 +17,7 @@ from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.scenes.spec import FaultInjection
 
 POLICY = functools.partial(UniformExcitationPolicy, 6)  # elbow-reach has 6 muscles
+ELBOW = load_scene("elbow-reach").resolved()
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -26,8 +27,13 @@ def local_ray() -> Iterator[None]:
     ray.shutdown()
 
 
+def test_an_unresolved_scene_is_refused() -> None:
+    with pytest.raises(ValueError, match=r"^WorkerPool: scene 'elbow-reach' .* not resolved"):
+        WorkerPool(load_scene("elbow-reach"), POLICY, num_workers=1)
+
+
 def _faulty(**fault: float) -> Scene:
-    return load_scene("elbow-reach").model_copy(update={"fault": FaultInjection(**fault)})
+    return ELBOW.model_copy(update={"fault": FaultInjection(**fault)})
 
 
 def _collect(pool: WorkerPool, n: int) -> list[tuple[dict, int]]:
@@ -44,7 +50,7 @@ def _collect_until(pool: WorkerPool, event: str, most: int = 100) -> int:
 
 
 def test_fragments_arrive_with_the_policy_version_and_new_weights_reach_the_actors() -> None:
-    pool = WorkerPool(load_scene("elbow-reach"), POLICY, num_workers=2, fragment_length=16)
+    pool = WorkerPool(ELBOW, POLICY, num_workers=2, fragment_length=16)
     try:
         first = _collect(pool, 4)
         assert {version for _, version in first} == {-1}
@@ -67,10 +73,10 @@ def test_fragments_arrive_with_the_policy_version_and_new_weights_reach_the_acto
 
 
 def test_a_new_scene_reaches_live_actors_without_restarting_them() -> None:
-    pool = WorkerPool(load_scene("elbow-reach"), POLICY, num_workers=2, fragment_length=8)
+    pool = WorkerPool(ELBOW, POLICY, num_workers=2, fragment_length=8)
     try:
         _collect(pool, 2)
-        pool.set_scene(load_scene("elbow-reach").model_copy(update={"episode_s": 0.1}))
+        pool.set_scene(ELBOW.model_copy(update={"episode_s": 0.1}))
         frags = [frag for frag, _ in _collect(pool, 6)]
         assert any(frag["truncated"].sum() > 0 for frag in frags[-2:])  # 5-step episodes
         assert pool.stats.actors_started == 2
@@ -116,9 +122,7 @@ def test_nan_steps_are_counted_and_never_reach_the_fragments() -> None:
 
 
 def test_worn_actors_are_recycled() -> None:
-    pool = WorkerPool(
-        load_scene("elbow-reach"), POLICY, num_workers=1, fragment_length=16, max_worker_steps=100
-    )
+    pool = WorkerPool(ELBOW, POLICY, num_workers=1, fragment_length=16, max_worker_steps=100)
     try:
         _collect(pool, 10)  # 64 env steps a fragment: worn after the second one
         assert pool.stats.recycled >= 2

@@ -42,7 +42,8 @@ def _fragments_by_worker(pool: WorkerPool, seconds: float) -> Counter[int]:
 
 
 def test_actors_spread_and_survive_a_node_leaving_and_returning(cluster: Cluster) -> None:
-    pool = WorkerPool(load_scene("elbow-reach"), POLICY, num_workers=2, fragment_length=16)
+    scene = load_scene("elbow-reach").resolved()
+    pool = WorkerPool(scene, POLICY, num_workers=2, fragment_length=16)
     try:
         nodes = pool.node_ids()
         assert len(set(nodes)) == 2, "one actor per worker node"

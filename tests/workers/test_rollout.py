@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+import pytest
 import torch
 from gaitforge.workers.policy_api import UniformExcitationPolicy
 from gaitforge.workers.rollout import RolloutWorker
@@ -16,9 +17,23 @@ MUSCLES = {"elbow-reach": ELBOW_MUSCLES, "walk-2d": 18}
 
 
 def _worker(scene_name: str = "elbow-reach", **kwargs) -> RolloutWorker:
-    scene = kwargs.pop("scene", None) or load_scene(scene_name)
+    scene = (kwargs.pop("scene", None) or load_scene(scene_name)).resolved()
     policy = functools.partial(UniformExcitationPolicy, MUSCLES[scene_name])
     return RolloutWorker(scene, policy, **kwargs)
+
+
+def test_an_unresolved_scene_is_refused() -> None:
+    """A worker may run on a node without the driver's saved profiles: it takes only scenes
+    resolved where they were loaded."""
+    policy = functools.partial(UniformExcitationPolicy, ELBOW_MUSCLES)
+    with pytest.raises(
+        ValueError,
+        match=r"^RolloutWorker: scene 'elbow-reach' has fidelity 'default', not resolved",
+    ):
+        RolloutWorker(load_scene("elbow-reach"), policy)
+    worker = _worker(num_envs=1, fragment_length=2)
+    with pytest.raises(ValueError, match="not resolved"):
+        worker.set_scene(load_scene("elbow-reach"))
 
 
 def test_fragment_has_the_documented_layout() -> None:
@@ -69,6 +84,6 @@ def test_unhealthy_steps_are_flagged_and_counted_and_never_nan() -> None:
 
 def test_set_scene_switches_the_envs() -> None:
     worker = _worker(num_envs=2, fragment_length=5)
-    worker.set_scene(load_scene("elbow-reach").model_copy(update={"episode_s": 0.1}))
+    worker.set_scene(load_scene("elbow-reach").resolved().model_copy(update={"episode_s": 0.1}))
     frag = worker.sample()
     assert frag["truncated"].sum() == 2  # 5-step episodes now

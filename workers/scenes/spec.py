@@ -142,10 +142,10 @@ class Scene(_Strict):
     fidelity_tolerance: Annotated[float, Field(gt=0)] | None = Field(
         default=None, description="rad: RMS joint-angle error allowed with fidelity: auto"
     )
-    fidelity_name: str | None = Field(
-        default=None,
-        description="set by Scene.resolved: the name the profile was resolved from "
-        "(built-in or saved profile, 'auto: <saved>'); None for an explicit one. For records",
+    fidelity_names: dict[Backend, str] = Field(
+        default_factory=dict,
+        description="set by Scene.resolved, for records: per backend, the name its profile "
+        "was resolved from (built-in or saved name, 'auto: <saved name>')",
     )
     tendon: Literal["rigid", "compliant"] = Field(
         default="rigid", description="OpenSim muscles' tendons (MuJoCo's are always rigid)"
@@ -187,33 +187,59 @@ class Scene(_Strict):
         """
         return resolve_profile(self.fidelity, backend, self.name, self.fidelity_tolerance)[0]
 
+    def profile_name(self, backend: str) -> str:
+        """The fidelity profile's name on ``backend``, for records: a built-in or saved
+        name, ``auto: <saved name>``, or ``custom`` for an explicit profile."""
+        if self.is_resolved:
+            return self.fidelity_names.get(backend, "custom")  # type: ignore[call-overload]
+        _, name = resolve_profile(self.fidelity, backend, self.name, self.fidelity_tolerance)
+        return name or "custom"
+
     @property
     def is_resolved(self) -> bool:
-        """Whether the fidelity is one concrete profile (no name, ``auto`` or mapping)."""
-        return isinstance(self.fidelity, FidelityProfile) and len(self.backends) == 1
+        """Whether the fidelity is concrete on every backend of the scene: one explicit
+        profile, or one per backend (no name, no ``auto``: nothing to look up)."""
+        fidelity = self.fidelity
+        if isinstance(fidelity, FidelityProfile):
+            return True
+        return isinstance(fidelity, dict) and all(
+            isinstance(fidelity.get(b), FidelityProfile)  # type: ignore[arg-type]
+            for b in self.backends
+        )
 
-    def resolved(self, backend: str) -> Scene:
-        """This scene on ``backend`` only, its fidelity replaced by the concrete profile it
-        names (built-in or saved name, ``auto``, per-backend mapping); ``fidelity_name``
-        keeps the name. Call it where the scene is loaded, on the driver: saved profiles are
-        that machine's files, and a resolved scene reads none, so it runs alike on every
-        node and a checkpoint records the setting that ran. A resolved scene is returned
-        as it is.
+    def require_resolved(self, where: str) -> Scene:
+        """This scene if it is resolved; else ``ValueError`` (one line) naming ``where``."""
+        if not self.is_resolved:
+            raise ValueError(
+                f"{where}: scene {self.name!r} has fidelity {self.fidelity!r}, not resolved; "
+                "call scene.resolved() on the driver, where the scene is loaded (worker nodes "
+                "hold no saved profiles)"
+            )
+        return self
+
+    def resolved(self) -> Scene:
+        """This scene with its fidelity replaced by the concrete profile it names on each of
+        its backends (built-in or saved name, ``auto``, a per-backend mapping of those);
+        ``fidelity_names`` keeps the names. A resolved scene is returned as it is.
+
+        Call it where the scene is loaded, on the driver: saved profiles are that machine's
+        files, and a resolved scene reads none, so it runs alike on every node, and a
+        checkpoint records the setting that ran. Rollout actors refuse unresolved scenes.
 
         Raises:
-            ValueError: the scene does not run on ``backend``, or its fidelity does not
-                resolve there (one line).
+            ValueError: the fidelity does not resolve (one line; loading the scene has
+                already checked this on the machine that loaded it).
         """
-        if self.is_resolved and self.backends == [backend]:
+        if self.is_resolved:
             return self
-        if backend not in self.backends:
-            raise ValueError(f"backend {backend!r}: scene {self.name!r} runs on {self.backends}")
-        profile, name = resolve_profile(self.fidelity, backend, self.name, self.fidelity_tolerance)
+        found = {
+            b: resolve_profile(self.fidelity, b, self.name, self.fidelity_tolerance)
+            for b in self.backends
+        }
         return self.model_copy(
             update={
-                "fidelity": profile,
-                "fidelity_name": name or self.fidelity_name,
-                "backends": [backend],
+                "fidelity": {b: profile for b, (profile, _) in found.items()},
+                "fidelity_names": {b: name for b, (_, name) in found.items() if name},
             }
         )
 
