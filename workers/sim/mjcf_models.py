@@ -29,8 +29,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 from gaitforge.workers.sim.mjcf_lock import coupled_qpos
+from gaitforge.workers.sim.mujoco_warnings import route_warnings
 
 logger = logging.getLogger(__name__)
+route_warnings()  # MuJoCo's warnings to logging, not to MUJOCO_LOG.TXT in the cwd
 
 FLOOR = "floor"
 ROOT_JOINT = "root"

@@ -23,8 +23,10 @@ from gaitforge.workers.sim.mjcf_moment_arms import planar_muscles
 from gaitforge.workers.sim.mjcf_muscles import remove_muscles, strip_unused
 from gaitforge.workers.sim.mjcf_sources import MJCF_SOURCES
 from gaitforge.workers.sim.mujoco_build import CONTACT_GROUP, FLOOR, build_spec
+from gaitforge.workers.sim.mujoco_warnings import route_warnings
 
 logger = logging.getLogger(__name__)
+route_warnings()  # MuJoCo's warnings to logging, not to MUJOCO_LOG.TXT in the cwd
 
 INTEGRATORS = {
     "euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -128,22 +130,10 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
     return model, report, topology
 
 
-def _log_mujoco_warning(message: str) -> None:
-    logger.debug("mujoco: %s", message.strip())
-
-
-def route_mujoco_warnings_to_logging() -> None:
-    """MuJoCo prints its warnings to stdout; the counters already carry them into
-    ``Health``, so the text goes to this module's logger at DEBUG instead."""
-    if mujoco.get_mju_user_warning() is None:
-        mujoco.set_mju_user_warning(_log_mujoco_warning)
-
-
 class MujocoSimulator:
     """A scene on MuJoCo. Picklable: it pickles as its scene plus its integration state."""
 
     def __init__(self, scene: Scene) -> None:
-        route_mujoco_warnings_to_logging()
         self.scene = scene
         self.model, self.report, topology = compile_scene(scene)
         self.data = mujoco.MjData(self.model)

@@ -23,7 +23,10 @@ import math
 import mujoco
 import numpy as np
 from gaitforge.workers.bodies.schema import GROUND, Body, PathPoint, WrapObject
+from gaitforge.workers.sim.mujoco_warnings import route_warnings
 from gaitforge.workers.sim.muscle_curves import fit_mujoco_fpmax
+
+route_warnings()  # MuJoCo's warnings to logging, not to MUJOCO_LOG.TXT in the cwd
 
 FLOOR = "floor"
 MUSCLE_RANGE = (0.75, 1.05)

@@ -27,7 +27,7 @@ from gaitforge.workers.bodies import available_bodies, load_body
 from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.scenes import Scene, plan_pruning
 from gaitforge.workers.sim.base import HEALTHY, MAX_SPEED, BodyPose, CompileReport, Health, SimState
-from gaitforge.workers.sim.opensim_build import PARKED, build_model
+from gaitforge.workers.sim.opensim_build import PARKED, build_model, quiet_opensim_log
 from gaitforge.workers.sim.opensim_size import full_plan, model_size
 
 logger = logging.getLogger(__name__)
@@ -44,13 +44,6 @@ INTEGRATORS = {
 }
 UP, FORWARD = 1, 0
 """Neutral bodies are Y-up and face +X."""
-
-
-def quiet_opensim_log() -> None:
-    """OpenSim logs to stdout at INFO by default, and its console sink cannot be detached:
-    silence it. Its errors also raise, and ``step`` logs those here (INFO) and names them in
-    ``Health``."""
-    opensim.Logger.setLevelString("off")
 
 
 class OpenSimSimulator:

@@ -43,6 +43,18 @@ from gaitforge.workers.sim.muscle_curves import thelen_passive, thelen_passive_s
 
 logger = logging.getLogger(__name__)
 
+
+def quiet_opensim_log() -> None:
+    """OpenSim logs to stdout at INFO by default, and its console sink cannot be detached:
+    silence it. Its default file sink would write ``opensim.log`` into the working
+    directory: remove it. Its errors also raise, and the simulator logs those (INFO) and
+    names them in ``Health``. Called when this module (every OpenSim path) is imported."""
+    opensim.Logger.removeFileSink()
+    opensim.Logger.setLevelString("off")
+
+
+quiet_opensim_log()
+
 FLOOR = "floor"
 OBSTACLE_PREFIX = "obstacle_"
 PARKED = -100.0
