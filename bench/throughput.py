@@ -138,7 +138,7 @@ def pool_rate(args: argparse.Namespace, actors: int, act_dim: int, progress: Pro
             fragment, _ = pool.next_fragment(timeout_s=timeout)
         except TimeoutError:
             return []
-        return [(int(fragment["worker"]), int(fragment["steps"]))]
+        return [(fragment.worker, fragment.steps)]
 
     try:
         return measure(f"pool {actors} actors", actors, poll, args.seconds, progress)

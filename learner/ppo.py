@@ -10,6 +10,7 @@ import numpy as np
 import torch
 from gaitforge.learner.gae import compute_gae
 from gaitforge.learner.policy import GaussianPolicy
+from gaitforge.workers.fragment import Fragment
 from pydantic import BaseModel, ConfigDict, Field
 
 
@@ -74,22 +75,25 @@ FROM_ENV = ("obs", "action", "logp", "value", "reward", "bootstrap_value", "last
 """Fragment arrays checked before any arithmetic, so a NaN is named where it entered."""
 
 
-def batch_from_fragments(fragments: list[dict], cfg: PPOSettings) -> dict[str, torch.Tensor]:
+def batch_from_fragments(fragments: list[Fragment], cfg: PPOSettings) -> dict[str, torch.Tensor]:
     """Flatten fragments ``[T, K, ...]`` into one batch ``[N, ...]`` with advantages and
     returns (GAE per fragment with ``cfg.gamma`` and ``cfg.lam``, bootstrapped on truncation
     and at the fragment end)."""
     parts: dict[str, list[np.ndarray]] = {k: [] for k in ("obs", "action", "logp", "value")}
     advantages, returns = [], []
     for f in fragments:
-        check_finite({k: torch.from_numpy(np.asarray(f[k], dtype=np.float64)) for k in FROM_ENV})
+        check_finite(
+            {k: torch.from_numpy(np.asarray(getattr(f, k), dtype=np.float64)) for k in FROM_ENV}
+        )
         adv, ret = compute_gae(
-            f["reward"], f["value"], f["terminated"], f["truncated"],
-            f["bootstrap_value"], f["last_value"], cfg.gamma, cfg.lam,
+            f.reward, f.value, f.terminated, f.truncated, f.bootstrap_value, f.last_value,
+            cfg.gamma, cfg.lam,
         )  # fmt: skip
         advantages.append(adv.reshape(-1))
         returns.append(ret.reshape(-1))
         for key in parts:
-            parts[key].append(f[key].reshape(-1, *f[key].shape[2:]))
+            array = getattr(f, key)
+            parts[key].append(array.reshape(-1, *array.shape[2:]))
     batch = {key: torch.from_numpy(np.concatenate(v)) for key, v in parts.items()}
     batch["advantage"] = torch.from_numpy(np.concatenate(advantages))
     batch["return"] = torch.from_numpy(np.concatenate(returns))

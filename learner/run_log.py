@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from gaitforge.learner.policy import ActorCritic
 from gaitforge.workers.episode import EpisodeRunner
+from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
 
 if TYPE_CHECKING:
@@ -19,18 +20,18 @@ if TYPE_CHECKING:
 logger = logging.getLogger(__name__)
 
 
-def batch_stats(fragments: list[dict]) -> dict:
+def batch_stats(fragments: list[Fragment]) -> dict:
     """A batch's env steps, finished episodes, health causes (count) and reward terms
     (weighted mean per env step)."""
-    steps = sum(int(f["steps"]) for f in fragments)
+    steps = sum(f.steps for f in fragments)
     health: Counter[str] = Counter()
     terms: Counter[str] = Counter()
     for f in fragments:
-        health.update(f["health"])
-        terms.update({k: v * int(f["steps"]) / steps for k, v in f["reward_terms"].items()})
+        health.update(f.health)
+        terms.update({k: v * f.steps / steps for k, v in f.reward_terms.items()})
     return {
         "batch_steps": steps,
-        "episodes": sum(len(f["episode_return"]) for f in fragments),
+        "episodes": sum(f.episodes for f in fragments),
         "health": dict(health),
         "reward_terms": dict(terms),
     }

@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import Protocol
 
 import torch
+from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
 from gaitforge.workers.scenes import Scene
 
@@ -23,7 +24,7 @@ class Sampler(Protocol):
         self, policy_factory: PolicyFactory, weights: dict[str, torch.Tensor]
     ) -> int: ...
 
-    def next_fragment(self, timeout_s: float | None = None) -> tuple[dict, int]: ...
+    def next_fragment(self, timeout_s: float | None = None) -> tuple[Fragment, int]: ...
 
     def close(self) -> None: ...
 
@@ -48,7 +49,7 @@ class LocalSampler:
         self.worker.set_policy(policy_factory)
         return self.set_weights(weights)
 
-    def next_fragment(self, timeout_s: float | None = None) -> tuple[dict, int]:
+    def next_fragment(self, timeout_s: float | None = None) -> tuple[Fragment, int]:
         return self.worker.sample(self._weights, self.version), self.version
 
     def close(self) -> None:

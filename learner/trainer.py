@@ -53,6 +53,7 @@ from gaitforge.learner.ppo import batch_from_fragments, ppo_update
 from gaitforge.learner.run_log import ScalarLog, batch_stats, record_policy
 from gaitforge.learner.sampling import LocalSampler, Sampler
 from gaitforge.learner.symmetry import add_mirrored
+from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
@@ -216,17 +217,17 @@ class Trainer:
             self.scalars.close()
         return self.history
 
-    def _gather(self, sampler: Sampler, env_steps: int) -> list[dict]:
+    def _gather(self, sampler: Sampler, env_steps: int) -> list[Fragment]:
         """Fragments of the current policy version or newer, at least ``env_steps`` steps;
         every one counts in the stage's episodes and the run's env steps."""
-        fragments: list[dict] = []
-        while sum(int(f["steps"]) for f in fragments) < env_steps:
+        fragments: list[Fragment] = []
+        while sum(f.steps for f in fragments) < env_steps:
             fragment, version = sampler.next_fragment(timeout_s=self.job.workers.timeout_s)
             if version < self._min_version:
                 continue  # made before a scene or network switch
             fragments.append(fragment)
             self.curriculum.add(fragment, self.scene)
-            self.env_steps += int(fragment["steps"])
+            self.env_steps += fragment.steps
         return fragments
 
     def _iterate(self, sampler: Sampler) -> None:
@@ -234,7 +235,7 @@ class Trainer:
         start = time.perf_counter()
         fragments = self._gather(sampler, ppo.batch_env_steps)
         gathered_s = time.perf_counter() - start
-        obs = np.concatenate([f["obs"].reshape(-1, f["obs"].shape[-1]) for f in fragments])
+        obs = np.concatenate([f.flat_obs() for f in fragments])
         progress = min(1.0, self.curriculum.stage_env_steps / stage.env_steps)
         cfg = ppo.at(progress)
         for group in self.optimizer.param_groups:
@@ -358,7 +359,7 @@ class Trainer:
 
     # ---- metrics and checkpoints ----------------------------------------------------------
 
-    def _metrics(self, fragments: list[dict], losses: dict, lr: float, entropy_coef: float,
+    def _metrics(self, fragments: list[Fragment], losses: dict, lr: float, entropy_coef: float,
                  gathered_s: float, start: float) -> dict:  # fmt: skip
         stats = batch_stats(fragments)
         steps = stats.pop("batch_steps")

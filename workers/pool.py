@@ -24,6 +24,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 
 import ray
+from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.scenes.profiles import FidelityProfile
@@ -74,7 +75,9 @@ class _Slot:
 
 
 class WorkerPool:
-    """``num_workers`` Ray actors, each with ``envs_per_worker`` envs of ``scene``."""
+    """``num_workers`` Ray actors, each with ``envs_per_worker`` envs of ``scene``, which
+    must be resolved (``Scene.resolved``) where it was loaded: actors on other nodes look up
+    no fidelity profile (``ValueError`` otherwise)."""
 
     def __init__(
         self,
@@ -91,9 +94,9 @@ class WorkerPool:
         queue_depth: int = 2,
         seed: int = 0,
     ) -> None:
+        self.scene = scene.require_resolved("WorkerPool")
         if not ray.is_initialized():
             ray.init(include_dashboard=False, logging_level=logging.WARNING)
-        self.scene = scene
         self.backend = backend
         self.timeout_s = timeout_s
         self.max_worker_steps = max_worker_steps
@@ -127,7 +130,7 @@ class WorkerPool:
     def set_scene(self, scene: Scene) -> None:
         """Push a new scene (curriculum stage) to the live actors without restarting them:
         each switches after its in-flight fragment. Replacements start on it."""
-        self.scene = scene
+        self.scene = scene.require_resolved("WorkerPool.set_scene")
         for slot in self._slots:
             slot.actor.set_scene.remote(scene)
 
@@ -139,7 +142,7 @@ class WorkerPool:
             slot.actor.set_policy.remote(policy_factory)
         return self.set_weights(weights)
 
-    def next_fragment(self, timeout_s: float | None = None) -> tuple[dict, int]:
+    def next_fragment(self, timeout_s: float | None = None) -> tuple[Fragment, int]:
         """The first fragment back from any actor, and the policy version that made it."""
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         while deadline is None or time.monotonic() < deadline:
@@ -154,7 +157,7 @@ class WorkerPool:
                     self._on_death(slot, exc)
                     continue
                 self._account(slot, fragment)
-                return fragment, int(fragment["policy_version"])
+                return fragment, fragment.policy_version
             self._kill_overdue()
         raise TimeoutError(f"no fragment within {timeout_s} s")
 
@@ -225,15 +228,15 @@ class WorkerPool:
                 self.stats.timeouts += 1
                 self._replace(slot)
 
-    def _account(self, slot: _Slot, fragment: dict) -> None:
+    def _account(self, slot: _Slot, fragment: Fragment) -> None:
         slot.progress_at = time.monotonic()
         self.stats.fragments += 1
-        self.stats.env_steps += int(fragment["steps"])
-        self.stats.health.update(fragment["health"])
-        worn = (
-            self.max_worker_steps is not None
-            and fragment["worker_steps_total"] >= self.max_worker_steps
-        ) or (self.max_worker_rss_mib is not None and fragment["rss_mib"] > self.max_worker_rss_mib)
+        self.stats.env_steps += fragment.steps
+        self.stats.health.update(fragment.health)
+        max_steps, max_rss = self.max_worker_steps, self.max_worker_rss_mib
+        worn = (max_steps is not None and fragment.worker_steps_total >= max_steps) or (
+            max_rss is not None and fragment.rss_mib > max_rss
+        )
         if worn and not slot.retiring:  # no new requests: let the queued ones finish
             slot.retiring = True
             self.stats.recycled += 1

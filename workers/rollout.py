@@ -1,22 +1,10 @@
 """A rollout worker: K envs of one scene and a CPU copy of the policy, stepped in lockstep.
 
 ``RolloutWorker`` is a plain class (used in-process by learner tests) that the pool wraps
-with ``ray.remote``. Each ``sample`` call returns one fixed-length fragment: a dict of numpy
-arrays with leading dimensions ``[T, K]``:
-
-    obs [T, K, obs_dim] float32     observation the action was taken on
-    action [T, K, act_dim] float32  as the policy drew it (the env clips it to [0, 1])
-    logp [T, K], value [T, K]       policy log-probability and value estimate
-    reward [T, K] float32
-    terminated [T, K], truncated [T, K] bool
-    unhealthy [T, K] bool           the step was ended by a simulator failure
-    bootstrap_value [T, K]          value of the final observation where ``truncated`` (else 0)
-    last_obs [K, obs_dim], last_value [K]   to bootstrap the fragment's end
-    episode_return, episode_length, episode_distance, episode_fell [E]  episodes ended here
-
-plus ``health`` (cause -> count), ``reward_terms`` (term -> mean per env step, weighted),
-``policy_version``, ``worker`` and timing. Policy
-inference is batched over the K envs, one torch thread.
+with ``ray.remote``. Each ``sample`` call returns one fixed-length
+:class:`~gaitforge.workers.fragment.Fragment` (numpy arrays with leading dimensions
+``[T, K]``; its docstring gives every array). Policy inference is batched over the K envs,
+one torch thread.
 """
 
 from __future__ import annotations
@@ -31,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.policy_api import RolloutPolicy
 from gaitforge.workers.probe import process_rss_mib
 from gaitforge.workers.scenes import Scene
@@ -98,7 +87,7 @@ class RolloutWorker:
             self.policy.load_state_dict(weights)
             self.policy_version = version
 
-    def sample(self, weights: dict[str, torch.Tensor] | None = None, version: int = -1) -> dict:
+    def sample(self, weights: dict[str, torch.Tensor] | None = None, version: int = -1) -> Fragment:
         """One fragment ``[T, K, ...]``; loads ``weights`` first if ``version`` is new."""
         if weights is not None:
             self.set_weights(weights, version)
@@ -106,17 +95,15 @@ class RolloutWorker:
         t_len, k = self.fragment_length, len(self.envs)
         obs_dim = self._obs.shape[1]
         act_dim = self.envs[0].action_space.shape[0]
-        out = {
-            "obs": np.zeros((t_len, k, obs_dim), np.float32),
-            "action": np.zeros((t_len, k, act_dim), np.float32),
-            "logp": np.zeros((t_len, k), np.float32),
-            "value": np.zeros((t_len, k), np.float32),
-            "reward": np.zeros((t_len, k), np.float32),
-            "terminated": np.zeros((t_len, k), bool),
-            "truncated": np.zeros((t_len, k), bool),
-            "unhealthy": np.zeros((t_len, k), bool),
-            "bootstrap_value": np.zeros((t_len, k), np.float32),
-        }
+        obs_out = np.zeros((t_len, k, obs_dim), np.float32)
+        action_out = np.zeros((t_len, k, act_dim), np.float32)
+        logp_out = np.zeros((t_len, k), np.float32)
+        value_out = np.zeros((t_len, k), np.float32)
+        reward_out = np.zeros((t_len, k), np.float32)
+        terminated_out = np.zeros((t_len, k), bool)
+        truncated_out = np.zeros((t_len, k), bool)
+        unhealthy_out = np.zeros((t_len, k), bool)
+        bootstrap_out = np.zeros((t_len, k), np.float32)
         episodes: list[tuple[float, int, float, bool]] = []
         health: Counter[str] = Counter()
         term_sums: Counter[str] = Counter()
@@ -124,19 +111,19 @@ class RolloutWorker:
             with torch.no_grad():
                 action, logp, value = self.policy.act(torch.from_numpy(self._obs))
             actions = action.numpy()
-            out["obs"][t], out["action"][t] = self._obs, actions
-            out["logp"][t], out["value"][t] = logp.numpy(), value.numpy()
+            obs_out[t], action_out[t] = self._obs, actions
+            logp_out[t], value_out[t] = logp.numpy(), value.numpy()
             final_obs: dict[int, np.ndarray] = {}
             for i, env in enumerate(self.envs):
                 obs, reward, terminated, truncated, info = env.step(actions[i])
-                out["reward"][t, i] = reward
-                out["terminated"][t, i], out["truncated"][t, i] = terminated, truncated
+                reward_out[t, i] = reward
+                terminated_out[t, i], truncated_out[t, i] = terminated, truncated
                 tally = self._tally[i]
                 tally.ret += reward
                 tally.length += 1
                 term_sums.update(info["reward_terms"])
                 if info["health"] != "ok":
-                    out["unhealthy"][t, i] = True
+                    unhealthy_out[t, i] = True
                     health[info["health"]] += 1
                 if terminated or truncated:
                     episodes.append(
@@ -151,26 +138,23 @@ class RolloutWorker:
                 with torch.no_grad():
                     values = self.policy.value(torch.from_numpy(np.stack(list(final_obs.values()))))
                 for i, v in zip(final_obs, values.numpy(), strict=True):
-                    out["bootstrap_value"][t, i] = v
+                    bootstrap_out[t, i] = v
         with torch.no_grad():
-            out["last_value"] = self.policy.value(torch.from_numpy(self._obs)).numpy()
-        out["last_obs"] = self._obs.copy()
+            last_value = self.policy.value(torch.from_numpy(self._obs)).numpy()
         stats = np.array(episodes, dtype=float).reshape(-1, 4)
-        out["episode_return"], out["episode_length"] = stats[:, 0], stats[:, 1].astype(int)
-        out["episode_distance"], out["episode_fell"] = stats[:, 2], stats[:, 3].astype(bool)
         self.steps_total += t_len * k
-        out.update(
+        return Fragment(
+            obs=obs_out, action=action_out, logp=logp_out, value=value_out, reward=reward_out,
+            terminated=terminated_out, truncated=truncated_out, unhealthy=unhealthy_out,
+            bootstrap_value=bootstrap_out, last_obs=self._obs.copy(), last_value=last_value,
+            episode_return=stats[:, 0], episode_length=stats[:, 1].astype(np.int64),
+            episode_distance=stats[:, 2], episode_fell=stats[:, 3].astype(bool),
             health=dict(health),
             reward_terms={name: total / (t_len * k) for name, total in term_sums.items()},
-            policy_version=self.policy_version,
-            worker=self.worker_id,
-            steps=t_len * k,
-            wall_s=time.perf_counter() - start,
-            worker_steps_total=self.steps_total,
-            rss_mib=process_rss_mib(),
-            pid=os.getpid(),
-        )
-        return out
+            policy_version=self.policy_version, worker=self.worker_id, steps=t_len * k,
+            wall_s=time.perf_counter() - start, worker_steps_total=self.steps_total,
+            rss_mib=process_rss_mib(), pid=os.getpid(),
+        )  # fmt: skip
 
     def sim_profile(self) -> FidelityProfile:
         """The fidelity profile this worker's simulators integrate with."""

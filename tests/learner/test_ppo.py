@@ -43,7 +43,7 @@ def test_a_nan_in_the_batch_is_refused_naming_the_tensor() -> None:
     worker = RolloutWorker(load_scene("elbow-reach").resolved(), _elbow_factory(), num_envs=2,
                            fragment_length=10)  # fmt: skip
     fragment = worker.sample()
-    fragment["reward"][3, 1] = np.nan
+    fragment.reward[3, 1] = np.nan
     with pytest.raises(FloatingPointError, match=r"^reward: contains NaN"):
         batch_from_fragments([fragment], PPOSettings())
 
@@ -62,8 +62,8 @@ def test_elbow_reach_learns_in_process() -> None:
     returns = []
     for version in range(40):
         fragment = worker.sample(policy.state_dict(), version)
-        returns.append(float(fragment["episode_return"].mean()))
-        policy.norm.update(torch.from_numpy(fragment["obs"]).reshape(-1, fragment["obs"].shape[-1]))
+        returns.append(float(fragment.episode_return.mean()))
+        policy.norm.update(torch.from_numpy(fragment.flat_obs()))
         ppo_update(policy, optimizer, batch_from_fragments([fragment], cfg), cfg)
     start, end = np.mean(returns[:3]), np.mean(returns[-3:])
     assert start < -50, f"a random policy should do badly: {start:.1f}"

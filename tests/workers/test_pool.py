@@ -54,10 +54,10 @@ def test_fragments_arrive_with_the_policy_version_and_new_weights_reach_the_acto
     try:
         first = _collect(pool, 4)
         assert {version for _, version in first} == {-1}
-        seen = {frag["worker"] for frag, _ in first}
+        seen = {frag.worker for frag, _ in first}
         deadline = time.monotonic() + 90  # actors start seconds apart on 2 busy cores
         while seen != {0, 1} and time.monotonic() < deadline:
-            seen.add(pool.next_fragment(timeout_s=120)[0]["worker"])
+            seen.add(pool.next_fragment(timeout_s=120)[0].worker)
         assert seen == {0, 1}
         policy = UniformExcitationPolicy(6)
         with torch.no_grad():
@@ -66,7 +66,7 @@ def test_fragments_arrive_with_the_policy_version_and_new_weights_reach_the_acto
         later = _collect(pool, 6)
         newest = [frag for frag, v in later if v == version]
         assert newest, "new weights never reached the actors"
-        assert all(frag["action"].mean() > 0.7 for frag in newest)
+        assert all(frag.action.mean() > 0.7 for frag in newest)
         assert pool.stats.actors_started == 2 and pool.stats.actor_deaths == 0
     finally:
         pool.close()
@@ -78,7 +78,7 @@ def test_a_new_scene_reaches_live_actors_without_restarting_them() -> None:
         _collect(pool, 2)
         pool.set_scene(ELBOW.model_copy(update={"episode_s": 0.1}))
         frags = [frag for frag, _ in _collect(pool, 6)]
-        assert any(frag["truncated"].sum() > 0 for frag in frags[-2:])  # 5-step episodes
+        assert any(frag.truncated.sum() > 0 for frag in frags[-2:])  # 5-step episodes
         assert pool.stats.actors_started == 2
     finally:
         pool.close()
@@ -115,8 +115,8 @@ def test_nan_steps_are_counted_and_never_reach_the_fragments() -> None:
     try:
         frags = [frag for frag, _ in _collect(pool, 6)]
         assert sum(pool.stats.health.values()) >= 1
-        assert all(np.isfinite(frag["obs"]).all() for frag in frags)
-        assert all(np.isfinite(frag["reward"]).all() for frag in frags)
+        assert all(np.isfinite(frag.obs).all() for frag in frags)
+        assert all(np.isfinite(frag.reward).all() for frag in frags)
     finally:
         pool.close()
 

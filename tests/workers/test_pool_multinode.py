@@ -37,7 +37,7 @@ def _fragments_by_worker(pool: WorkerPool, seconds: float) -> Counter[int]:
     seen: Counter[int] = Counter()
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
-        seen[pool.next_fragment(timeout_s=seconds)[0]["worker"]] += 1
+        seen[pool.next_fragment(timeout_s=seconds)[0].worker] += 1
     return seen
 
 
@@ -63,7 +63,7 @@ def test_actors_spread_and_survive_a_node_leaving_and_returning(cluster: Cluster
         deadline = time.monotonic() + 90
         seen: set[int] = set()
         while len(seen) < 2 and time.monotonic() < deadline:
-            seen.add(pool.next_fragment(timeout_s=90)[0]["worker"])
+            seen.add(pool.next_fragment(timeout_s=90)[0].worker)
         assert seen == {0, 2}, "the replacement starts on the returning node"
         assert len(set(pool.node_ids())) == 2
     finally:
