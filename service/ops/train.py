@@ -1,0 +1,252 @@
+"""Training operations: a job (file or spec) with overrides and budget scaling, a run that can
+be stopped cleanly between iterations, and one-line status reports for logs.
+
+    training = prepare_training(TrainRequest(job_file=Path("examples/stand-2d.yaml")))
+    result = training.run(on_iteration=ProgressLog(every_s=10.0))
+    # from another thread or a signal handler: training.request_stop()
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from gaitforge.learner.job import Job, load_job, resolve_scenes
+from gaitforge.workers.spec_io import validate_model
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from gaitforge.learner.trainer import Trainer
+    from gaitforge.workers.scenes import Scene
+
+logger = logging.getLogger(__name__)
+
+
+class TrainRequest(BaseModel):
+    """What to train and how; exactly one of ``job_file`` and ``job``."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    job_file: Path | None = Field(default=None, description="a job YAML file")
+    job: dict[str, Any] | None = Field(
+        default=None, description="a job spec (as in a job file); scene paths relative to "
+        "``base_dir``",
+    )  # fmt: skip
+    base_dir: Path = Field(default=Path("."), description="where ``job``'s scene paths start")
+    run_dir: Path | None = Field(
+        default=None, description="checkpoints, TensorBoard and recordings; resumes from its "
+        "latest checkpoint (default: runs/<job name>)",
+    )  # fmt: skip
+    workers: int | None = Field(
+        default=None, ge=0, description="Ray rollout actors (0: in-process); overrides the job"
+    )
+    address: str | None = Field(default=None, description="Ray cluster address to join")
+    budget_scale: float = Field(
+        default=1.0, gt=0, le=100, description="multiplies every stage's env-step budget"
+    )
+    tensorboard: bool = Field(default=True, description="write TensorBoard scalars")
+
+    @model_validator(mode="after")
+    def _one_job(self) -> TrainRequest:
+        if (self.job_file is None) == (self.job is None):
+            raise ValueError("give a job file or a job spec, not both or neither")
+        return self
+
+
+class TrainResult(BaseModel):
+    """Where a run stands when :meth:`Training.run` returns."""
+
+    run_dir: Path
+    checkpoint: Path | None = Field(description="the newest checkpoint (None: none yet)")
+    iterations: int = Field(description="PPO updates made by this call")
+    iteration: int = Field(description="PPO updates of the run so far")
+    env_steps: int = Field(description="env steps of the run so far")
+    stage: int = Field(description="index of the current stage (= stages when finished)")
+    finished: bool = Field(description="every stage is over")
+    stopped: bool = Field(description="ended early by request_stop (a signal, a cancel)")
+
+
+def scale_budget(job: Job, scale: float, source: str = "job") -> Job:
+    """``job`` with every stage's env-step budget (and blend ramp) times ``scale``."""
+    return apply_overrides(job, budget_scale=scale, source=source)
+
+
+def apply_overrides(
+    job: Job,
+    workers: int | None = None,
+    address: str | None = None,
+    budget_scale: float = 1.0,
+    source: str = "job",
+) -> Job:
+    """The job with a request's overrides applied, validated again.
+
+    Raises:
+        SpecError: the result does not validate (one line naming ``source`` and the field).
+    """
+    raw = job.model_dump()
+    if workers is not None:
+        raw["workers"]["num_workers"] = workers
+    if address is not None:
+        raw["workers"]["ray_address"] = address
+    for stage in raw["stages"]:
+        stage["env_steps"] = max(1, round(stage["env_steps"] * budget_scale))
+        if stage["blend"] is not None:
+            stage["blend"]["ramp_env_steps"] = max(
+                1, round(stage["blend"]["ramp_env_steps"] * budget_scale)
+            )
+    return validate_model(raw, Job, source)
+
+
+def load_request(request: TrainRequest) -> tuple[Job, list[Scene]]:
+    """The request's job with its overrides, and each stage's resolved scene.
+
+    Raises:
+        SpecError: a bad job file or spec, one line naming the file and the field.
+    """
+    if request.job_file is not None:
+        source = str(request.job_file)
+        job, scenes = load_job(request.job_file)
+    else:
+        source = "job"
+        job = validate_model(request.job or {}, Job, source)
+        scenes = resolve_scenes(job, base=request.base_dir, source=source)
+    job = apply_overrides(job, request.workers, request.address, request.budget_scale, source)
+    return job, scenes
+
+
+class Training:
+    """A prepared run: the job, its scenes and the trainer (resumed from ``run_dir``)."""
+
+    def __init__(self, job: Job, scenes: list[Scene], run_dir: Path, tensorboard: bool = True):
+        from gaitforge.learner.trainer import Trainer  # lazy: imports torch
+
+        self.job = job
+        self.scenes = scenes
+        self.run_dir = run_dir
+        self.trainer: Trainer = Trainer(job, run_dir, scenes, tensorboard=tensorboard)
+        self._started_ray = False
+        self._stopped = False
+
+    def stage_progress(self) -> list[int]:
+        """Env steps done in each stage (a finished stage counts its whole budget)."""
+        stages, current = self.job.stages, self.trainer.curriculum.stage
+        done = [s.env_steps if i < current else 0 for i, s in enumerate(stages)]
+        if not self.trainer.done:
+            done[current] = self.trainer.curriculum.stage_env_steps
+        return done
+
+    @property
+    def uses_ray(self) -> bool:
+        return self.job.workers.num_workers != 0
+
+    def start_ray(self) -> bool:
+        """Start (or join, with ``workers.ray_address``) Ray now if the job's rollouts run on
+        Ray actors and Ray is not up, so that a caller can install its signal handlers after
+        Ray's; True if this call started it (:meth:`close` then shuts it down)."""
+        if not self.uses_ray:
+            return False
+        import ray  # lazy: in-process training needs no Ray
+
+        if ray.is_initialized():
+            return False
+        address = self.job.workers.ray_address
+        if address is None:
+            ray.init(include_dashboard=False, logging_level=logging.WARNING)
+        else:
+            ray.init(address=address, logging_level=logging.WARNING)
+        self._started_ray = True
+        return True
+
+    def request_stop(self) -> None:
+        """Stop after the current iteration, with a checkpoint; safe from a signal handler."""
+        self._stopped = True
+        self.trainer.request_stop()
+
+    def run(
+        self,
+        max_iterations: int | None = None,
+        on_iteration: Callable[[dict], None] | None = None,
+    ) -> TrainResult:
+        """Train until every stage is over, ``max_iterations`` more updates or
+        :meth:`request_stop`; ``on_iteration`` sees each iteration's metrics."""
+        trainer = self.trainer
+        trainer.on_iteration = on_iteration
+        start = trainer.iteration
+        trainer.run(max_iterations=max_iterations)
+        return TrainResult(
+            run_dir=self.run_dir, checkpoint=newest_checkpoint(self.run_dir),
+            iterations=trainer.iteration - start, iteration=trainer.iteration,
+            env_steps=trainer.env_steps, stage=trainer.curriculum.stage,
+            finished=trainer.done, stopped=self._stopped and not trainer.done,
+        )  # fmt: skip
+
+    def close(self) -> None:
+        """Shut Ray down if :meth:`start_ray` started it."""
+        if self._started_ray:
+            import ray
+
+            ray.shutdown()
+            self._started_ray = False
+
+
+def newest_checkpoint(run_dir: Path) -> Path | None:
+    """The newest checkpoint of the run in ``run_dir`` (None: none yet)."""
+    from gaitforge.learner.checkpoint import latest_checkpoint  # lazy: imports torch
+
+    return latest_checkpoint(run_dir / "checkpoints")
+
+
+def prepare_training(request: TrainRequest) -> Training:
+    """Load and check the request's job and build its trainer (resuming from the run
+    directory's newest checkpoint).
+
+    Raises:
+        SpecError: a bad job (file, field) or a stage check failing (one line).
+    """
+    job, scenes = load_request(request)
+    run_dir = request.run_dir or Path("runs") / job.name
+    return Training(job, scenes, run_dir, tensorboard=request.tensorboard)
+
+
+def start_line(training: Training) -> str:
+    """One line saying what a run is about to do."""
+    job, trainer = training.job, training.trainer
+    workers = job.workers.num_workers
+    where = "in-process" if workers == 0 else f"on {workers or 'all CPUs but one as'} Ray actor(s)"
+    resumed = f"; resumed at iteration {trainer.iteration}" if trainer.iteration else ""
+    return (
+        f"training {job.name}: {len(job.stages)} stage(s) on {job.backend}, rollouts "
+        f"{where}, run directory {training.run_dir}{resumed}"
+    )
+
+
+def status_line(m: dict) -> str:
+    """One line of an iteration's metrics: stage, env steps, speed, return, falls."""
+    verdict = f" ({m['verdict']})" if m.get("verdict") else ""
+    return (
+        f"stage {m['stage']} {m['stage_name']}{verdict}: iteration {m['iteration']}, "
+        f"{m['env_steps']:,} env steps ({m['stage_env_steps']:,} in stage), "
+        f"{m['steps_per_s']:,.0f} steps/s; return {m['return']:.1f}, "
+        f"speed {m['speed']:.2f} m/s, falls {100 * m['fall_rate']:.0f} %"
+    )
+
+
+class ProgressLog:
+    """An ``on_iteration`` callback that logs :func:`status_line` at INFO (logger
+    ``gaitforge.service.ops.train``) at most once every ``every_s`` seconds, and at each
+    stage's end; the first iteration is logged at once."""
+
+    def __init__(self, every_s: float = 10.0) -> None:
+        self.every_s = every_s
+        self._last: float | None = None
+
+    def __call__(self, metrics: dict) -> None:
+        now = time.monotonic()
+        due = self._last is None or now - self._last >= self.every_s
+        if due or metrics.get("verdict"):
+            self._last = now
+            logger.info("%s", status_line(metrics))
