@@ -6,7 +6,8 @@ the mirrored batch too with ``ppo.mirror``), then merges the batch's observation
 normaliser (not before: the behaviour log-probabilities were taken with the old statistics)
 and publishes the new weights. After each update the curriculum decides whether the stage is
 over (its promotion rule passed or its budget is spent); the next stage's scene is pushed to
-the live workers and, where the stage asks for it, a new network is built:
+the live workers and, where the stage asks for it, a new network is built
+(``learner.transitions``):
 
 - ``continue``: the same network (widened with zero weights if the observation grew);
 - ``blend``: pi_new trained in blend with the frozen pi_old, alpha ramped 0 -> 1 over
@@ -40,7 +41,6 @@ from gaitforge.learner.checkpoint import (
 )
 from gaitforge.learner.checkpoint_meta import CheckpointMeta
 from gaitforge.learner.curriculum import CurriculumState, StageIO, check_stages
-from gaitforge.learner.distil import fit_student
 from gaitforge.learner.job import Job, Stage, resolve_scenes
 from gaitforge.learner.policy import (
     ActorCritic,
@@ -53,6 +53,7 @@ from gaitforge.learner.ppo import batch_from_fragments, ppo_update
 from gaitforge.learner.run_log import ScalarLog, batch_stats, record_policy
 from gaitforge.learner.sampling import LocalSampler, Sampler
 from gaitforge.learner.symmetry import add_mirrored
+from gaitforge.learner.transitions import collapsed, fresh_network, ramp_alpha, warm_start
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
 
@@ -272,28 +273,32 @@ class Trainer:
                 sampler.set_scene(self.scene)
                 self._min_version = sampler.set_weights(self.policy.state_dict())
 
-    # ---- stage transitions ----------------------------------------------------------------
+    # ---- stage transitions (the networks: learner/transitions.py) ----------------------
 
     def _enter_stage(self, sampler: Sampler) -> None:
         """Build the stage's network (if it asks for one) and mark the stage entered."""
         index, stage = self.curriculum.stage, self.stage
-        io = self.io[index]
+        io, net = self.io[index], stage.network or self.job.network
         if index == 0:
             self.curriculum.entered = True
             return
         if stage.transition == "continue":
             if io.obs_names != self.obs_names:
-                teacher = self._collapsed()
-                self.policy = widen_inputs(teacher, self.obs_names, io.obs_names)
+                self.policy = widen_inputs(collapsed(self.policy), self.obs_names, io.obs_names)
                 self._switch_policy(sampler, io)
         elif stage.transition == "scratch":
-            net = stage.network or self.job.network
-            self.policy = GaussianPolicy(
-                len(io.obs_names), len(io.act_names), tuple(net.hidden), net.init_std
-            )
+            self.policy = fresh_network(io, net)
             self._switch_policy(sampler, io)
         else:
-            self._warm_start(sampler, stage, io)
+
+            def rollout(policy: ActorCritic, env_steps: int) -> list[Fragment]:
+                self.policy = policy
+                self._switch_policy(sampler, io)
+                return self._gather(sampler, env_steps)
+
+            self.policy = warm_start(self.policy, self.obs_names, io, stage, net, self.job.ppo,
+                                     rollout, self.job.seed)  # fmt: skip
+            self._switch_policy(sampler, io)
         self.curriculum.entered = True
         self.blend_start = self.curriculum.stage_env_steps
         self.lineage.append(
@@ -302,59 +307,15 @@ class Trainer:
         )  # fmt: skip
         logger.info("stage %d (%s): %s", index, self.scene.name, stage.transition)
 
-    def _collapsed(self) -> GaussianPolicy:
-        """The current policy as one network (a finished blend is its new network)."""
-        policy = self.policy
-        while isinstance(policy, BlendedPolicy):
-            policy = policy.new
-        assert isinstance(policy, GaussianPolicy)
-        return policy
-
     def _switch_policy(self, sampler: Sampler, io: StageIO) -> None:
         self.obs_names = io.obs_names
         self.optimizer = self._new_optimizer()
         self._min_version = sampler.set_policy(self._policy_factory(), self.policy.state_dict())
 
-    def _warm_start(self, sampler: Sampler, stage: Stage, io: StageIO) -> None:
-        """``blend`` and ``distil``: roll pi_old out on the new stage (as a blend at alpha 0),
-        fit pi_new's critic (and for distil its actor) to that data, then train."""
-        teacher = self.policy
-        net = stage.network or self.job.network
-        student = GaussianPolicy(
-            len(io.obs_names), len(io.act_names), tuple(net.hidden), net.init_std
-        )
-        old_inputs = [io.obs_names.index(n) for n in self.obs_names]
-        blended = BlendedPolicy(teacher.describe(), student.describe(), old_inputs)
-        blended.old.load_state_dict(teacher.state_dict())
-        blended.new.load_state_dict(student.state_dict())
-        self.policy = blended
-        self._switch_policy(sampler, io)
-        fragments = self._gather(sampler, max(1, stage.blend.critic_warmup_env_steps))
-        batch = batch_from_fragments(fragments, self.job.ppo)
-        student.norm.update(batch["obs"])
-        with torch.no_grad():
-            student.log_std.copy_(blended.distribution(batch["obs"][:1]).stddev.log()[0])
-            teacher_mean = blended.distribution(batch["obs"]).mean
-        fit = fit_student(
-            student, batch["obs"], batch["return"],
-            teacher_mean if stage.transition == "distil" else None,
-            epochs=stage.blend.fit_epochs, seed=self.job.seed,
-        )  # fmt: skip
-        logger.info("warm start (%s): %s", stage.transition, fit)
-        if stage.transition == "distil":
-            self.policy = student
-        else:
-            blended.new.load_state_dict(student.state_dict())
-        self._switch_policy(sampler, io)
-
     def _ramp_blend(self, sampler: Sampler) -> None:
-        if not isinstance(self.policy, BlendedPolicy):
-            return
         ramp = self.stage.blend.ramp_env_steps
-        alpha = (self.curriculum.stage_env_steps - self.blend_start) / ramp
-        self.policy.set_alpha(alpha)
-        if alpha >= 1.0:  # pi_old no longer acts: drop it
-            self.policy = self.policy.new
+        if ramp_alpha(self.policy, self.curriculum.stage_env_steps, self.blend_start, ramp):
+            self.policy = collapsed(self.policy)  # pi_old no longer acts: drop it
             self._min_version = sampler.set_policy(self._policy_factory(), self.policy.state_dict())
 
     # ---- metrics and checkpoints ----------------------------------------------------------

@@ -1,0 +1,89 @@
+"""The networks a curriculum stage's transition builds (``learner.trainer`` calls these when a
+stage is entered):
+
+- ``continue``: the same network, widened with zero weights if the observation grew
+  (``learner.policy.widen_inputs`` on :func:`collapsed`);
+- ``scratch``: a fresh network (:func:`fresh_network`);
+- ``blend`` and ``distil``: :func:`warm_start` rolls pi_old out on the new stage (as a blend
+  at alpha 0), fits pi_new's critic (and for ``distil`` its actor) to that data, and returns
+  the blend (``blend``: alpha then ramps 0 -> 1, :func:`ramp_alpha`) or pi_new (``distil``).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+
+import torch
+from gaitforge.learner.curriculum import StageIO
+from gaitforge.learner.distil import fit_student
+from gaitforge.learner.job import NetworkSpec, Stage
+from gaitforge.learner.policy import ActorCritic, BlendedPolicy, GaussianPolicy
+from gaitforge.learner.ppo import PPOSettings, batch_from_fragments
+from gaitforge.workers.fragment import Fragment
+
+logger = logging.getLogger(__name__)
+
+Rollout = Callable[[ActorCritic, int], list[Fragment]]
+"""``rollout(policy, env_steps)``: make ``policy`` the acting one and gather at least
+``env_steps`` env steps of its fragments (they count in the stage's env steps)."""
+
+
+def collapsed(policy: ActorCritic) -> GaussianPolicy:
+    """``policy`` as one network (a blend is its new network)."""
+    while isinstance(policy, BlendedPolicy):
+        policy = policy.new
+    assert isinstance(policy, GaussianPolicy)
+    return policy
+
+
+def fresh_network(io: StageIO, net: NetworkSpec) -> GaussianPolicy:
+    """A new network for the stage's observations and muscles."""
+    return GaussianPolicy(len(io.obs_names), len(io.act_names), tuple(net.hidden), net.init_std)
+
+
+def warm_start(
+    teacher: ActorCritic,
+    teacher_obs_names: list[str],
+    io: StageIO,
+    stage: Stage,
+    net: NetworkSpec,
+    ppo: PPOSettings,
+    rollout: Rollout,
+    seed: int,
+) -> ActorCritic:
+    """``blend`` and ``distil``: pi_new (``net``) fitted to pi_old's (``teacher``'s)
+    rollouts on the new stage, ``stage.blend.critic_warmup_env_steps`` of them; returns the
+    blend of the two at alpha 0 (``blend``) or pi_new alone (``distil``)."""
+    student = fresh_network(io, net)
+    old_inputs = [io.obs_names.index(n) for n in teacher_obs_names]
+    blended = BlendedPolicy(teacher.describe(), student.describe(), old_inputs)
+    blended.old.load_state_dict(teacher.state_dict())
+    blended.new.load_state_dict(student.state_dict())
+    fragments = rollout(blended, max(1, stage.blend.critic_warmup_env_steps))
+    batch = batch_from_fragments(fragments, ppo)
+    student.norm.update(batch["obs"])
+    with torch.no_grad():
+        student.log_std.copy_(blended.distribution(batch["obs"][:1]).stddev.log()[0])
+        teacher_mean = blended.distribution(batch["obs"]).mean
+    fit = fit_student(
+        student, batch["obs"], batch["return"],
+        teacher_mean if stage.transition == "distil" else None,
+        epochs=stage.blend.fit_epochs, seed=seed,
+    )  # fmt: skip
+    logger.info("warm start (%s): %s", stage.transition, fit)
+    if stage.transition == "distil":
+        return student
+    blended.new.load_state_dict(student.state_dict())
+    return blended
+
+
+def ramp_alpha(policy: ActorCritic, stage_env_steps: int, blend_start: int, ramp: int) -> bool:
+    """Set a blend's alpha for ``stage_env_steps`` (linear from 0 at ``blend_start`` to 1
+    ``ramp`` env steps later). True when the blend is finished (alpha 1: pi_old no longer
+    acts and the trainer drops it); False for a policy that is not a blend."""
+    if not isinstance(policy, BlendedPolicy):
+        return False
+    alpha = (stage_env_steps - blend_start) / ramp
+    policy.set_alpha(alpha)
+    return alpha >= 1.0
