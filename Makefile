@@ -21,7 +21,7 @@ run: $(STAMP)
 	$(BIN)/gaitforge scenes check --all --seconds 1
 	$(BIN)/gaitforge train examples/gait2d-curriculum.yaml --budget-scale 0.001 --run-dir $(RUN_DIR)
 	$(BIN)/gaitforge evaluate $(RUN_DIR) --episodes 5 --sweep \
-		--record $(RUN_DIR)/evaluate.mcap --video $(RUN_DIR)/evaluate.mp4 --json $(RUN_DIR)/evaluate.json
+		--record $(RUN_DIR)/evaluate.mcap --video $(RUN_DIR)/evaluate.mp4 --json-out $(RUN_DIR)/evaluate.json
 
 test: $(STAMP)
 	$(BIN)/ruff check .

@@ -1,18 +1,19 @@
-"""``gaitforge scenes ...``: list the catalogue, show a compile report, check a scene."""
+"""``gaitforge scenes ...``: list the catalogue, show a compile report, check a scene (the
+work is :mod:`gaitforge.service.ops.scenes`'s; this parses and prints)."""
 
 from __future__ import annotations
 
 from enum import StrEnum
 
 import typer
-from gaitforge.workers.scenes import Scene, catalogue, load_scene
-from gaitforge.workers.spec_io import SpecError
-from rich.console import Console
+from gaitforge.service.console import err, fail, out, print_json, table
+from gaitforge.service.ops import SpecError
+from gaitforge.service.ops import scenes as ops
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-from rich.table import Table
 
 scenes_app = typer.Typer(help="The scene catalogue.", no_args_is_help=True)
-console = Console()
+WIDE = 120
+"""columns from which ``scenes list`` shows descriptions in the table (else below it)"""
 
 
 class BackendChoice(StrEnum):
@@ -21,49 +22,47 @@ class BackendChoice(StrEnum):
 
 
 BACKEND_OPTION = typer.Option(BackendChoice.mujoco, help="Simulator backend.")
-
-
-def _fail(message: str) -> typer.Exit:
-    console.print(f"[red]error:[/red] {message}", soft_wrap=True)
-    return typer.Exit(2)
-
-
-def _load(name: str, backend: BackendChoice) -> Scene:
-    """The scene, checked to run on ``backend``; exits with one line on any fault."""
-    try:
-        scene = load_scene(name)
-    except SpecError as exc:
-        raise _fail(str(exc)) from None
-    if backend.value not in scene.backends:
-        raise _fail(f"--backend: scene {scene.name!r} runs on {scene.backends}")
-    return scene
+JSON_OPTION = typer.Option(False, "--json", help="Print JSON (for programs) instead of tables.")
 
 
 @scenes_app.command("list")
-def list_scenes() -> None:
+def list_scenes(json: bool = JSON_OPTION) -> None:
     """The shipped scenes."""
-    table = Table("scene", "body", "backends", "task", "control Hz", "episode s", "description")
-    for name in catalogue():
-        s = load_scene(name)
-        task = s.task.kind + (f" {s.task.target_speed} m/s" if s.task.target_speed else "")
-        table.add_row(
-            s.name, s.body, ",".join(s.backends), task, f"{s.control_hz:g}", f"{s.episode_s:g}",
-            " ".join(s.description.split()),
-        )  # fmt: skip
-    console.print(table)
+    scenes = ops.list_scenes()
+    if json:
+        print_json(scenes)
+        return
+    wide = out.width >= WIDE
+    headers = ["scene", "body", "backends", "task", "control Hz", "episode s"]
+    listing = table(*headers, *(["description"] if wide else []))
+    for s in scenes:
+        speed = f" {s.target_speed_m_s} m/s" if s.target_speed_m_s else ""
+        row = [s.name, s.body, ", ".join(s.backends), s.task + speed, f"{s.control_hz:g}",
+               f"{s.episode_s:g}"]  # fmt: skip
+        listing.add_row(*row, *([s.description] if wide else []))
+    out.print(listing)
+    if not wide:
+        for s in scenes:
+            out.print(f"[bold]{s.name}[/bold]: {s.description}", highlight=False)
 
 
 @scenes_app.command("show")
 def show(
     name: str = typer.Argument(help="Catalogue name or path to a scene YAML."),
     backend: BackendChoice = BACKEND_OPTION,
+    json: bool = JSON_OPTION,
 ) -> None:
     """Compile a scene and print what it kept, what it dropped and what that saved."""
-    from gaitforge.service.report_view import render_report  # lazy: imports MuJoCo
-    from gaitforge.workers.sim import make_simulator  # lazy: imports MuJoCo
+    from gaitforge.service.report_view import render_report
 
-    scene = _load(name, backend)
-    console.print(render_report(make_simulator(scene, backend.value).report))
+    try:
+        report = ops.show_scene(name, backend.value)
+    except SpecError as exc:
+        raise fail(exc) from None
+    if json:
+        print_json(report)
+    else:
+        out.print(render_report(report))
 
 
 @scenes_app.command("check")
@@ -73,37 +72,37 @@ def check(
     backend: BackendChoice = BACKEND_OPTION,
     all_scenes: bool = typer.Option(False, "--all", help="Every catalogue scene on --backend."),
     seed: int = typer.Option(0, help="Seed of the random excitations."),
+    json: bool = JSON_OPTION,
 ) -> None:
     """Step with random excitations: env steps/s, real-time factor and health counts."""
-    from gaitforge.workers.env import MuscleEnv  # lazy: imports MuJoCo
-    from gaitforge.workers.probe import random_excitations  # lazy: imports MuJoCo
-
     if all_scenes == (name is not None):
-        raise _fail("give a scene NAME or --all, not both or neither")
-    if all_scenes:
-        scenes = [s for s in map(load_scene, catalogue()) if backend.value in s.backends]
-    else:
-        scenes = [_load(name, backend)]
-    if not scenes:
-        raise _fail(f"--backend: no catalogue scene runs on {backend.value!r} yet")
-    table = Table("scene", "backend", "steps", "steps/s", "real-time x", "episodes", "falls",
-                  "health failures")  # fmt: skip
+        raise fail("give a scene NAME or --all, not both or neither")
+    try:
+        scenes = ops.scenes_to_check(name, backend.value, all_scenes)
+    except SpecError as exc:
+        raise fail(exc) from None
+    results = []
     for scene in scenes:
-        env = MuscleEnv(scene, backend.value)
         with Progress(
             TextColumn(f"{scene.name} [{backend.value}]"), BarColumn(),
             TextColumn("{task.fields[rate]}"), TimeElapsedColumn(),
-            console=console, transient=True, disable=not console.is_terminal,
+            console=err, transient=True, disable=not err.is_terminal,
         ) as progress:  # fmt: skip
             task = progress.add_task("check", total=seconds, rate="")
 
             def update(r, task=task, progress=progress) -> None:
                 progress.update(task, completed=r.wall_s, rate=f"{r.steps_per_s:.0f} steps/s")
 
-            result = random_excitations(env, seconds, seed=seed, on_step=update)
-        failures = ", ".join(f"{k}: {v}" for k, v in sorted(result.health.items())) or "none"
-        table.add_row(
-            scene.name, backend.value, str(result.steps), f"{result.steps_per_s:.0f}",
-            f"{result.realtime_factor:.2f}", str(result.episodes), str(result.falls), failures,
+            results.append(ops.check_scene(scene, backend.value, seconds, seed, update))
+    if json:
+        print_json(results)
+        return
+    listing = table("scene", "backend", "steps", "steps/s", "real-time x", "episodes", "falls",
+                    "health failures")  # fmt: skip
+    for r in results:
+        failures = ", ".join(f"{k}: {v}" for k, v in r.health.items()) or "none"
+        listing.add_row(
+            r.scene, r.backend, str(r.steps), f"{r.steps_per_s:.0f}",
+            f"{r.realtime_factor:.2f}", str(r.episodes), str(r.falls), failures,
         )  # fmt: skip
-    console.print(table)
+    out.print(listing)

@@ -1,0 +1,98 @@
+"""Render an ``EvaluationReport`` for people (rich): means ± the half-width of their 95 %
+interval, rates with their 95 % Wilson interval. Where the summary or sweep table (one row
+per mode or sweep point) is wider than the terminal, it turns on its side (one row per
+quantity), so that nothing is cut or folded at 80 columns."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from gaitforge.service.console import table
+from rich.console import Console, Group
+from rich.measure import Measurement
+from rich.table import Table
+
+
+def _ci(stat: Any, fmt: str = ".2f") -> str:
+    if stat.n == 0:
+        return "-"
+    if stat.n == 1:
+        return f"{stat.mean:{fmt}}"
+    return f"{stat.mean:{fmt}} ± {(stat.high - stat.low) / 2:{fmt}}"
+
+
+def _rate(rate: Any) -> str:
+    return f"{100 * rate.value:.0f} % ({100 * rate.low:.0f}-{100 * rate.high:.0f})"
+
+
+def _health(counts: dict[str, int]) -> str:
+    failures = {k: v for k, v in counts.items() if k != "ok"}
+    return ", ".join(f"{k}: {v}" for k, v in failures.items()) or "none"
+
+
+def _oriented(title: str, headers: list[str], rows: list[list[str]], console: Console) -> Table:
+    """``rows`` under ``headers`` if that fits ``console``'s width, else transposed (a row
+    per header, a column per row)."""
+    wide = table(*headers, title=title)
+    for row in rows:
+        wide.add_row(*row)
+    unlimited = console.options.update_width(10_000)
+    if Measurement.get(console, unlimited, wide).maximum <= console.width:
+        return wide
+    tall = table(headers[0], *(row[0] for row in rows), title=title)
+    for i, header in enumerate(headers[1:], start=1):
+        tall.add_row(header, *(row[i] for row in rows))
+    return tall
+
+
+def render_episodes(report: Any) -> list[Table]:
+    """One table per mode: every episode of an ``EvaluationReport``."""
+    tables = []
+    for mode, r in report.results.items():
+        episodes = table(
+            "seed", "steps", "time\ns", "distance\nm", "speed\nm/s", "fell", "health",
+            "effort", "return", title=f"Episodes ({mode})",
+        )  # fmt: skip
+        for e in r.episodes:
+            episodes.add_row(
+                str(e.seed), str(e.steps), f"{e.time_s:.2f}", f"{e.distance_m:.2f}",
+                f"{e.mean_speed_m_s:.2f}", "yes" if e.fell else "no", e.health,
+                f"{e.effort:.3f}", f"{e.return_:.1f}",
+            )  # fmt: skip
+        tables.append(episodes)
+    return tables
+
+
+def render(report: Any, console: Console) -> Group:
+    """The head line, the summary per mode and (if run) the speed-against-safety sweep,
+    laid out for ``console``'s width."""
+    first = next(iter(report.results.values()))
+    head = (
+        f"[bold]{report.checkpoint}[/bold]: {report.env_steps} env steps; scene "
+        f"{report.scene} on {report.backend}; seeds {report.seed}.."
+        f"{report.seed + len(first.episodes) - 1}; means ± 95 % intervals"
+    )
+    headers = ["mode", "target m/s", "distance m", "speed m/s", "fall rate", "time s", "effort",
+               "return", "health failures"]  # fmt: skip
+    rows = []
+    for mode, r in report.results.items():
+        target = "-" if r.target_speed_m_s is None else f"{r.target_speed_m_s:.2f}"
+        rows.append([
+            mode, target, _ci(r.distance_m), _ci(r.mean_speed_m_s), _rate(r.fall_rate),
+            _ci(r.time_s), _ci(r.effort, ".3f"), _ci(r.return_, ".1f"), _health(r.health),
+        ])  # fmt: skip
+    parts: list[Any] = [head, _oriented("Evaluation", headers, rows, console)]
+    if report.sweep:
+        headers = ["slower by", "target m/s", "fall rate", "distance m", "speed m/s", "return",
+                   "health failures"]  # fmt: skip
+        rows = []
+        for point in report.sweep:
+            r = point.result
+            rows.append([
+                f"{100 * point.reduction:.0f} %", f"{point.target_speed_m_s:.2f}",
+                _rate(r.fall_rate), _ci(r.distance_m), _ci(r.mean_speed_m_s),
+                _ci(r.return_, ".1f"), _health(r.health),
+            ])  # fmt: skip
+        title = f"Speed against safety ({report.sweep_mode})"
+        parts.append(_oriented(title, headers, rows, console))
+    return Group(*parts)
