@@ -173,7 +173,7 @@ def test_json_is_complete(walk: tuple[Path, Scene], tmp_path: Path) -> None:
     result = runner.invoke(
         app,
         ["evaluate", str(run), "--episodes", "2", "--mode", "both", "--sweep",
-         "--sweep-percent", "0,20", "--per-episode", "--json", str(out)],
+         "--sweep-percent", "0,20", "--per-episode", "--json-out", str(out)],
         env={"COLUMNS": "200"},
     )  # fmt: skip
     assert result.exit_code == 0, result.output
