@@ -1,22 +1,32 @@
-"""``gaitforge train JOB.yaml``: run a job's curriculum on local Ray (or a cluster) with a
-live display of stage, env steps, speed, return, falls and health."""
+"""``gaitforge train JOB.yaml``: run a job's curriculum on local Ray (or a cluster).
+
+On a terminal, a live display of stage, env steps, speed, return, falls and health (log
+lines appear above it); off a terminal (a log file, a service, a batch system), one status
+line every ``--log-every`` seconds through ``logging``. SIGINT or SIGTERM ends the current
+iteration, writes a checkpoint and exits 0 naming it; a second signal stops at once. The
+work is :mod:`gaitforge.service.ops.train`'s; this parses and shows progress.
+"""
 
 from __future__ import annotations
 
 import logging
+import signal
 from pathlib import Path
 from typing import Annotated
 
 import typer
-from gaitforge.learner.job import Job, load_job
-from gaitforge.workers.spec_io import SpecError
-from rich.console import Console, Group
+from gaitforge.learner.job import Job
+from gaitforge.service.console import err, fail, out
+from gaitforge.service.ops import SpecError, validate_request
+from gaitforge.service.ops import train as ops
+from gaitforge.service.signals import SignalStop
+from rich.console import Group
 from rich.live import Live
-from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-console = Console()
+STATUS_LOGGERS = ("gaitforge.service", "gaitforge.learner.trainer")
+"""loggers raised to INFO while training: status lines, resume, stage ends and entries"""
 
 
 class TrainDisplay:
@@ -26,7 +36,7 @@ class TrainDisplay:
         self.job = job
         self.progress = Progress(
             TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed:,.0f}"),
-            TextColumn("/ {task.total:,.0f} env steps"), TimeElapsedColumn(), console=console,
+            TextColumn("/ {task.total:,.0f} env steps"), TimeElapsedColumn(), console=err,
         )  # fmt: skip
         self.tasks = [
             self.progress.add_task(
@@ -96,42 +106,65 @@ def train(
         int | None, typer.Option(min=1, help="stop after this many PPO updates")
     ] = None,
     tensorboard: Annotated[bool, typer.Option(help="write TensorBoard scalars")] = True,
+    log_every: Annotated[
+        float, typer.Option(min=0.0, help="s between status lines off a terminal (0: each)")
+    ] = 10.0,
 ) -> None:
     """Train a job: its curriculum of stages, with checkpoints, recordings and TensorBoard."""
-    from gaitforge.learner.trainer import Trainer  # lazy: torch
-
+    for name in STATUS_LOGGERS:
+        if logging.getLogger(name).getEffectiveLevel() > logging.INFO:
+            logging.getLogger(name).setLevel(logging.INFO)
+    signals = SignalStop()
+    training: ops.Training | None = None
     try:
-        job, scenes = load_job(job_file)
-        job = _override(job, workers, address, budget_scale)
-        run_dir = run_dir or Path("runs") / job.name
-        trainer = Trainer(job, run_dir, scenes, tensorboard=tensorboard)
-    except SpecError as exc:
-        console.print(f"[red]error:[/red] {escape(str(exc))}", soft_wrap=True, highlight=False)
-        raise typer.Exit(2) from None
-    done = [0] * len(job.stages)
-    for i in range(min(trainer.curriculum.stage, len(job.stages))):
-        done[i] = job.stages[i].env_steps
-    if not trainer.done:
-        done[trainer.curriculum.stage] = trainer.curriculum.stage_env_steps
-    display = TrainDisplay(job, done)
-    trainer.on_iteration = display.update
-    logging.getLogger("workers").setLevel(logging.WARNING)
-    with Live(display, console=console, refresh_per_second=4):
-        trainer.run(max_iterations=max_iterations)
-    console.print(f"run directory: {run_dir} (tensorboard --logdir {run_dir / 'tb'})")
+        with signals:
+            try:
+                request = validate_request(
+                    ops.TrainRequest, job_file=job_file, run_dir=run_dir, workers=workers,
+                    address=address, budget_scale=budget_scale, tensorboard=tensorboard,
+                )  # fmt: skip
+                training = ops.prepare_training(request)
+            except SpecError as exc:
+                raise fail(exc) from None
+            try:
+                if training.start_ray():
+                    signals.install()  # Ray's driver put in its own handlers: take them back
+                signals.on_stop(training.request_stop)
+                result = _run(training, max_iterations, log_every)
+            finally:
+                training.close()
+    except KeyboardInterrupt:  # a second signal, or Ctrl-C before the handlers were in
+        sig = signals.received[-1] if signals.received else signal.SIGINT
+        newest = None if training is None else ops.newest_checkpoint(training.run_dir)
+        err.print(f"{sig.name}: stopped at once; newest checkpoint: {newest or 'none'}",
+                  soft_wrap=True, highlight=False)  # fmt: skip
+        raise typer.Exit(128 + sig.value) from None
+    if result.stopped:
+        where = result.checkpoint or "none written yet"
+        out.print(
+            f"{signals.first.name if signals.first else 'stop'}: stopped after iteration "
+            f"{result.iteration} ({result.env_steps:,} env steps); checkpoint: {where} "
+            f"(resume: gaitforge train {job_file} --run-dir {result.run_dir})",
+            soft_wrap=True, highlight=False,
+        )  # fmt: skip
+    out.print(f"run directory: {result.run_dir} (tensorboard --logdir {result.run_dir / 'tb'})",
+              soft_wrap=True, highlight=False)  # fmt: skip
 
 
-def _override(job: Job, workers: int | None, address: str | None, scale: float) -> Job:
-    """The job with the command line's overrides applied (and validated again)."""
-    raw = job.model_dump()
-    if workers is not None:
-        raw["workers"]["num_workers"] = workers
-    if address is not None:
-        raw["workers"]["ray_address"] = address
-    for stage in raw["stages"]:
-        stage["env_steps"] = max(1, round(stage["env_steps"] * scale))
-        if stage["blend"] is not None:
-            stage["blend"]["ramp_env_steps"] = max(
-                1, round(stage["blend"]["ramp_env_steps"] * scale)
-            )
-    return Job.model_validate(raw)
+def _run(training: ops.Training, max_iterations: int | None, log_every: float) -> ops.TrainResult:
+    """Train with a live display on a terminal, else with status lines (and the display's
+    last state printed at the end)."""
+    display = TrainDisplay(training.job, training.stage_progress())
+    if err.is_terminal:
+        with Live(display, console=err, refresh_per_second=4):
+            return training.run(max_iterations, on_iteration=display.update)
+    log = ops.ProgressLog(every_s=log_every)
+    ops.logger.info("%s", ops.start_line(training))
+
+    def on_iteration(metrics: dict) -> None:
+        display.update(metrics)
+        log(metrics)
+
+    result = training.run(max_iterations, on_iteration=on_iteration)
+    out.print(display)
+    return result
