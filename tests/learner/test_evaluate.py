@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import shutil
+import statistics
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,7 @@ from gaitforge.learner.evaluate import (
     with_target_speed,
 )
 from gaitforge.learner.policy import BlendedPolicy, GaussianPolicy
-from gaitforge.learner.stats import Rate, Stat, t_quantile_975
+from gaitforge.learner.stats import Rate, Stat
 from gaitforge.service.cli import app
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.episode import EpisodeSummary, Observer
@@ -220,13 +221,28 @@ def test_a_run_directory_gives_its_latest_or_best(tmp_path: Path) -> None:
 
 
 def test_statistics() -> None:
-    assert t_quantile_975(1) == 12.706 and t_quantile_975(40) == pytest.approx(2.021, abs=1e-3)
-    assert t_quantile_975(120) == pytest.approx(1.980, abs=1e-3)
-    s = Stat.of([1.0, 2.0, 3.0])
-    assert s.mean == 2.0 and s.high - s.mean == pytest.approx(4.303 * 1.0 / math.sqrt(3))
+    # Student's t (two-sided 95 %): the printed tables' quantiles, to their 3 decimals
+    for values, t975 in (
+        ([1.0, 2.0, 3.0], 4.303),
+        ([1.0, 2.0], 12.706),
+        ([0.0] * 40 + [1.0], 2.021),
+    ):
+        s = Stat.of(values)
+        half = t975 * statistics.stdev(values) / math.sqrt(len(values))
+        assert s.mean == statistics.fmean(values)
+        assert s.high - s.mean == pytest.approx(half, rel=2e-4)
+        assert s.mean - s.low == pytest.approx(half, rel=2e-4)
     assert Stat.of([4.0]) == Stat(4.0, 4.0, 4.0, 0.0, 1)
+    assert Stat.of([2.0, 2.0, 2.0]) == Stat(2.0, 2.0, 2.0, 0.0, 3)
+    # Wilson's score interval, against its closed form
     r = Rate.of(0, 10)
     assert r.value == 0.0 and r.low == 0.0 and r.high == pytest.approx(0.2775, abs=1e-4)
+    z, p, n = 1.959964, 0.3, 10
+    centre = (p + z**2 / (2 * n)) / (1 + z**2 / n)
+    half = z * math.sqrt(p * (1 - p) / n + z**2 / (4 * n**2)) / (1 + z**2 / n)
+    r = Rate.of(3, 10)
+    assert (r.low, r.high) == pytest.approx((centre - half, centre + half), abs=1e-6)
+    assert Rate.of(10, 10).high == 1.0 and math.isnan(Rate.of(0, 0).value)
 
 
 def one_line_error(args: list[str]) -> str:
