@@ -97,12 +97,13 @@ def check(
     if json:
         print_json(results)
         return
-    listing = table("scene", "backend", "steps", "steps/s", "real-time x", "episodes", "falls",
-                    "health failures")  # fmt: skip
+    title = f"random excitations on {backend.value}, {seconds:g} s per scene"
+    listing = table("scene", "steps", "steps/s", "real time x", "episodes", "falls",
+                    "health failures", title=title)  # fmt: skip
     for r in results:
         failures = ", ".join(f"{k}: {v}" for k, v in r.health.items()) or "none"
         listing.add_row(
-            r.scene, r.backend, str(r.steps), f"{r.steps_per_s:.0f}",
-            f"{r.realtime_factor:.2f}", str(r.episodes), str(r.falls), failures,
+            r.scene, str(r.steps), f"{r.steps_per_s:.0f}", f"{r.realtime_factor:.2f}",
+            str(r.episodes), str(r.falls), failures,
         )  # fmt: skip
     out.print(listing)

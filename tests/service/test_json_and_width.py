@@ -65,6 +65,15 @@ def test_scenes_check_json() -> None:
     assert check["steps"] > 0 and check["steps_per_s"] > 0 and check["health"] == {}
 
 
+def test_scenes_check_at_80_columns_cuts_nothing() -> None:
+    result = runner.invoke(
+        app, ["scenes", "check", "walk-3d-planar", "--seconds", "0.2"], env=NARROW
+    )
+    assert result.exit_code == 0, result.output
+    assert "…" not in result.output and "│ walk-3d-planar │" in result.output
+    assert "episodes" in result.output and "steps/s" in result.output
+
+
 def test_an_error_with_json_is_still_one_line_on_stderr() -> None:
     result = runner.invoke(app, ["scenes", "show", "walk-9d", "--json"], env=NARROW)
     assert result.exit_code == 2 and result.stdout == ""
