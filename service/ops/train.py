@@ -121,7 +121,9 @@ def load_request(request: TrainRequest) -> tuple[Job, list[Scene]]:
 class Training:
     """A prepared run: the job, its scenes and the trainer (resumed from ``run_dir``)."""
 
-    def __init__(self, job: Job, scenes: list[Scene], run_dir: Path, tensorboard: bool = True):
+    def __init__(
+        self, job: Job, scenes: list[Scene], run_dir: Path, tensorboard: bool = True
+    ) -> None:
         from gaitforge.learner.trainer import Trainer  # lazy: imports torch
 
         self.job = job
