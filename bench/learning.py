@@ -1,7 +1,8 @@
 """Learning curves and wall-clock to target, gaitforge's PPO beside RLlib's on the same env.
 
 Usage: python bench/learning.py [--tasks elbow-reach stand-2d walk-2d] [--minutes M ...]
-                                [--no-rllib] [--workers W] [--out DIR]
+                                [--seeds S ...] [--eval-episodes N] [--no-rllib]
+                                [--workers W] [--out DIR]
 
 A task is an example job (``examples/<task>.yaml``); its target is its stage's promotion
 rule(s): elbow-reach ``return >= -12 over 50``; stand-2d ``survival >= 0.95 over 100``
@@ -13,9 +14,15 @@ for the learner), network, batch size, epochs, learning rate and discount. gaitf
 at the target; RLlib is checked against the same rules after each of its iterations, with
 episode statistics logged by a callback as means over the rules' largest window.
 
+gaitforge runs once per seed (``--seeds``, the job's ``seed``; RLlib runs with the first
+seed only); each run's newest checkpoint is then evaluated deterministically over
+``--eval-episodes`` episodes of the job's scene (``learner.evaluate``: fall rate, mean speed
+and, on imitation scenes, what the evaluation reports of the tracking), and the table gives
+each seed and the median over seeds.
+
 Prints a table (target reached?, wall-clock and env steps to it, or the last values),
 writes ``learning.json`` and ``learning.png`` (the rule's first metric against wall-clock
-time) to ``--out``.
+time, one line per seed) to ``--out``.
 """
 
 from __future__ import annotations
@@ -24,6 +31,7 @@ import argparse
 import json
 import logging
 import os
+import statistics
 import time
 from pathlib import Path
 
@@ -35,6 +43,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import ray
 from gaitforge.learner.curriculum import EpisodeStats
+from gaitforge.learner.evaluate import evaluate_checkpoint
 from gaitforge.learner.job import METRICS, Job, load_job
 from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.env import MuscleEnv
@@ -48,7 +57,9 @@ DEFAULT_MINUTES = {"elbow-reach": 3.0, "stand-2d": 5.0, "walk-2d": 30.0}
 RLLIB_ENV = "gaitforge-learning"
 
 
-def run_gaitforge(job: Job, scenes: list[Scene], minutes: float, out: Path) -> dict:
+def run_gaitforge(
+    job: Job, scenes: list[Scene], minutes: float, out: Path, eval_episodes: int
+) -> dict:
     curve: list[dict] = []
     start = time.monotonic()
     rules = job.stages[0].promote
@@ -62,7 +73,34 @@ def run_gaitforge(job: Job, scenes: list[Scene], minutes: float, out: Path) -> d
     trainer = Trainer(job, out, scenes, on_iteration=record, tensorboard=False)
     history = trainer.run(max_seconds=minutes * 60)
     reached = next((h for h in history if (h["verdict"] or "").startswith("promoted")), None)
-    return _summary(curve, reached is not None)
+    summary = _summary(curve, reached is not None)
+    if eval_episodes:
+        summary["evaluation"] = evaluate_run(out, eval_episodes)
+    return summary
+
+
+def evaluate_run(run_dir: Path, episodes: int) -> dict:
+    """The run's newest checkpoint, deterministic, ``episodes`` episodes of its own scene:
+    every mean, rate and interval the evaluation reports (per-episode rows left out)."""
+    report = evaluate_checkpoint(run_dir, episodes=episodes, modes=("deterministic",))
+    result = report.to_dict()["results"]["deterministic"]
+    result.pop("episodes", None)
+    console.log(f"evaluated {run_dir}: {_headline(result)}")
+    return result
+
+
+def _headline(evaluation: dict) -> dict[str, float | None]:
+    """The figures targets are stated in: return, fall rate, mean speed (m/s), and whatever
+    imitation figures the evaluation reports (``tracking_*``, ``kept_*``)."""
+    out = {
+        "return": evaluation["return"]["mean"],
+        "fall_rate": evaluation["fall_rate"]["value"],
+        "speed": evaluation["mean_speed_m_s"]["mean"],
+    }
+    for key, value in evaluation.items():
+        if key.startswith(("tracking", "kept")) and isinstance(value, dict):
+            out[key] = value.get("mean", value.get("value"))
+    return out
 
 
 def run_rllib(job: Job, scene: Scene, minutes: float, workers: int) -> dict:
@@ -140,24 +178,46 @@ def _summary(curve: list[dict], reached: bool) -> dict:
             "last": last, "curve": curve}  # fmt: skip
 
 
+def _rounded(values: dict) -> dict:
+    return {k: (round(v, 3) if isinstance(v, float) else v) for k, v in values.items()}
+
+
+def median_evaluation(runs: dict[str, dict]) -> dict[str, float]:
+    """Per headline figure, the median over the runs that were evaluated."""
+    heads = [_headline(r["evaluation"]) for r in runs.values() if "evaluation" in r]
+    keys = {k for h in heads for k in h}
+    return {
+        k: statistics.median(v)
+        for k in sorted(keys)
+        if (v := [h[k] for h in heads if h.get(k) is not None])
+    }
+
+
 def table(results: dict) -> Table:
     out = Table(title=f"Learning to target, same wall-clock budget ({os.cpu_count()} CPUs)")
-    for col in ("task", "framework", "target", "reached", "wall s", "env steps", "last values"):
-        out.add_column(col)
-    for task, by_framework in results.items():
-        for framework, r in by_framework["runs"].items():
-            last = {k: round(v, 3) for k, v in r["last"].items()
-                    if k not in ("wall_s", "env_steps")}  # fmt: skip
-            reached = "yes" if r["reached"] else "no"
+    for col in ("task", "run", "target", "reached", "wall s", "env steps", "last values",
+                "deterministic evaluation"):  # fmt: skip
+        out.add_column(col, overflow="fold")
+    for task, by_task in results.items():
+        for name, r in by_task["runs"].items():
+            last = {k: v for k, v in r["last"].items() if k not in ("wall_s", "env_steps")}
+            evaluation = _headline(r["evaluation"]) if "evaluation" in r else {}
             out.add_row(
                 task,
-                framework,
-                by_framework["target"],
-                reached,
+                name,
+                by_task["target"],
+                "yes" if r["reached"] else "no",
                 f"{r['wall_s'] or 0:.0f}",
                 f"{r['env_steps'] or 0:,}",
-                str(last),
+                str(_rounded(last)),
+                str(_rounded(evaluation)),
             )
+        gaitforge = {n: r for n, r in by_task["runs"].items() if n.startswith("gaitforge")}
+        if len(gaitforge) > 1:
+            reached = sum(r["reached"] for r in gaitforge.values())
+            out.add_row(task, f"gaitforge median of {len(gaitforge)}", by_task["target"],
+                        f"{reached}/{len(gaitforge)}", "", "", "",
+                        str(_rounded(median_evaluation(gaitforge))))  # fmt: skip
     return out
 
 
@@ -165,9 +225,9 @@ def plot(results: dict, path: Path) -> None:
     fig, axes = plt.subplots(1, len(results), figsize=(5 * len(results), 3.5), squeeze=False)
     for ax, (task, by_framework) in zip(axes[0], results.items(), strict=True):
         metric = by_framework["metric"]
-        for framework, r in by_framework["runs"].items():
+        for name, r in by_framework["runs"].items():
             xs = [p["wall_s"] / 60 for p in r["curve"]]
-            ax.plot(xs, [p.get(metric, float("nan")) for p in r["curve"]], label=framework)
+            ax.plot(xs, [p.get(metric, float("nan")) for p in r["curve"]], label=name)
         ax.axhline(by_framework["threshold"], color="grey", linestyle="--", linewidth=1)
         ax.set_title(task)
         ax.set_xlabel("wall-clock min")
@@ -181,6 +241,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tasks", nargs="+", default=list(DEFAULT_MINUTES))
     parser.add_argument("--minutes", type=float, nargs="+", default=None)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument(
+        "--eval-episodes",
+        type=int,
+        default=100,
+        help="deterministic episodes per run at the end (0: none)",
+    )
     parser.add_argument("--no-rllib", action="store_true")
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--out", type=Path, default=Path("bench/results/learning"))
@@ -194,13 +261,24 @@ def main() -> None:
     results: dict = {}
     for task, budget in zip(args.tasks, minutes, strict=True):
         job, scenes = load_job(EXAMPLES / f"{task}.yaml")
-        raw = job.model_dump()
-        raw["workers"]["num_workers"] = workers
-        job = Job.model_validate(raw)
         rules = job.stages[0].promote
-        runs = {"gaitforge": run_gaitforge(job, scenes, budget, args.out / "runs" / task)}
+        runs = {}
+        for seed in args.seeds:
+            raw = job.model_dump()
+            raw["workers"]["num_workers"] = workers
+            raw["seed"] = seed
+            seeded = Job.model_validate(raw)
+            run_dir = args.out / "runs" / task / f"seed-{seed}"
+            runs[f"gaitforge seed {seed}"] = run_gaitforge(
+                seeded, scenes, budget, run_dir, args.eval_episodes
+            )
         if not args.no_rllib:
-            runs["rllib"] = run_rllib(job, scenes[0], budget, workers)
+            raw = job.model_dump()
+            raw["workers"]["num_workers"] = workers
+            raw["seed"] = args.seeds[0]
+            runs[f"rllib seed {args.seeds[0]}"] = run_rllib(
+                Job.model_validate(raw), scenes[0], budget, workers
+            )
         results[task] = {
             "target": " and ".join(str(r) for r in rules),
             "minutes": budget,
