@@ -23,6 +23,7 @@ Rules (each failure names the file, the line and the import):
                     other module directly in ``workers/`` that imports no gaitforge
                     module (plain data, e.g. the fragment dataclass)
    1    bodies      ``workers/bodies/``: neutral bodies and body topology, as data
+   1.5  motions     ``workers/motions/``: reference motions (gait cycles), as data
    2    scenes      ``workers/scenes/``: the spec, catalogue, pruning, fidelity profiles
                     and the saved profiles a scene names
    3    sim         ``workers/sim/``: the simulator backends
@@ -61,7 +62,7 @@ FOLDERS = ("workers", "learner", "service")
 PACKAGE_ORDER = {"workers": 0, "learner": 1, "service": 2}
 """Top packages: a higher one may import a lower one, never the reverse."""
 
-PACKAGE_RANKS = {"bodies": 1, "scenes": 2, "sim": 3, "fidelity": 5}
+PACKAGE_RANKS = {"bodies": 1, "motions": 1.5, "scenes": 2, "sim": 3, "fidelity": 5}
 """Sub-packages of workers and their rank (every module inside has it)."""
 TOP_LEVEL_RANKS = {
     "spec_io": 0,
@@ -241,8 +242,8 @@ def test_workers_layers() -> None:
         if dst > src or (dst == src and not same_package):
             wrong.append(f"{e.where()}: {e.source} (rank {src}) imports {e.target} (rank {dst})")
     assert not wrong, (
-        "imports against the workers layers (rank 0 base < 1 bodies < 2 scenes < 3 sim < "
-        "4 env < 5 probe/episode/fidelity < 6 rollout/pool):\n" + "\n".join(wrong)
+        "imports against the workers layers (rank 0 base < 1 bodies < 1.5 motions < 2 scenes < "
+        "3 sim < 4 env < 5 probe/episode/fidelity < 6 rollout/pool):\n" + "\n".join(wrong)
     )
 
 
