@@ -4,6 +4,7 @@ each episode, an MCAP recorder, a video writer; and the one-line error type of e
 from __future__ import annotations
 
 import importlib
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -21,17 +22,21 @@ class EvaluationError(ValueError):
 
 class EpisodeMetrics(Observer):
     """An episode's evaluation statistics: effort (sum of excitation^2 as applied) and each
-    weighted reward term summed over the steps; :attr:`result` once the episode ended."""
+    weighted reward term summed over the steps; in imitation scenes (``info["imitation"]``
+    on every step) the RMS over the steps of the pose error (rad) and whether the bound still
+    held on the last step. :attr:`result` once the episode ended."""
 
     def __init__(self) -> None:
         self.result: EpisodeResult | None = None
         self._effort_sum = 0.0
         self._terms: dict[str, float] = {}
         self._n_muscles = 0
+        self._pose_sq, self._pose_steps, self._kept = 0.0, 0, True
 
     def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
         self.result, self._effort_sum, self._terms = None, 0.0, {}
         self._n_muscles = int(env.action_space.shape[0])
+        self._pose_sq, self._pose_steps, self._kept = 0.0, 0, True
 
     def on_step(
         self,
@@ -46,10 +51,22 @@ class EpisodeMetrics(Observer):
         self._effort_sum += float(np.sum(action**2))
         for name, value in info.get("reward_terms", {}).items():
             self._terms[name] = self._terms.get(name, 0.0) + float(value)
+        imitation = info.get("imitation")
+        if imitation is not None:
+            error = float(imitation.get("pose_error_rad", math.nan))
+            if math.isfinite(error):  # a failed step repeats the last healthy state
+                self._pose_sq += error * error
+                self._pose_steps += 1
+            self._kept = self._kept and bool(imitation.get("kept", False))
 
     def on_end(self, summary: EpisodeSummary | None) -> None:
         if summary is not None:
-            self.result = EpisodeResult.of(summary, self._effort_sum, self._terms, self._n_muscles)
+            tracking = None
+            if self._pose_steps:
+                tracking = (math.sqrt(self._pose_sq / self._pose_steps), self._kept)
+            self.result = EpisodeResult.of(
+                summary, self._effort_sum, self._terms, self._n_muscles, tracking
+            )
 
 
 def check_recording_available(record: bool, video: bool) -> None:

@@ -147,6 +147,11 @@ def evaluate_policy(
         label, result.distance_m.mean, result.mean_speed_m_s.mean, 100 * result.fall_rate.value,
         result.return_.mean,
     )  # fmt: skip
+    if result.tracking_error_rad is not None and result.kept_gait_rate is not None:
+        logger.info(
+            "%s: tracking error %.3f rad, kept the gait in %.0f %% of episodes", label,
+            result.tracking_error_rad.mean, 100 * result.kept_gait_rate.value,
+        )  # fmt: skip
     return result
 
 

@@ -5,6 +5,14 @@ Units: distance m (pelvis forward displacement, end minus start), speed m/s (dis
 episode time), time s (control steps / control_hz), effort 1 (mean over steps and muscles of
 excitation^2, the excitation as applied, clipped to [0, 1]), effort_sum (sum of excitation^2
 over steps and muscles), return (sum of the scene's weighted reward terms).
+
+Imitation scenes (``task.imitate``; the env reports ``info["imitation"]`` every step) add the
+tracking error, rad: per episode the RMS over its steps of the step's pose error (itself the
+RMS over the tracked kept joints), so ``sqrt(mean_t err_t^2)``; and whether the episode *kept
+the gait*: its pose error never passed the scene's bound (``kept`` on its last step), it did
+not fall, the simulator stayed healthy and it ran to the episode's end (``episode_s``). Over
+N episodes: the tracking error's mean with its t interval and the kept share with its Wilson
+interval. Other scenes leave these fields None (JSON ``null``): the keys are always there.
 """
 
 from __future__ import annotations
@@ -41,6 +49,10 @@ class EpisodeResult:
         effort: mean over steps and muscles of excitation^2 (1).
         effort_sum: sum over steps and muscles of excitation^2 (1).
         reward_terms: each weighted term summed over the episode.
+        tracking_error_rad: imitation scenes: RMS over the steps of the pose error (rad,
+            itself RMS over the tracked kept joints); None elsewhere.
+        kept_gait: imitation scenes: the pose error stayed within the bound, no fall, no
+            simulator failure, and the episode ran to its end; None elsewhere.
     """
 
     seed: int
@@ -55,6 +67,8 @@ class EpisodeResult:
     effort: float
     effort_sum: float
     reward_terms: dict[str, float]
+    tracking_error_rad: float | None = None
+    kept_gait: bool | None = None
 
     @classmethod
     def of(
@@ -63,10 +77,13 @@ class EpisodeResult:
         effort_sum: float,
         reward_terms: dict[str, float],
         n_muscles: int,
+        tracking: tuple[float, bool] | None = None,
     ) -> EpisodeResult:
         """From the loop's summary, the episode's sum of excitation^2 and each weighted term's
-        sum; ``n_muscles`` is the action's size."""
+        sum; ``n_muscles`` is the action's size; ``tracking`` (imitation scenes): the
+        episode's RMS pose error (rad) and whether the bound held on its last step."""
         steps, time_s, distance = summary.steps, summary.time_s, summary.distance_m
+        ran_out = summary.truncated and not summary.fell and summary.health == "ok"
         return cls(
             seed=summary.seed,
             steps=steps,
@@ -75,11 +92,13 @@ class EpisodeResult:
             mean_speed_m_s=distance / time_s if time_s > 0 else 0.0,
             fell=summary.fell,
             health=summary.health,
-            truncated=summary.truncated and not summary.fell and summary.health == "ok",
+            truncated=ran_out,
             return_=summary.return_,
             effort=effort_sum / (steps * max(1, n_muscles)) if steps else 0.0,
             effort_sum=effort_sum,
             reward_terms=reward_terms,
+            tracking_error_rad=None if tracking is None else float(tracking[0]),
+            kept_gait=None if tracking is None else bool(tracking[1] and ran_out),
         )
 
 
@@ -105,6 +124,10 @@ class ModeResult:
     """episodes ended by a simulator failure (health other than "ok")"""
     health: dict[str, int]
     """episodes by the health cause they ended with ("ok" included)"""
+    tracking_error_rad: Stat | None = None
+    """imitation scenes: the episodes' RMS pose error, rad (None elsewhere)"""
+    kept_gait_rate: Rate | None = None
+    """imitation scenes: the share of episodes that kept the gait to their end (None elsewhere)"""
 
     @classmethod
     def of(
@@ -118,6 +141,12 @@ class ModeResult:
 
         def stat(name: str) -> Stat:
             return Stat.of([float(getattr(e, name)) for e in episodes])
+
+        imitating = [e for e in episodes if e.tracking_error_rad is not None]
+        tracking = kept = None
+        if imitating:
+            tracking = Stat.of([float(e.tracking_error_rad or 0.0) for e in imitating])
+            kept = Rate.of(sum(bool(e.kept_gait) for e in imitating), len(imitating))
 
         return cls(
             mode=mode,
@@ -135,6 +164,8 @@ class ModeResult:
             fall_rate=Rate.of(sum(e.fell for e in episodes), n),
             failure_rate=Rate.of(sum(e.health != "ok" for e in episodes), n),
             health=dict(sorted(Counter(e.health for e in episodes).items())),
+            tracking_error_rad=tracking,
+            kept_gait_rate=kept,
         )
 
 

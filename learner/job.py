@@ -98,6 +98,26 @@ class BlendSpec(_Strict):
     """passes of the fit over that data"""
 
 
+class WarmStartSpec(_Strict):
+    """Before PPO, fit the actor's mean excitation to a motion's recorded (CMC) excitations
+    as a function of the gait phase in the observation (behavioural cloning,
+    ``learner.clone_excitations``): roll out in the stage's imitation scene (episodes start
+    inside the motion), label each observation with the excitations at its phase, fit the
+    mean by squared error; then roll out the fitted policy and fit again (``rounds``)."""
+
+    excitations: str
+    """the motion whose recorded excitations are cloned (e.g. ``walk``); the stage's scene
+    must imitate a motion of the same body (``task.imitate``)"""
+    env_steps: Annotated[int, Field(ge=1)] = 8192
+    """env steps of rollouts per round (they count in the stage's env steps)"""
+    rounds: Annotated[int, Field(ge=1, le=10)] = 2
+    """rollout-and-fit rounds: the first rolls out the initial policy, the next ones the
+    policy fitted so far (DAgger-like), on all the observations gathered"""
+    epochs: Annotated[int, Field(ge=1, le=1000)] = 30
+    """passes of each fit over the observations"""
+    lr: Annotated[float, Field(gt=0, le=1)] = 1e-3
+
+
 class Stage(_Strict):
     """One curriculum stage: a scene, a budget and a rule to leave early."""
 
@@ -118,6 +138,9 @@ class Stage(_Strict):
     """a new network for this stage (needs a building transition); None keeps the current"""
     transition: Literal["continue", "blend", "distil", "scratch"] = "continue"
     blend: BlendSpec = BlendSpec()
+    warm_start: WarmStartSpec | None = None
+    """clone a motion's recorded excitations into the actor's mean when the stage starts
+    (after its transition); None: no warm start"""
 
     @field_validator("promote", mode="before")
     @classmethod
@@ -130,6 +153,11 @@ class Stage(_Strict):
         if self.network is not None and self.transition == "continue":
             raise ValueError(
                 "network: a new network needs transition blend, distil or scratch (not continue)"
+            )
+        if self.warm_start is not None and self.transition == "blend":
+            raise ValueError(
+                "warm_start: not with transition blend (pi_old acts at first); use distil, "
+                "scratch or continue"
             )
         return self
 
@@ -212,4 +240,26 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
             scenes.append(scene.resolved())
         except ValueError as exc:
             raise SpecError(f"{source}: stages.{i}.scene: {exc}") from None
+        if stage.warm_start is not None:
+            check_warm_start(scenes[-1], stage.warm_start, f"{source}: stages.{i}.warm_start")
     return scenes
+
+
+def check_warm_start(scene: Scene, spec: WarmStartSpec, where: str) -> None:
+    """The stage's scene imitates a motion (it observes the phase) and the body has recorded
+    excitations for ``spec.excitations``.
+
+    Raises:
+        SpecError: ``where`` (file and field), what is wrong and what is allowed.
+    """
+    from gaitforge.learner.clone_excitations import ExcitationError, excitation_table
+
+    if getattr(scene.task, "imitate", None) is None:
+        raise SpecError(
+            f"{where}: scene {scene.name!r} imitates no motion (task.imitate); a warm start "
+            "from recorded excitations needs an imitation scene (e.g. imitate-walk-2d)"
+        )
+    try:
+        excitation_table(scene.body, spec.excitations)
+    except ExcitationError as exc:
+        raise SpecError(f"{where}.excitations: {exc}") from None

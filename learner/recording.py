@@ -25,6 +25,21 @@ topic              schema (encoding)           content
 ``/health``        gaitforge.Health (json)     ``ok`` (1/0), ``cause``, ``fell`` (1/0), ``step``
 =================  ==========================  ===================================================
 
+Imitation scenes (``task.imitate``) add two channels, one message each per step:
+
+=================  ==========================  ===================================================
+``/reference``     foxglove.SceneUpdate        entity ``reference`` in frame ``world``: the
+                   (protobuf)                  reference pose (``env.reference_state()``) as a
+                                               translucent green skeleton on a second copy of
+                                               the body's kinematics, moved with the body's
+                                               pelvis along the ground (``learner.reference_pose``)
+``/imitation``     gaitforge.Imitation (json)  ``phase`` [0, 1), ``pose_error_rad`` (RMS over the
+                                               tracked kept joints), ``kept`` (1/0)
+=================  ==========================  ===================================================
+
+In Foxglove's 3D panel the reference is a topic of its own, shown or hidden beside
+``/scene``; ``/imitation`` plots the tracking error over the episode.
+
 Frames: Foxglove is Z-up. Poses, paths and obstacles are rotated from the simulator's world
 (gait2d and OpenSim bodies are Y-up with X forward; MyoLeg is Z-up with X forward) into a
 Z-up, X-forward ``world`` frame, so that both stand upright in the 3D panel. The messages are
@@ -53,6 +68,7 @@ from foxglove.channels import FrameTransformsChannel, JointStatesChannel, SceneU
 from foxglove.messages import Timestamp
 from gaitforge.learner.checkpoint_meta import META_FILE, read_meta
 from gaitforge.learner.recording_messages import EpisodeMessages
+from gaitforge.learner.reference_pose import ReferenceBody, imitating
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.episode import Act, EpisodeObserver, EpisodeSummary, run_episode
 
@@ -65,6 +81,10 @@ TOPIC_JOINTS = "/joints"
 SCALAR_TOPICS = ("/reward", "/speed", "/activations", "/excitations", "/foot_forces", "/health")
 TOPICS = (TOPIC_TF, TOPIC_SCENE, TOPIC_JOINTS, *SCALAR_TOPICS)
 """Every channel a recording has, one message each per step."""
+TOPIC_REFERENCE = "/reference"
+TOPIC_IMITATION = "/imitation"
+IMITATION_TOPICS = (TOPIC_REFERENCE, TOPIC_IMITATION)
+"""The channels imitation scenes add, one message each per step."""
 
 
 def checkpoint_metadata(path: str | os.PathLike[str]) -> dict[str, str]:
@@ -127,6 +147,18 @@ class EpisodeRecorder:
             topic: foxglove.Channel(topic, schema=schema, context=ctx)
             for topic, schema in self._messages.scalar_schemas().items()
         }
+        self._reference: ReferenceBody | None = None
+        self._imitation: list[Any] = []  # the /reference and /imitation channels
+        if imitating(env):
+            try:
+                self._reference = ReferenceBody(env)
+            except ValueError as exc:
+                logger.warning("recording %s: no reference skeleton: %s", self.path, exc)
+            schema = self._messages.imitation_schema()
+            self._imitation = [
+                SceneUpdateChannel(TOPIC_REFERENCE, context=ctx),
+                foxglove.Channel(TOPIC_IMITATION, schema=schema, context=ctx),
+            ]
         self._writer.write_metadata(METADATA_NAME, self._metadata(env, metadata or {}))
 
     # ---- public -----------------------------------------------------------------------------
@@ -166,6 +198,12 @@ class EpisodeRecorder:
         )
         for topic, message in scalars.items():
             self._scalars[topic].log(message, log_time=log_time)
+        if self._imitation:
+            reference, imitation = self._imitation
+            frames = None if self._reference is None else self._reference.frames(env)
+            stamp = Timestamp(log_time // 10**9, log_time % 10**9)
+            reference.log(self._messages.reference(frames or {}, stamp), log_time=log_time)
+            imitation.log(self._messages.imitation(info), log_time=log_time)
         self.steps += 1
 
     def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
@@ -193,7 +231,9 @@ class EpisodeRecorder:
         if not self._closed:
             self._closed = True
             self._writer.close()
-            for channel in (self._tf, self._scene, self._joints, *self._scalars.values()):
+            channels = (self._tf, self._scene, self._joints, *self._scalars.values(),
+                        *self._imitation)  # fmt: skip
+            for channel in channels:
                 channel.close()
             logger.info("recording: %d steps to %s", self.steps, self.path)
 

@@ -44,6 +44,8 @@ MUSCLE_WIDTH = 0.008
 """m: the muscle lines."""
 GREY = Color(r=0.8, g=0.8, b=0.8, a=1.0)
 OBSTACLE_COLOUR = Color(r=0.6, g=0.4, b=0.3, a=1.0)
+REFERENCE_COLOUR = Color(r=0.1, g=0.9, b=0.4, a=0.35)
+"""the reference skeleton of imitation scenes: translucent green"""
 
 
 def z_up_rotation(up_axis: int, forward_axis: int) -> np.ndarray:
@@ -125,6 +127,27 @@ class EpisodeMessages:
             "/health": json_schema("gaitforge.Health", ["ok", "fell", "step"], ("cause",)),
         }
 
+    @staticmethod
+    def imitation_schema() -> dict:
+        """JSON schema of the ``/imitation`` channel (imitation scenes)."""
+        return json_schema("gaitforge.Imitation", ["phase", "pose_error_rad", "kept"])
+
+    @staticmethod
+    def imitation(info: Mapping[str, Any]) -> dict[str, Any]:
+        """The ``/imitation`` message of a step: ``phase`` [0, 1), ``pose_error_rad`` (RMS
+        over the tracked kept joints), ``kept`` (1/0: within the bound so far); empty when
+        the step's info has none."""
+        imitation = info.get("imitation")
+        if imitation is None:
+            return {}
+        phase = float(imitation.get("phase", float("nan")))
+        error = float(imitation.get("pose_error_rad", float("nan")))
+        return {
+            "phase": phase if np.isfinite(phase) else None,
+            "pose_error_rad": error if np.isfinite(error) else None,
+            "kept": int(bool(imitation.get("kept", False))),
+        }
+
     def to_world(self, p: np.ndarray) -> np.ndarray:
         """[..., 3] simulator-world points to the Z-up ``world`` frame."""
         return np.asarray(p) @ self._rot.T
@@ -154,12 +177,13 @@ class EpisodeMessages:
             )
         return FrameTransforms(transforms=transforms)
 
-    def _scene(
-        self, sim: Simulator, frames: dict[str, BodyPose], state: SimState, stamp: Timestamp
-    ) -> SceneUpdate:
-        """Entities ``skeleton``, ``muscles``, ``obstacles`` and ``contacts``."""
+    def skeleton(
+        self, frames: dict[str, BodyPose], stamp: Timestamp, entity: str, color: Color
+    ) -> SceneEntity:
+        """A skeleton entity named ``entity`` in ``world``: a sphere at each body origin of
+        ``frames`` (simulator world) and a line from each parent's origin to its child's."""
         positions = {name: self.to_world(f.position) for name, f in frames.items()}
-        spheres = [_sphere(p, BODY_RADIUS, GREY) for p in positions.values()]
+        spheres = [_sphere(p, BODY_RADIUS, color) for p in positions.values()]
         bones = [
             point
             for name, frame in frames.items()
@@ -167,10 +191,21 @@ class EpisodeMessages:
             for point in (_point(positions[frame.parent]), _point(positions[name]))
         ]
         line_list = LinePrimitiveLineType.LineList
-        skeleton_lines = [LinePrimitive(type=line_list, thickness=BONE_WIDTH, points=bones,
-                                        color=GREY)] if bones else []  # fmt: skip
-        skeleton = SceneEntity(timestamp=stamp, frame_id=WORLD, id="skeleton", spheres=spheres,
-                               lines=skeleton_lines)  # fmt: skip
+        lines = [LinePrimitive(type=line_list, thickness=BONE_WIDTH, points=bones,
+                               color=color)] if bones else []  # fmt: skip
+        return SceneEntity(timestamp=stamp, frame_id=WORLD, id=entity, spheres=spheres,
+                           lines=lines)  # fmt: skip
+
+    def reference(self, frames: dict[str, BodyPose], stamp: Timestamp) -> SceneUpdate:
+        """The ``/reference`` message: the reference pose's skeleton (entity ``reference``,
+        translucent green), from its body frames (``learner.reference_pose``)."""
+        return SceneUpdate(entities=[self.skeleton(frames, stamp, "reference", REFERENCE_COLOUR)])
+
+    def _scene(
+        self, sim: Simulator, frames: dict[str, BodyPose], state: SimState, stamp: Timestamp
+    ) -> SceneUpdate:
+        """Entities ``skeleton``, ``muscles``, ``obstacles`` and ``contacts``."""
+        skeleton = self.skeleton(frames, stamp, "skeleton", GREY)
         paths = sim.muscle_paths()
         lines = []
         for name, a in zip(self.muscles, state.activations, strict=True):

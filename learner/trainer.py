@@ -53,7 +53,14 @@ from gaitforge.learner.ppo import batch_from_fragments, ppo_update
 from gaitforge.learner.run_log import ScalarLog, batch_stats, record_policy
 from gaitforge.learner.sampling import LocalSampler, Sampler
 from gaitforge.learner.symmetry import add_mirrored
-from gaitforge.learner.transitions import collapsed, fresh_network, ramp_alpha, warm_start
+from gaitforge.learner.transitions import (
+    Rollout,
+    collapsed,
+    excitation_warm_start,
+    fresh_network,
+    ramp_alpha,
+    warm_start,
+)
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
 
@@ -279,7 +286,14 @@ class Trainer:
         """Build the stage's network (if it asks for one) and mark the stage entered."""
         index, stage = self.curriculum.stage, self.stage
         io, net = self.io[index], stage.network or self.job.network
+
+        def rollout(policy: ActorCritic, env_steps: int) -> list[Fragment]:
+            self.policy = policy
+            self._switch_policy(sampler, io)
+            return self._gather(sampler, env_steps)
+
         if index == 0:
+            self._clone_excitations(sampler, io, rollout)
             self.curriculum.entered = True
             return
         if stage.transition == "continue":
@@ -290,15 +304,10 @@ class Trainer:
             self.policy = fresh_network(io, net)
             self._switch_policy(sampler, io)
         else:
-
-            def rollout(policy: ActorCritic, env_steps: int) -> list[Fragment]:
-                self.policy = policy
-                self._switch_policy(sampler, io)
-                return self._gather(sampler, env_steps)
-
             self.policy = warm_start(self.policy, self.obs_names, io, stage, net, self.job.ppo,
                                      rollout, self.job.seed)  # fmt: skip
             self._switch_policy(sampler, io)
+        self._clone_excitations(sampler, io, rollout)
         self.curriculum.entered = True
         self.blend_start = self.curriculum.stage_env_steps
         self.lineage.append(
@@ -306,6 +315,14 @@ class Trainer:
              "env_steps": self.env_steps}
         )  # fmt: skip
         logger.info("stage %d (%s): %s", index, self.scene.name, stage.transition)
+
+    def _clone_excitations(self, sampler: Sampler, io: StageIO, rollout: Rollout) -> None:
+        """A stage's ``warm_start``: recorded excitations cloned into the actor's mean."""
+        if self.stage.warm_start is not None:
+            self.policy = excitation_warm_start(
+                self.policy, io, self.stage, self.scene, self.job.ppo, rollout, self.job.seed
+            )
+            self._switch_policy(sampler, io)
 
     def _switch_policy(self, sampler: Sampler, io: StageIO) -> None:
         self.obs_names = io.obs_names

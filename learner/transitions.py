@@ -7,6 +7,9 @@ stage is entered):
 - ``blend`` and ``distil``: :func:`warm_start` rolls pi_old out on the new stage (as a blend
   at alpha 0), fits pi_new's critic (and for ``distil`` its actor) to that data, and returns
   the blend (``blend``: alpha then ramps 0 -> 1, :func:`ramp_alpha`) or pi_new (``distil``).
+
+After the transition, a stage with ``warm_start`` clones a motion's recorded excitations into
+the actor's mean (:func:`excitation_warm_start`, ``learner.clone_excitations``).
 """
 
 from __future__ import annotations
@@ -15,12 +18,14 @@ import logging
 from collections.abc import Callable
 
 import torch
+from gaitforge.learner.clone_excitations import clone_excitations, excitation_table
 from gaitforge.learner.curriculum import StageIO
 from gaitforge.learner.distil import fit_student
 from gaitforge.learner.job import NetworkSpec, Stage
 from gaitforge.learner.policy import ActorCritic, BlendedPolicy, GaussianPolicy
 from gaitforge.learner.ppo import PPOSettings, batch_from_fragments
 from gaitforge.workers.fragment import Fragment
+from gaitforge.workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
 
@@ -87,3 +92,32 @@ def ramp_alpha(policy: ActorCritic, stage_env_steps: int, blend_start: int, ramp
     alpha = (stage_env_steps - blend_start) / ramp
     policy.set_alpha(alpha)
     return alpha >= 1.0
+
+
+def excitation_warm_start(
+    policy: ActorCritic,
+    io: StageIO,
+    stage: Stage,
+    scene: Scene,
+    ppo: PPOSettings,
+    rollout: Rollout,
+    seed: int,
+) -> GaussianPolicy:
+    """``stage.warm_start``: ``policy`` (collapsed to one network) with its actor's mean fitted
+    to the recorded excitations of ``stage.warm_start.excitations`` at the observed phase,
+    and its critic to the returns of the fitted policy's rollouts (``rollout`` gathers them
+    on the stage's ``scene``)."""
+    spec = stage.warm_start
+    assert spec is not None
+    student = collapsed(policy)
+    report = clone_excitations(
+        student, io.obs_names, io.act_names, excitation_table(scene.body, spec.excitations),
+        rollout, ppo, env_steps=spec.env_steps, rounds=spec.rounds, epochs=spec.epochs,
+        lr=spec.lr, seed=seed,
+    )  # fmt: skip
+    logger.info(
+        "warm start from the %s excitations: action mse %.4f -> %.4f over %d observations",
+        spec.excitations, report["action_mse_before"], report["action_mse"],
+        int(report["observations"]),
+    )  # fmt: skip
+    return student

@@ -12,7 +12,9 @@ The camera tracks the pelvis from the body's side (the lateral axis, so a sagitt
 seen in profile) with the body's up axis up, at a fixed height; stripes on the floor every
 0.5 m show progress. Muscles (MuJoCo tendons) are coloured by activation, blue at 0 to red
 at 1, and a skeleton (a sphere per body origin, capsules parent to child) is
-drawn over the model, since pruned scenes keep no visual geoms.
+drawn over the model, since pruned scenes keep no visual geoms. In imitation scenes the
+reference pose is drawn too, a translucent green copy of the skeleton overlaid in place and
+moved with the pelvis along the ground (``learner.video_reference``).
 
 OpenSim episodes are rendered by replaying the OpenSim coordinates (by name), activations
 and obstacles on the MuJoCo model of the same scene, which shares the body's coordinate
@@ -31,6 +33,7 @@ from typing import Any
 import imageio_ffmpeg
 import mujoco
 import numpy as np
+from gaitforge.learner.video_reference import ReferenceSkeleton, add_geom, add_model_skeleton
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.episode import Act, EpisodeSummary, run_episode
 from gaitforge.workers.sim.mujoco import OBSTACLE_PREFIX, MujocoSimulator
@@ -41,9 +44,6 @@ TARGET_FPS = 30.0
 """Frames per second aimed at when ``every`` is not given (one frame per control step at most)."""
 STRIPE_SPACING = 0.5
 """m between floor stripes."""
-BONE_RADIUS = 0.015
-"""m: skeleton capsules; spheres at body origins are twice as wide."""
-SKELETON_RGBA = np.array([0.85, 0.85, 0.8, 1.0], dtype=np.float32)
 
 
 def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
@@ -198,6 +198,7 @@ class VideoRecorder:
         if m.nlight == 0:  # bodies built from neutral specs have no lights: a brighter headlight
             m.vis.headlight.ambient[:] = 0.45
             m.vis.headlight.diffuse[:] = 0.7
+        self._reference = ReferenceSkeleton(env)
         self._writer: Any = None  # ffmpeg starts with the first frame
 
     # ---- public -----------------------------------------------------------------------------
@@ -235,7 +236,8 @@ class VideoRecorder:
         self._place_camera(target)
         if self._pelvis >= 0:  # locomotion: progress along the floor
             self._add_floor_stripes(target)
-        self._add_skeleton()
+        add_model_skeleton(self._scene, self._model, self._data)
+        self._reference.draw(self._scene, env)
         return self._renderer.render()
 
     def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
@@ -315,18 +317,6 @@ class VideoRecorder:
             cam.forward[:] = look
             cam.up[:] = cam_up
 
-    def _add_geom(
-        self, kind: mujoco.mjtGeom, size: np.ndarray, pos: np.ndarray, rgba: np.ndarray
-    ) -> mujoco.MjvGeom | None:
-        """Append a geom (world frame, unrotated) to the scene; None when it is full."""
-        scene = self._scene
-        if scene.ngeom >= scene.maxgeom:
-            return None
-        geom = scene.geoms[scene.ngeom]
-        scene.ngeom += 1
-        mujoco.mjv_initGeom(geom, kind, size, pos, np.eye(3).ravel(), rgba)
-        return geom
-
     def _add_floor_stripes(self, target: np.ndarray) -> None:
         up, forward = self._up, self._forward
         lateral = 3 - up - forward
@@ -338,21 +328,7 @@ class VideoRecorder:
             pos[forward], pos[lateral], pos[up] = k * STRIPE_SPACING, target[lateral], 0.001
             shade = 0.3 if k % 2 else 0.45
             rgba = np.array([shade, shade, shade + 0.05, 1.0], dtype=np.float32)
-            if self._add_geom(mujoco.mjtGeom.mjGEOM_BOX, size, pos, rgba) is None:
-                return
-
-    def _add_skeleton(self) -> None:
-        m, d = self._model, self._data
-        capsule, sphere = mujoco.mjtGeom.mjGEOM_CAPSULE, mujoco.mjtGeom.mjGEOM_SPHERE
-        for body in range(1, m.nbody):
-            parent = m.body_parentid[body]
-            if parent > 0 and np.linalg.norm(d.xpos[body] - d.xpos[parent]) > 1e-6:
-                bone = self._add_geom(capsule, np.zeros(3), np.zeros(3), SKELETON_RGBA)
-                if bone is None:
-                    return
-                mujoco.mjv_connector(bone, capsule, BONE_RADIUS, d.xpos[parent], d.xpos[body])
-            joint = np.array([2 * BONE_RADIUS, 0, 0])
-            if self._add_geom(sphere, joint, d.xpos[body], SKELETON_RGBA) is None:
+            if add_geom(self._scene, mujoco.mjtGeom.mjGEOM_BOX, size, pos, rgba) is None:
                 return
 
 

@@ -1,5 +1,7 @@
 """Render an ``EvaluationReport`` for people (rich): means ± the half-width of their 95 %
-interval, rates with their 95 % Wilson interval. Where the summary or sweep table (one row
+interval, rates with their 95 % Wilson interval. Imitation scenes add two columns, the
+tracking error (rad) and the share of episodes that kept the gait; other scenes' tables are
+as they were. Where the summary or sweep table (one row
 per mode or sweep point) is wider than the terminal, it turns on its side (one row per
 quantity), so that nothing is cut or folded at 80 columns."""
 
@@ -45,20 +47,39 @@ def _oriented(title: str, headers: list[str], rows: list[list[str]], console: Co
     return tall
 
 
+def _imitating(report: Any) -> bool:
+    """Whether any result of the report (modes and sweep) tracked a motion."""
+    results = [*report.results.values(), *(p.result for p in report.sweep)]
+    return any(r.tracking_error_rad is not None for r in results)
+
+
+def _tracking(r: Any) -> list[str]:
+    """The imitation columns of a mode result: tracking error (rad) and kept-gait share."""
+    if r.tracking_error_rad is None or r.kept_gait_rate is None:
+        return ["-", "-"]
+    return [_ci(r.tracking_error_rad, ".3f"), _rate(r.kept_gait_rate)]
+
+
 def render_episodes(report: Any) -> list[Table]:
     """One table per mode: every episode of an ``EvaluationReport``."""
     tables = []
+    imitating = _imitating(report)
+    extra = ["tracking\nrad", "kept\ngait"] if imitating else []
     for mode, r in report.results.items():
         episodes = table(
             "seed", "steps", "time\ns", "distance\nm", "speed\nm/s", "fell", "health",
-            "effort", "return", title=f"Episodes ({mode})",
+            "effort", "return", *extra, title=f"Episodes ({mode})",
         )  # fmt: skip
         for e in r.episodes:
-            episodes.add_row(
+            cells = [
                 str(e.seed), str(e.steps), f"{e.time_s:.2f}", f"{e.distance_m:.2f}",
                 f"{e.mean_speed_m_s:.2f}", "yes" if e.fell else "no", e.health,
                 f"{e.effort:.3f}", f"{e.return_:.1f}",
-            )  # fmt: skip
+            ]  # fmt: skip
+            if imitating:
+                error = "-" if e.tracking_error_rad is None else f"{e.tracking_error_rad:.3f}"
+                cells += [error, "-" if e.kept_gait is None else "yes" if e.kept_gait else "no"]
+            episodes.add_row(*cells)
         tables.append(episodes)
     return tables
 
@@ -72,26 +93,29 @@ def render(report: Any, console: Console) -> Group:
         f"{report.scene} on {report.backend}; seeds {report.seed}.."
         f"{report.seed + len(first.episodes) - 1}; means ± 95 % intervals"
     )
+    imitating = _imitating(report)
+    extra = ["tracking rad", "kept gait"] if imitating else []
     headers = ["mode", "target m/s", "distance m", "speed m/s", "fall rate", "time s", "effort",
-               "return", "health failures"]  # fmt: skip
+               "return", "health failures", *extra]  # fmt: skip
     rows = []
     for mode, r in report.results.items():
         target = "-" if r.target_speed_m_s is None else f"{r.target_speed_m_s:.2f}"
         rows.append([
             mode, target, _ci(r.distance_m), _ci(r.mean_speed_m_s), _rate(r.fall_rate),
             _ci(r.time_s), _ci(r.effort, ".3f"), _ci(r.return_, ".1f"), _health(r.health),
+            *(_tracking(r) if imitating else []),
         ])  # fmt: skip
     parts: list[Any] = [head, _oriented("Evaluation", headers, rows, console)]
     if report.sweep:
         headers = ["slower by", "target m/s", "fall rate", "distance m", "speed m/s", "return",
-                   "health failures"]  # fmt: skip
+                   "health failures", *extra]  # fmt: skip
         rows = []
         for point in report.sweep:
             r = point.result
             rows.append([
                 f"{100 * point.reduction:.0f} %", f"{point.target_speed_m_s:.2f}",
                 _rate(r.fall_rate), _ci(r.distance_m), _ci(r.mean_speed_m_s),
-                _ci(r.return_, ".1f"), _health(r.health),
+                _ci(r.return_, ".1f"), _health(r.health), *(_tracking(r) if imitating else []),
             ])  # fmt: skip
         title = f"Speed against safety ({report.sweep_mode})"
         parts.append(_oriented(title, headers, rows, console))

@@ -1,4 +1,5 @@
-"""Evaluation operations: a checkpoint's distance, speed, falls, effort and health over seeded
+"""Evaluation operations: a checkpoint's distance, speed, falls, effort and health (on imitation
+scenes also the tracking error, rad, and the share of episodes that kept the gait) over seeded
 episodes, and the speed-against-safety sweep (the work is ``learner.evaluate``'s)."""
 
 from __future__ import annotations
