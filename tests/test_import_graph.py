@@ -68,6 +68,7 @@ TOP_LEVEL_RANKS = {
     "spec_io": 0,
     "policy_api": 0,
     "rewards": 4,
+    "imitation": 4,
     "env": 4,
     "probe": 5,
     "episode": 5,

@@ -6,8 +6,14 @@ Observation (float32, names in ``env.obs_names``), in this order:
     and angular [3] (rad/s) velocity, normal ground force per foot [n_feet] (body weights);
     muscle activations [n_muscles]; previous excitations [n_muscles];
     task: target speed (m/s) or reach target (rad); with obstacles, the nearest obstacle
-    ahead: forward distance, height, radius (m; 0, 0, 0 when none is left).
+    ahead: forward distance, height, radius (m; 0, 0, 0 when none is left); imitating a
+    motion (``task.imitate``): the gait phase as ``phase_sin``, ``phase_cos``.
 Action: excitations [n_muscles] in [0, 1].
+
+Imitation scenes (``workers.imitation``) start each episode in the motion, add the tracking
+terms to the reward, end the episode when the pose error passes the scene's bound, and
+report ``info["imitation"] = {"phase", "pose_error_rad", "kept", "mirrored"}`` on reset and
+every step; ``reference_state()`` is the reference at the current phase.
 
 A simulator failure never raises and never reaches the observation: the step is
 ``terminated`` with ``info["health"]`` naming the cause, reward 0, and the last healthy
@@ -18,7 +24,9 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-from gaitforge.workers.rewards import TERMS, StepContext, reward_terms, weighted
+from gaitforge.workers.imitation import Imitation
+from gaitforge.workers.motions import MotionState
+from gaitforge.workers.rewards import StepContext, reward_terms, term_names, weighted
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.scenes.io_names import observation_layout
 from gaitforge.workers.sim import make_simulator
@@ -48,6 +56,9 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         )
         self._reach_target = 0.0
         self._weight = GRAVITY * self.sim.report.mass
+        self.reward_term_names = term_names(task)
+        self.imitation = Imitation(self.scene, self.sim, self.dt) if task.imitate else None
+        self._imitation_info: dict = {}
         self.obs_names = self._observation_names()
         n_mus = len(self.sim.muscle_names)
         self.observation_space = gym.spaces.Box(
@@ -71,10 +82,22 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             self._reach_target = float(self.np_random.uniform(*self.scene.task.reach_range))
         self._prev_excitation = np.zeros(len(self.sim.muscle_names))
         self._steps = 0
+        info: dict = {"health": HEALTHY}
+        if self.imitation is not None:
+            self.sim.set_pose(self.imitation.start(self.np_random))
         self._state = self.sim.state()
+        if self.imitation is not None:
+            ref = self.imitation.reference(0)
+            error = self.imitation.pose_error(self._state, ref)
+            info["imitation"] = self._imitation_info = {
+                "phase": self.imitation.phase(0),
+                "pose_error_rad": float(np.sqrt(np.mean(error**2))),
+                "kept": True,
+                "mirrored": self.imitation.mirrored,
+            }
         self._start_forward = float(self._state.pelvis_pos[self.sim.forward_axis])
         self._obs = self._observe(self._state)
-        return self._obs.copy(), {"health": HEALTHY}
+        return self._obs.copy(), info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         if self._state is None:
@@ -87,8 +110,13 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         if state is not None and not state.is_finite():
             health, state = Health("nan_state"), None
         if state is None:
-            info = {"health": health.cause, "reward_terms": dict.fromkeys(TERMS, 0.0)}
+            info = {
+                "health": health.cause,
+                "reward_terms": dict.fromkeys(self.reward_term_names, 0.0),
+            }
             info.update(self._episode_info(self._state))
+            if self.imitation is not None:
+                info["imitation"] = {**self._imitation_info, "kept": False}
             return self._obs.copy(), 0.0, True, truncated, info
         ctx = StepContext(
             previous=self._state,
@@ -102,13 +130,34 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             reach_target=self._reach_target,
         )
         terms = weighted(reward_terms(state, ctx), self.scene.task.reward)
+        kept = True
+        if self.imitation is not None:
+            tracking = self.imitation.track(state, self._state, self.sim, self._steps)
+            terms.update(self.imitation.weighted(tracking.kernels))
+            kept = self._imitation_info["kept"] and self.imitation.kept(tracking.pose_error_rad)
+            self._imitation_info = {
+                "phase": self.imitation.phase(self._steps),
+                "pose_error_rad": tracking.pose_error_rad,
+                "kept": kept,
+                "mirrored": self.imitation.mirrored,
+            }
         self._prev_excitation = excitation
         self._state = state
         self._obs = self._observe(state)
         fell = self._fell(state)
         info = {"health": HEALTHY, "reward_terms": terms, "fell": fell}
         info.update(self._episode_info(state))
-        return self._obs.copy(), float(sum(terms.values())), fell, truncated and not fell, info
+        ended = fell
+        if self.imitation is not None:
+            info["imitation"] = dict(self._imitation_info)
+            info["lost_track"] = not kept
+            ended = fell or not kept
+        return self._obs.copy(), float(sum(terms.values())), ended, truncated and not ended, info
+
+    def reference_state(self) -> MotionState | None:
+        """The motion's reference at the current phase (mirrored if this episode is), for
+        drawing; None if the scene imitates nothing."""
+        return self.imitation.reference(self._steps) if self.imitation is not None else None
 
     # ---- observation --------------------------------------------------------------------
 
@@ -131,6 +180,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         parts.append([task.target_speed or 0.0] if self._locomotion else [self._reach_target])
         if self.scene.obstacles is not None:
             parts.append(self._obstacle_ahead(s))
+        if self.imitation is not None:
+            parts.append(self.imitation.observe(self._steps))
         return np.concatenate([np.ravel(p) for p in parts]).astype(np.float32)
 
     def _obstacle_ahead(self, s: SimState) -> np.ndarray:

@@ -10,6 +10,12 @@ weights and reports every term, weighted, in ``info["reward_terms"]``.
 | upright      | pelvis up axis . world up (1 upright)     | 1             |
 | alive        | 1 while not terminated                    | 1             |
 | reach        | -|dof angle - target|                     | rad           |
+
+A scene whose task imitates a motion (``task.imitate``) also has the tracking terms
+``imitate_pose``, ``imitate_joint_speed``, ``imitate_feet``, ``imitate_pelvis_height``,
+``imitate_pelvis_pitch`` and ``imitate_pelvis_speed`` (``IMITATION_TERMS``; see
+``workers.imitation``), weighted by ``task.imitate.weights``. :func:`term_names` gives a
+task's terms; other scenes report exactly ``TERMS``.
 """
 
 from __future__ import annotations
@@ -17,10 +23,20 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from gaitforge.workers.scenes.spec import RewardWeights
+from gaitforge.workers.scenes.imitate import IMITATION_TERMS
+from gaitforge.workers.scenes.spec import RewardWeights, Task
 from gaitforge.workers.sim.base import SimState
 
 TERMS: tuple[str, ...] = tuple(RewardWeights.model_fields)
+"""The terms of every scene."""
+ALL_TERMS: tuple[str, ...] = TERMS + IMITATION_TERMS
+"""Every term any scene may report (for schemas)."""
+
+
+def term_names(task: Task) -> tuple[str, ...]:
+    """The reward terms ``task`` reports, in order: ``TERMS``, then with ``task.imitate``
+    the ``IMITATION_TERMS``."""
+    return ALL_TERMS if task.imitate is not None else TERMS
 
 
 @dataclass(frozen=True)

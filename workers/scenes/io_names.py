@@ -30,7 +30,8 @@ def observation_layout(
     ``pelvis_height``, ``pelvis_up_{x,y,z}``, ``pelvis_vel_{x,y,z}``,
     ``pelvis_angvel_{x,y,z}``, ``grf:<foot>``; ``act:<muscle>``, ``prev_exc:<muscle>``;
     ``target_speed`` (locomotion) or ``reach_target``; with obstacles ``obstacle_dx``,
-    ``obstacle_height``, ``obstacle_radius``."""
+    ``obstacle_height``, ``obstacle_radius``; imitating a motion ``phase_sin``,
+    ``phase_cos``."""
     locomotion = scene.task.kind == "locomotion"
     names = [f"q:{d}" for d in dofs] + [f"qd:{d}" for d in dofs]
     if locomotion:
@@ -42,6 +43,8 @@ def observation_layout(
     names += ["target_speed"] if locomotion else ["reach_target"]
     if scene.obstacles is not None:
         names += ["obstacle_dx", "obstacle_height", "obstacle_radius"]
+    if scene.task.imitate is not None:
+        names += ["phase_sin", "phase_cos"]
     return names
 
 

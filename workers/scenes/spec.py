@@ -8,6 +8,7 @@ from typing import Annotated, Literal
 import numpy as np
 from gaitforge.workers.bodies.topology import MJCF_BODIES
 from gaitforge.workers.scenes import saved_profiles
+from gaitforge.workers.scenes.imitate import Imitate
 from gaitforge.workers.scenes.profiles import (
     BACKENDS,
     NAMED_PROFILES,
@@ -106,11 +107,19 @@ class Task(_Strict):
         default=None, description="rad; target sampled uniformly each episode"
     )
     reward: RewardWeights = RewardWeights()
+    imitate: Imitate | None = Field(
+        default=None, description="track a recorded motion of the body (locomotion only)"
+    )
 
     @model_validator(mode="after")
     def _consistent(self) -> Task:
         if self.kind == "reach" and (self.reach_dof is None or self.reach_range is None):
             raise ValueError("a reach task needs reach_dof and reach_range")
+        if self.imitate is not None and self.kind != "locomotion":
+            raise ValueError(
+                f"imitate: imitation needs a locomotion task (a body with a pelvis), "
+                f"not kind {self.kind!r}"
+            )
         if self.kind == "locomotion" and self.min_pelvis_height is None:
             raise ValueError("a locomotion task needs min_pelvis_height")
         return self
@@ -279,6 +288,7 @@ def resolve_profile(
 __all__ = [
     "BACKENDS",
     "FaultInjection",
+    "Imitate",
     "Keep",
     "Obstacles",
     "RewardWeights",

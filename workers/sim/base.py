@@ -62,6 +62,35 @@ class SimState:
         return bool(np.isfinite(self.time)) and all(np.isfinite(a).all() for a in self.arrays())
 
 
+@dataclass(frozen=True)
+class Pose:
+    """A whole-body state to start from (reference state initialisation), by name.
+
+    Angles use OpenSim's conventions whatever the backend: pelvis pitch, list and rotation
+    are ``pelvis_tilt``, ``pelvis_list`` and ``pelvis_rotation`` (body-fixed Z, X, Y of a
+    Y-up, X-forward, Z-right frame; MyoLeg's Z-up world is mapped onto it).
+
+    Attributes:
+        coordinates: non-root dof -> value, rad or m. Dofs the scene locked are ignored.
+        speeds: non-root dof -> speed, rad/s or m/s (missing ones are 0).
+        pelvis_height: m, pelvis origin above the floor.
+        pelvis_pitch, pelvis_list, pelvis_rotation: rad.
+        pelvis_angular_speed: rad/s, time derivatives of (pitch, list, rotation).
+        forward_speed: m/s of the pelvis origin along the world's forward axis.
+        vertical_speed: m/s of the pelvis origin along the world's up axis.
+    """
+
+    coordinates: dict[str, float]
+    speeds: dict[str, float] = field(default_factory=dict)
+    pelvis_height: float = 0.9
+    pelvis_pitch: float = 0.0
+    pelvis_list: float = 0.0
+    pelvis_rotation: float = 0.0
+    pelvis_angular_speed: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    forward_speed: float = 0.0
+    vertical_speed: float = 0.0
+
+
 class BodyPose(NamedTuple):
     """World pose of one body (for drawing), in the simulator's world frame (its up and
     forward axes: ``Simulator.up_axis``, ``Simulator.forward_axis``).
@@ -118,6 +147,19 @@ class Simulator(Protocol):
         """Hold ``excitations`` ([n_muscles] in [0, 1]) for ``duration`` seconds."""
 
     def state(self) -> SimState: ...
+
+    def set_pose(self, pose: Pose) -> None:
+        """Put the body in ``pose`` (kept dofs, pelvis height and orientation, speeds) where
+        it stands now along the ground (forward position kept, lateral 0); lifted if a
+        foot would start inside the floor. Call after ``reset``; activations unchanged.
+
+        Raises:
+            ValueError: ``pose`` names a coordinate the body lacks.
+        """
+
+    def foot_positions(self) -> dict[str, np.ndarray]:
+        """Each foot's (``foot_names``) point: the mean of its contact geoms' centres in
+        the world, [3] m."""
 
     def obstacles(self) -> np.ndarray:
         """[n_obstacles, 3]: forward position, height (m) and radius (m) of each obstacle."""

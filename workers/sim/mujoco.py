@@ -16,13 +16,22 @@ import numpy as np
 from gaitforge.workers.bodies import load_body
 from gaitforge.workers.bodies.topology import Topology, topology_for
 from gaitforge.workers.scenes import PrunePlan, Scene, plan_pruning
-from gaitforge.workers.sim.base import HEALTHY, MAX_SPEED, BodyPose, CompileReport, Health, SimState
+from gaitforge.workers.sim.base import (
+    HEALTHY,
+    MAX_SPEED,
+    BodyPose,
+    CompileReport,
+    Health,
+    Pose,
+    SimState,
+)
 from gaitforge.workers.sim.mjcf_contacts import model_size, restrict_contacts
 from gaitforge.workers.sim.mjcf_lock import lock_joints
 from gaitforge.workers.sim.mjcf_moment_arms import planar_muscles
 from gaitforge.workers.sim.mjcf_muscles import remove_muscles, strip_unused
 from gaitforge.workers.sim.mjcf_sources import MJCF_SOURCES
 from gaitforge.workers.sim.mujoco_build import CONTACT_GROUP, FLOOR, build_spec
+from gaitforge.workers.sim.mujoco_pose import PoseSetter
 from gaitforge.workers.sim.mujoco_warnings import route_warnings
 
 logger = logging.getLogger(__name__)
@@ -179,6 +188,17 @@ class MujocoSimulator:
         self._lift_adr = self._root_slide_along(self.up_axis)
         self._stand_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, STAND_KEY)
         self._rng = np.random.default_rng(0)
+        self._locked = set(self.report.plan.locked_dofs)
+        self._foot_geoms = [
+            np.flatnonzero(self._geom_foot == k) for k in range(len(self.foot_names))
+        ]
+        self._poser = PoseSetter(
+            m,
+            self.dof_names,
+            (self._qadr, self._qlo, self._qhi),
+            self._pelvis,
+            (self.up_axis, self.forward_axis),
+        )
 
     # ---- protocol -------------------------------------------------------------------
 
@@ -240,6 +260,22 @@ class MujocoSimulator:
             activations=d.act.copy() if m.na else np.zeros(m.nu),
             foot_forces=self._foot_forces(),
         )
+
+    def set_pose(self, pose: Pose) -> None:
+        """See ``Simulator.set_pose`` and ``workers.sim.mujoco_pose``."""
+        unknown = [
+            n for n in pose.coordinates if n not in self.dof_names and n not in self._locked
+        ]
+        if unknown:
+            raise ValueError(f"set_pose: body {self.scene.body!r} has no coordinates {unknown}")
+        self._poser.apply(self.data, pose)
+
+    def foot_positions(self) -> dict[str, np.ndarray]:
+        d = self.data
+        return {
+            foot: d.geom_xpos[ids].mean(axis=0) if len(ids) else np.full(3, np.nan)
+            for foot, ids in zip(self.foot_names, self._foot_geoms, strict=True)
+        }
 
     def obstacles(self) -> np.ndarray:
         m = self.model

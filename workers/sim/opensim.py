@@ -26,7 +26,15 @@ import opensim
 from gaitforge.workers.bodies import available_bodies, load_body
 from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.scenes import Scene, plan_pruning
-from gaitforge.workers.sim.base import HEALTHY, MAX_SPEED, BodyPose, CompileReport, Health, SimState
+from gaitforge.workers.sim.base import (
+    HEALTHY,
+    MAX_SPEED,
+    BodyPose,
+    CompileReport,
+    Health,
+    Pose,
+    SimState,
+)
 from gaitforge.workers.sim.opensim_build import PARKED, build_model, quiet_opensim_log
 from gaitforge.workers.sim.opensim_size import full_plan, model_size
 
@@ -66,6 +74,10 @@ class OpenSimSimulator:
         root = self._body.ordered_joints()[0]
         self._lift_dof = next(
             (d.name for d in root.dofs if d.type == "slide" and abs(d.axis[UP]) > 0.999), None
+        )
+        self._forward_dof = next(
+            (d.name for d in root.dofs if d.type == "slide" and abs(d.axis[FORWARD]) > 0.999),
+            None,
         )
         self.profile = scene.profile("opensim")
         self._rng = np.random.default_rng(0)
@@ -207,6 +219,45 @@ class OpenSimSimulator:
             ),
         )
 
+    def set_pose(self, pose: Pose) -> None:
+        """See ``Simulator.set_pose``: coordinate values and speeds by name (root:
+        ``pelvis_tilt`` (``_list``, ``_rotation``) and the up and forward slides, which
+        OpenSim's planar root expresses in the ground frame), then muscles equilibrated."""
+        locked = self._plan.locked_dofs
+        unknown = [n for n in pose.coordinates if n not in self.dof_names and n not in locked]
+        if unknown:
+            raise ValueError(f"set_pose: body {self.scene.body!r} has no coordinates {unknown}")
+        state = self.osim_state
+        values = {n: (v, pose.speeds.get(n, 0.0)) for n, v in pose.coordinates.items()}
+        rates = pose.pelvis_angular_speed
+        root = {
+            "pelvis_tilt": (pose.pelvis_pitch, rates[0]),
+            "pelvis_list": (pose.pelvis_list, rates[1]),
+            "pelvis_rotation": (pose.pelvis_rotation, rates[2]),
+        }
+        for name, (value, speed) in [*values.items(), *root.items()]:
+            coord = self._coords.get(name)
+            if coord is not None and (name in self.dof_names or name in root):
+                coord.setValue(state, float(value), False)
+                coord.setSpeedValue(state, float(speed))
+        if self._forward_dof in self._coords:
+            self._coords[self._forward_dof].setSpeedValue(state, pose.forward_speed)
+        lift = self._coords.get(self._lift_dof) if self._lift_dof else None
+        if lift is not None:
+            lift.setSpeedValue(state, pose.vertical_speed)
+            self.model.realizePosition(state)
+            height = self._pelvis.getPositionInGround(state).get(UP)
+            lift.setValue(state, lift.getValue(state) + pose.pelvis_height - height, False)
+            self._lift_out_of_floor(state)
+        self.model.equilibrateMuscles(state)
+
+    def foot_positions(self) -> dict[str, np.ndarray]:
+        spheres = self.contact_spheres()
+        return {
+            foot: s[:, :3].mean(axis=0) if len(s) else np.full(3, np.nan)
+            for foot, s in spheres.items()
+        }
+
     def obstacles(self) -> np.ndarray:
         return self._obstacles.copy()
 
@@ -314,6 +365,19 @@ class OpenSimSimulator:
             for body, where, radius in self._foot_spheres
         )
         lift.setValue(state, lift.getValue(state) - lowest, False)
+
+    def _lift_out_of_floor(self, state: opensim.State) -> None:
+        """Raise the pelvis if a foot sphere lies inside the floor (never lower it)."""
+        lift = self._coords.get(self._lift_dof) if self._lift_dof else None
+        if lift is None or not self._foot_spheres:
+            return
+        self.model.realizePosition(state)
+        lowest = min(
+            body.findStationLocationInGround(state, where).get(UP) - radius
+            for body, where, radius in self._foot_spheres
+        )
+        if lowest < 0.0:
+            lift.setValue(state, lift.getValue(state) - lowest, False)
 
     def _place_obstacles(self) -> None:
         spec = self.scene.obstacles

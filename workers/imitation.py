@@ -1,0 +1,190 @@
+"""Imitation of a recorded gait in an env (a scene's ``task.imitate``), DeepMimic-style.
+
+The gait phase runs with the env's time: ``phase = phase0 + t / period (mod 1)``, ``t`` the
+control steps taken times the control period. Each reset draws ``phase0`` (uniform, or 0) and
+whether the episode is mirrored (left and right legs swapped, p = 0.5), and starts the body in
+the reference state there (joint angles plus uniform noise, their speeds, pelvis height,
+pitch, list, rotation and their rates, forward and vertical speed; ``Simulator.set_pose``).
+
+Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imitate.weights``:
+
+| term                  | error                                                       | unit     |
+|-----------------------|-------------------------------------------------------------|----------|
+| imitate_pose          | sum over tracked joints of (angle - reference)^2            | rad^2    |
+| imitate_joint_speed   | sum over tracked joints of (speed - reference)^2            | (rad/s)^2|
+| imitate_feet          | sum over feet of |foot - pelvis - reference|^2, heading-aligned | m^2  |
+| imitate_pelvis_height | (pelvis height - reference)^2                               | m^2      |
+| imitate_pelvis_pitch  | (pitch - reference)^2 + (list - reference)^2 (OpenSim's)    | rad^2    |
+| imitate_pelvis_speed  | (forward speed over the step - reference)^2                 | (m/s)^2  |
+
+The tracked joints are the motion's joints that the scene keeps. The episode ends early
+(``terminated``, ``info["imitation"]["kept"]`` False) when the RMS pose error over them passes
+``max_pose_error_rad``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from gaitforge.workers.bodies.topology import topology_for
+from gaitforge.workers.motions import Motion, MotionState, load_motion
+from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes.imitate import IMITATION_TERMS, Imitate, tracked_joints
+from gaitforge.workers.sim.base import Pose, SimState, Simulator
+from gaitforge.workers.sim.pose import opensim_to_world, pelvis_pitch_list, pelvis_rotation
+
+PHASE_OBS = ("phase_sin", "phase_cos")
+
+
+@dataclass(frozen=True)
+class Tracking:
+    """One step's tracking: unweighted kernels by term name, RMS pose error (rad)."""
+
+    kernels: dict[str, float]
+    pose_error_rad: float
+
+
+class Imitation:
+    """The imitation side of one env: phase, reference, reset pose and tracking terms."""
+
+    def __init__(self, scene: Scene, sim: Simulator, dt: float) -> None:
+        imitate = scene.task.imitate
+        if imitate is None:
+            raise ValueError(f"scene {scene.name!r}: task.imitate is not set")
+        self.spec: Imitate = imitate
+        self.motion: Motion = load_motion(scene.body, imitate.motion)
+        self.joints = tracked_joints(
+            imitate, scene.body, scene.keep.joints, topology_for(scene.body)
+        )
+        self._index = np.array([sim.dof_names.index(j) for j in self.joints], dtype=int)
+        self._feet = [f for f in sim.foot_names if f in self.motion.feet]
+        self.dt = dt
+        self.up, self.forward = sim.up_axis, sim.forward_axis
+        self._to_os = opensim_to_world(self.up, self.forward).T
+        self._turns = self.motion.body != "gait2d"  # 3-D: heading may differ
+        self.phase0 = 0.0
+        self.mirrored = False
+
+    # ---- phase and reference ----------------------------------------------------------
+
+    def phase(self, steps: int) -> float:
+        """Phase in [0, 1) after ``steps`` control steps of this episode."""
+        return (self.phase0 + steps * self.dt / self.motion.period_s) % 1.0
+
+    def reference(self, steps: int) -> MotionState:
+        """The reference after ``steps`` control steps (mirrored if the episode is)."""
+        state = self.motion.at(self.phase(steps))
+        return self.motion.mirrored_state(state) if self.mirrored else state
+
+    def observe(self, steps: int) -> list[float]:
+        """``phase_sin``, ``phase_cos`` of the phase after ``steps`` steps."""
+        angle = 2.0 * np.pi * self.phase(steps)
+        return [float(np.sin(angle)), float(np.cos(angle))]
+
+    # ---- reference state initialisation ----------------------------------------------
+
+    def start(self, rng: np.random.Generator) -> Pose:
+        """Draw this episode's phase and mirroring; the pose to start it from."""
+        init = self.spec.init
+        self.phase0 = float(rng.uniform()) if init.random_phase else 0.0
+        self.mirrored = bool(rng.uniform() < 0.5) if init.mirror else False
+        ref = self.reference(0)
+        noise = rng.uniform(-init.noise, init.noise, len(self.joints))
+        return Pose(
+            coordinates={
+                j: ref.joints[j] + float(e) for j, e in zip(self.joints, noise, strict=True)
+            },
+            speeds={n: ref.joint_speeds[n] for n in self.joints},
+            pelvis_height=ref.pelvis_height,
+            pelvis_pitch=ref.pelvis_pitch,
+            pelvis_list=ref.pelvis_list,
+            pelvis_rotation=ref.pelvis_rotation,
+            pelvis_angular_speed=ref.pelvis_angular_speed,
+            forward_speed=ref.forward_speed,
+            vertical_speed=ref.pelvis_vertical_speed,
+        )
+
+    # ---- tracking -----------------------------------------------------------------------
+
+    def pose_error(self, state: SimState, ref: MotionState) -> np.ndarray:
+        """[n_tracked] angle minus reference, rad."""
+        return state.dof_pos[self._index] - np.array([ref.joints[j] for j in self.joints])
+
+    def track(self, state: SimState, previous: SimState, sim: Simulator, steps: int) -> Tracking:
+        """The tracking kernels of the state after step ``steps`` (see the module table)."""
+        ref = self.reference(steps)
+        scales = self.spec.scales
+        pose = self.pose_error(state, ref)
+        speed = state.dof_vel[self._index] - np.array([ref.joint_speeds[j] for j in self.joints])
+        pitch, list_ = pelvis_pitch_list(state.pelvis_up, self.up, self.forward)
+        height = float(state.pelvis_pos[self.up]) - ref.pelvis_height
+        forward = float(state.pelvis_pos[self.forward] - previous.pelvis_pos[self.forward])
+        mid = self.motion.at(self.phase(steps) - 0.5 * self.dt / self.motion.period_s)
+        errors = {
+            "pose": float(pose @ pose),
+            "joint_speed": float(speed @ speed),
+            "feet": self._feet_error(state, ref, sim),
+            "pelvis_height": height**2,
+            "pelvis_pitch": (pitch - ref.pelvis_pitch) ** 2 + (list_ - ref.pelvis_list) ** 2,
+            "pelvis_speed": (forward / self.dt - mid.forward_speed) ** 2,
+        }
+        kernels = {
+            f"imitate_{name}": float(np.exp(-getattr(scales, name) * err))
+            for name, err in errors.items()
+        }
+        rms = float(np.sqrt(np.mean(pose**2)))
+        return Tracking(kernels=kernels, pose_error_rad=rms)
+
+    def kept(self, pose_error_rad: float) -> bool:
+        """Whether the error is within ``max_pose_error_rad`` (always, if none is set)."""
+        bound = self.spec.max_pose_error_rad
+        return bound is None or pose_error_rad <= bound
+
+    def weighted(self, kernels: dict[str, float]) -> dict[str, float]:
+        weights = self.spec.weights
+        return {
+            t: getattr(weights, t.removeprefix("imitate_")) * kernels[t] for t in IMITATION_TERMS
+        }
+
+    def _feet_error(self, state: SimState, ref: MotionState, sim: Simulator) -> float:
+        if not self._feet:
+            return 0.0
+        feet = sim.foot_positions()
+        turn = np.eye(3)
+        if self._turns:  # compare in the reference's heading: turn the body's by the difference
+            turn = self._heading(ref) @ self._heading_of(sim).T
+        total = 0.0
+        for foot in self._feet:
+            rel = turn @ (feet[foot] - state.pelvis_pos) - np.asarray(ref.feet_rel_pelvis[foot])
+            total += float(rel @ rel)
+        return total
+
+    def _heading(self, ref: MotionState) -> np.ndarray:
+        """[3, 3] world rotation about up by the reference pelvis's heading."""
+        rot = pelvis_rotation(
+            ref.pelvis_pitch, ref.pelvis_list, ref.pelvis_rotation, self.up, self.forward
+        )
+        return self._yaw(rot)
+
+    def _heading_of(self, sim: Simulator) -> np.ndarray:
+        q = sim.body_frames()["pelvis"].quaternion
+        w, x, y, z = q
+        rot = np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+        return self._yaw(rot)
+
+    def _yaw(self, world_from_pelvis: np.ndarray) -> np.ndarray:
+        """The rotation about the world's up axis that turns forward to the pelvis's forward
+        axis projected on the ground."""
+        x_os = self._to_os @ world_from_pelvis[:, 0]  # pelvis forward, OpenSim frame
+        yaw = np.arctan2(-x_os[2], x_os[0])  # about OpenSim's Y (up)
+        c, s = np.cos(yaw), np.sin(yaw)
+        about_y = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+        to_world = self._to_os.T
+        return to_world @ about_y @ self._to_os

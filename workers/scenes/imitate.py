@@ -1,0 +1,118 @@
+"""A scene task's ``imitate`` field: track a recorded gait (DeepMimic-style), and its checks
+against the body (the motion exists, the scene keeps some of its joints).
+
+Each tracking term is an exponential kernel ``exp(-scale * error)`` in (0, 1], times its
+weight (see ``workers.imitation`` for each error and its unit). Reward terms are reported as
+``imitate_<name>`` beside the task's other terms.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Annotated, Literal
+
+from gaitforge.workers.bodies.topology import Topology
+from gaitforge.workers.motions import MotionError, available_motions, load_motion
+from pydantic import BaseModel, ConfigDict, Field
+
+NonNegative = Annotated[float, Field(ge=0)]
+Positive = Annotated[float, Field(gt=0)]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class ImitationWeights(_Strict):
+    """Weight of each tracking term; the terms are in (0, 1], so a step earns at most the sum
+    (DeepMimic: pose 0.65, velocity 0.1, end effectors 0.15, root 0.1)."""
+
+    pose: NonNegative = 0.5
+    joint_speed: NonNegative = 0.1
+    feet: NonNegative = 0.15
+    pelvis_height: NonNegative = 0.1
+    pelvis_pitch: NonNegative = 0.05
+    pelvis_speed: NonNegative = 0.1
+
+
+class ImitationScales(_Strict):
+    """Sensitivity ``k`` of each kernel ``exp(-k * error)`` (DeepMimic: pose 2, velocity 0.1,
+    end effectors 40, root 10)."""
+
+    pose: Positive = Field(default=2.0, description="1/rad^2; error: sum over joints of rad^2")
+    joint_speed: Positive = Field(default=0.05, description="s^2/rad^2; sum of (rad/s)^2")
+    feet: Positive = Field(default=40.0, description="1/m^2; sum over feet of m^2")
+    pelvis_height: Positive = Field(default=50.0, description="1/m^2")
+    pelvis_pitch: Positive = Field(default=10.0, description="1/rad^2; pitch (and list) error")
+    pelvis_speed: Positive = Field(default=2.0, description="s^2/m^2; forward speed error")
+
+
+class ImitationInit(_Strict):
+    """Reference state initialisation: where each episode starts in the motion."""
+
+    random_phase: bool = Field(default=True, description="a uniform random phase; else 0")
+    mirror: bool = Field(default=True, description="left and right swapped at random (p=0.5)")
+    noise: NonNegative = Field(default=0.02, description="rad, uniform on the joint angles")
+
+
+class Imitate(_Strict):
+    """Track motion ``motion`` of the scene's body (``workers.motions``)."""
+
+    motion: str = Field(description="a motion shipped for the body, or a motion file path")
+    weights: ImitationWeights = ImitationWeights()
+    scales: ImitationScales = ImitationScales()
+    max_pose_error_rad: Positive | None = Field(
+        default=0.5,
+        description="rad; the episode ends when the RMS pose error over the tracked joints "
+        "passes it (none: never)",
+    )
+    init: ImitationInit = ImitationInit()
+
+
+IMITATION_TERMS: tuple[str, ...] = tuple(f"imitate_{n}" for n in ImitationWeights.model_fields)
+"""Reward term names of an imitation scene, beside the task's ``RewardWeights`` terms."""
+
+
+def tracked_joints(
+    imitate: Imitate, body: str, kept: Sequence[str] | Literal["all"], topology: Topology
+) -> list[str]:
+    """The motion's joints that the scene keeps, in the motion's order.
+
+    Raises:
+        ValueError: one line naming the field: the motion is unknown or invalid (the
+            available ones listed), the body lacks one of its joints, or the scene keeps
+            none of them.
+    """
+    try:
+        motion = load_motion(body, imitate.motion)
+    except MotionError as exc:
+        raise ValueError(f"task.imitate.motion: {exc}") from None
+    missing = [j for j in motion.joints if j not in topology.dof_defaults]
+    if missing:
+        raise ValueError(
+            f"task.imitate.motion: motion {imitate.motion!r} tracks joints {missing} that body "
+            f"{body!r} lacks; available motions: {available_motions(body)}"
+        )
+    kept_set = set(topology.dof_defaults if kept == "all" else kept)
+    tracked = [j for j in motion.joints if j in kept_set]
+    if not tracked:
+        raise ValueError(
+            f"task.imitate.motion: the scene keeps none of motion {imitate.motion!r}'s joints "
+            f"{motion.joints}; keep.joints must include some"
+        )
+    return tracked
+
+
+def check_imitation(
+    imitate: Imitate | None, body: str, kept: Sequence[str] | Literal["all"], topology: Topology
+) -> None:
+    """Raise ``ValueError`` (one line naming the field) if ``imitate`` does not fit the body:
+    no pelvis root to place, or see :func:`tracked_joints`."""
+    if imitate is None:
+        return
+    if not topology.root_dofs:
+        raise ValueError(
+            f"task.imitate: body {body!r} has no free pelvis (root) to place; imitation needs "
+            "a legged body (gait2d, myoleg)"
+        )
+    tracked_joints(imitate, body, kept, topology)

@@ -1,0 +1,52 @@
+"""Pelvis orientation in OpenSim's convention, in any simulator world.
+
+OpenSim's pelvis angles (``pelvis_tilt``, ``pelvis_list``, ``pelvis_rotation``) are body-fixed
+rotations about Z, X and Y of a frame that is X forward, Y up and Z right. A simulator world
+names its own up and forward axes (gait2d: Y up; MyoLeg: Z up, both X forward); its right is
+forward x up. :func:`opensim_to_world` maps the one frame onto the other.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def opensim_to_world(up_axis: int, forward_axis: int) -> np.ndarray:
+    """[3, 3] rotation taking OpenSim-frame vectors (X forward, Y up, Z right) to the
+    simulator's world (columns: where forward, up and right point)."""
+    forward, up = np.eye(3)[forward_axis], np.eye(3)[up_axis]
+    return np.column_stack([forward, up, np.cross(forward, up)])
+
+
+def _rx(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _ry(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _rz(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def pelvis_rotation(
+    pitch: float, list_: float, rotation: float, up_axis: int, forward_axis: int
+) -> np.ndarray:
+    """[3, 3] world-from-pelvis rotation of a pelvis at OpenSim angles (rad); the pelvis's own
+    frame is OpenSim-style (its X forward, Y up, Z right), as in gait2d and MyoLeg."""
+    return opensim_to_world(up_axis, forward_axis) @ _rz(pitch) @ _rx(list_) @ _ry(rotation)
+
+
+def pelvis_pitch_list(
+    pelvis_up: np.ndarray, up_axis: int, forward_axis: int
+) -> tuple[float, float]:
+    """OpenSim pelvis tilt and list (rad) of a pelvis whose up axis points along
+    ``pelvis_up`` ([3], world). Exact for Z-X-Y angles: the up axis does not depend on the
+    last rotation (``pelvis_rotation``)."""
+    c = opensim_to_world(up_axis, forward_axis)
+    x, y, z = c.T @ np.asarray(pelvis_up, float)  # (-sin t cos l, cos t cos l, sin l)
+    return float(np.arctan2(-x, y)), float(np.arcsin(np.clip(z, -1.0, 1.0)))
