@@ -34,19 +34,28 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.motions import data_dir, load_motion_file
+from gaitforge.workers.motions.signals import (
+    HARMONICS,
+    SAMPLES,
+    cycle,
+    debounce,
+    periodic_rate,
+    read_mot,
+    rising_edges,
+)
 from gaitforge.workers.sim.motion_replay import Replay
 
 log = logging.getLogger(__name__)
 
-SAMPLES = 60
-"""Samples per cycle in the written files."""
-HARMONICS = 15
-"""Fourier harmonics kept per stride (gait kinematics hold >99.9 % of their power below 10)."""
 GRF_THRESHOLD_N = 20.0
 """Vertical ground force above which a foot is in stance (the force plates' noise is ~5 N)."""
-CONTACT_HEIGHT_M = 0.02
-"""With no force data: a foot whose lowest point is within this of the floor is in stance."""
+CONTACT_HEIGHT_M = 0.05
+"""With no force data, a stance foot's lowest point is within this of the floor level."""
+BELT_SHARE = 0.8
+"""With no force data, a stance foot moves backward (relative to the treadmill) faster than
+this share of the belt speed."""
 WALK_2D_JOINTS = [f"{j}_{s}" for s in "rl" for j in ("hip_flexion", "knee_angle", "ankle_angle")]
 MYOLEG_JOINTS = [
     f"{j}_{s}"
@@ -54,47 +63,17 @@ MYOLEG_JOINTS = [
     for j in ("hip_flexion", "hip_adduction", "hip_rotation", "knee_angle", "ankle_angle")
 ]
 FEET = ["foot_right", "foot_left"]
-
-
-def read_mot(path: Path) -> dict[str, np.ndarray]:
-    """An OpenSim .mot/.sto table: column name -> values (as stored; degrees stay degrees)."""
-    lines = path.read_text().splitlines()
-    start = next(i for i, line in enumerate(lines) if line.strip().lower() == "endheader")
-    names = lines[start + 1].split()
-    body = [line for line in lines[start + 2 :] if line.strip()]
-    rows = np.array([[float(v) for v in line.split()] for line in body])
-    return {name: rows[:, i] for i, name in enumerate(names)}
-
-
-def rising_edges(t: np.ndarray, flag: np.ndarray) -> list[float]:
-    """Times where ``flag`` turns on (off before, on after)."""
-    idx = np.flatnonzero(~flag[:-1] & flag[1:]) + 1
-    return [float(t[i]) for i in idx]
-
-
-def cycle(t: np.ndarray, x: np.ndarray, t0: float, t1: float, n: int = SAMPLES) -> np.ndarray:
-    """``x(t)`` over one stride [t0, t1) as a closed periodic series [n] (see module doc)."""
-    grid = t0 + (t1 - t0) * np.arange(n + 1) / n
-    y = np.interp(grid, t, x)
-    y = y[:-1] - (y[-1] - y[0]) * np.arange(n) / n
-    spec = np.fft.rfft(y)
-    spec[HARMONICS + 1 :] = 0
-    return np.fft.irfft(spec, n)
-
-
-def periodic_rate(x: np.ndarray, period: float) -> np.ndarray:
-    """d/dt of a periodic series [n] by central differences."""
-    dt = period / len(x)
-    return (np.roll(x, -1) - np.roll(x, 1)) / (2 * dt)
+HEADER = "# Written by python -m gaitforge.workers.sim.make_motions; do not edit.\n"
 
 
 def replay_feet(replay: Replay, joints: dict[str, np.ndarray], pitch: np.ndarray,
                 height: np.ndarray, list_: np.ndarray | None = None,
                 rotation: np.ndarray | None = None) -> tuple[dict, dict]:  # fmt: skip
-    """Per foot: lowest point height [n] (m) and centroid minus pelvis origin [n, 3] (m)."""
+    """Per foot: lowest point height [n] (m) and centroid minus pelvis origin [n, 3] (m); also
+    (key ``<foot>:low``) the lowest geom's centre minus pelvis origin [n, 3] (m)."""
     n = len(pitch)
     lows = {f: np.zeros(n) for f in FEET}
-    rel = {f: np.zeros((n, 3)) for f in FEET}
+    rel = {k: np.zeros((n, 3)) for f in FEET for k in (f, f"{f}:low")}
     for k in range(n):
         replay.pose(
             {j: float(v[k]) for j, v in joints.items()}, float(pitch[k]), float(height[k]),
@@ -105,15 +84,17 @@ def replay_feet(replay: Replay, joints: dict[str, np.ndarray], pitch: np.ndarray
         for f in FEET:
             lows[f][k] = replay.lowest(f)
             rel[f][k] = replay.centroid(f) - origin
+            rel[f"{f}:low"][k] = replay.lowest_geom_centre(f) - origin
     return lows, rel
 
 
 def belt_speed(rel: dict[str, np.ndarray], stance: dict[str, np.ndarray], tx_rate: np.ndarray,
                period: float) -> float:  # fmt: skip
-    """Mean backward speed (m/s) of the stance feet's centroids relative to the treadmill."""
+    """Median backward speed (m/s), relative to the treadmill, of the stance feet's lowest
+    contact geoms (the ones on the ground)."""
     speeds = []
     for f in FEET:
-        v = periodic_rate(rel[f][:, 0], period) + tx_rate
+        v = periodic_rate(rel[f"{f}:low"][:, 0], period) + tx_rate
         speeds.extend(-v[stance[f]])
     return float(np.median(speeds))
 
@@ -137,12 +118,11 @@ def write_motion(path: Path, *, name: str, body: str, period: float, speed: floa
         "joint_angles": {j: _series(v) for j, v in joints.items()},
         **{k: _series(v) for k, v in pelvis.items()},
         "forward_speed_offset": _series(speed_offset, 3),
-        "feet_rel_pelvis": {f: [_series(p) for p in rel[f]] for f in FEET},
+        "feet_rel_pelvis": {f: [_series(p) for p in rel[f]] for f in FEET},  # centroids
         "stance": {f: [bool(s) for s in stance[f]] for f in FEET},
     }
     text = yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=100)
-    header = "# Written by python -m gaitforge.workers.sim.make_motions; do not edit.\n"
-    path.write_text(header + text)
+    path.write_text(HEADER + text)
     load_motion_file(path, body)
     log.info("wrote %s: period %.3f s, speed %.2f m/s", path, period, speed)
 
@@ -166,11 +146,20 @@ def contact_height(replay: Replay, joints: dict[str, np.ndarray], pitch: np.ndar
     return cycle(np.arange(n + 1), np.append(ty + filled, ty[0] + filled[0]), 0, n, n)
 
 
-def kinematic_stance(lows: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """Stance per foot from foot height: lowest point within :data:`CONTACT_HEIGHT_M` of the
-    floor level (the 2nd percentile of both feet's lowest points)."""
+def kinematic_stance(t: np.ndarray, lows: dict[str, np.ndarray], rel: dict[str, np.ndarray],
+                     tx: np.ndarray) -> dict[str, np.ndarray]:  # fmt: skip
+    """Stance per foot with no force data: the foot moves backward with the belt (the centre of
+    its lowest contact geom, the one on the ground, relative to the treadmill, faster than
+    :data:`BELT_SHARE` of the belt speed, the belt speed being the 5th percentile of all
+    feet's backward speeds) and is low (lowest point within :data:`CONTACT_HEIGHT_M` of the
+    floor level, the 2nd percentile of both feet's lowest points)."""
     floor = float(np.percentile(np.concatenate(list(lows.values())), 2))
-    return {f: lows[f] < floor + CONTACT_HEIGHT_M for f in lows}
+    vx = {f: np.gradient(rel[f"{f}:low"][:, 0] + tx, t) for f in lows}
+    belt = -float(np.percentile(np.concatenate(list(vx.values())), 5))
+    return {
+        f: debounce((vx[f] < -BELT_SHARE * belt) & (lows[f] < floor + CONTACT_HEIGHT_M))
+        for f in lows
+    }
 
 
 def build(replay: Replay, *, name: str, period: float, joints: dict[str, np.ndarray],
@@ -216,14 +205,170 @@ def walk_2d(ref: Path) -> tuple[float, float]:
     against a +10 deg pelvis tilt; the pelvis tilt is kept as recorded). Pelvis height: the
     recorded pelvis_ty plus an offset that puts the lower stance foot's lowest contact sphere
     on the floor in a kinematic replay on gait2d. Forward speed: the treadmill belt speed seen
-    in the kinematics, the median backward speed of the stance foot's contact centroid relative
-    to the treadmill (stride length / period = the same); the within-stride fluctuation is the
+    in the kinematics, the median backward speed of the stance foot's grounded contact sphere
+    relative to the treadmill; the within-stride fluctuation is the
     rate of change of pelvis_tx. The treadmill's own speed is not recorded."""
     build(Replay("gait2d"), name="walk", period=period, joints=joints,
           pitch=cycle(t, np.radians(ik["pelvis_tilt"]), t0, t1),
           ty=cycle(t, ik["pelvis_ty"], t0, t1), tx=cycle(t, ik["pelvis_tx"], t0, t1),
           stance=stance, source=source)  # fmt: skip
+    write_excitations(ref, t0, t1)
     return t0, t1
+
+
+def write_excitations(ref: Path, t0: float, t1: float) -> None:
+    """CMC excitations of the walk's stride, bin-averaged onto the motion's phase grid."""
+    sto = read_mot(ref / "walk_subject_controls.sto")
+    muscles = topology_for("gait2d").muscles
+    period = t1 - t0
+    fine = t0 + period * (np.arange(SAMPLES * 20) + 0.5 - 10) / (SAMPLES * 20)  # bins centred
+    out = {}
+    for m in muscles:
+        values = np.interp(fine, sto["time"], sto[m]).reshape(SAMPLES, 20).mean(axis=1)
+        out[m] = _series(np.clip(values, 0.0, 1.0), 4)
+    data = {
+        "body": "gait2d",
+        "motion": "walk",
+        "source": " ".join(
+            f"""OpenSim example data walk_subject_controls.sto: the muscle
+            excitations computed muscle control found for the same treadmill walk (with residual
+            and reserve actuators), over the motion's stride {t0:.4f} to {t1:.4f} s, averaged
+            over each of the {SAMPLES} phase bins (centred on phase k/{SAMPLES}), clipped to
+            [0, 1]. Excitations, not activations; a plausible muscle pattern, not one that
+            balances the body on its own.""".split()
+        ),
+        "excitations": out,
+    }
+    path = data_dir() / "gait2d-walk-excitations.yaml"
+    text = yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=100)
+    path.write_text(HEADER + text)
+    log.info("wrote %s", path)
+
+
+def _body_joints(body: str, table: dict[str, np.ndarray], names: list[str]) -> dict:
+    """Recorded coordinates (degrees, OpenSim signs) -> rad in the body's signs."""
+    out = {}
+    for j in names:
+        sign = -1.0 if body == "myoleg" and j.startswith("knee_angle") else 1.0
+        out[j] = sign * np.radians(table[j])
+    return out
+
+
+def run(ref: Path, body: str) -> None:
+    """A run from subject02 (Hamner): one stride between right heel strikes found by replay."""
+    ik = read_mot(ref / "subject02_running_ik.mot")
+    t = ik["time"]
+    names = WALK_2D_JOINTS if body == "gait2d" else MYOLEG_JOINTS
+    raw = _body_joints(body, ik, names)
+    pitch, ty = np.radians(ik["pelvis_tilt"]), ik["pelvis_ty"]
+    lateral = {}
+    if body == "myoleg":
+        lateral = {"list_": np.radians(ik["pelvis_list"]),
+                   "rotation": np.radians(ik["pelvis_rotation"])}  # fmt: skip
+    replay = Replay(body)
+    lows, rel = replay_feet(replay, raw, pitch, ty, **lateral)
+    stance_all = kinematic_stance(t, lows, rel, ik["pelvis_tx"])
+    strikes = rising_edges(t, stance_all["foot_right"])
+    periods = np.diff(strikes)
+    middle = len(periods) // 2
+    i = middle + int(np.argmin(np.abs(periods[middle - 3 : middle + 3] - np.median(periods)))) - 3
+    t0, t1 = strikes[i], strikes[i + 1]
+    period = t1 - t0
+    log.info("run (%s): %d right heel strikes, median stride %.3f s; stride %.3f-%.3f s",
+             body, len(strikes), float(np.median(periods)), t0, t1)  # fmt: skip
+    grid = t0 + period * np.arange(SAMPLES) / SAMPLES
+    near = np.clip(np.searchsorted(t, grid), 0, len(t) - 1)
+    stance = {f: stance_all[f][near] for f in FEET}
+    joints = {j: cycle(t, v, t0, t1) for j, v in raw.items()}
+    cyc_lateral = {k: cycle(t, v, t0, t1) for k, v in lateral.items()}
+    if "rotation" in cyc_lateral:  # heading-aligned: the stride's mean yaw is the heading
+        cyc_lateral["rotation"] -= cyc_lateral["rotation"].mean()
+    tracked = ", ".join(names)
+    source = f"""OpenSim example data subject02_running_ik.mot (treadmill run, Hamner, Seth and
+    Delp 2010, full-body inverse kinematics, 60 Hz): one stride from right heel strike at
+    {t0:.4f} s to the next at {t1:.4f} s (the stride nearest the trial's median of
+    {float(np.median(periods)):.3f} s, mid-trial). No force data: heel strikes and stance
+    flags come from a kinematic replay on {body}, a foot being in stance while its lowest
+    contact geom moves backward with the belt (relative to the treadmill, faster than
+    {BELT_SHARE:g} of the belt speed, the 5th percentile of the feet's backward speeds) and its
+    lowest contact point is within {100 * CONTACT_HEIGHT_M:g} cm of the floor level (the 2nd
+    percentile of both feet's lowest points over the trial). Tracked: {tracked}
+    (subtalar and mtp are locked at 0 in the recorded model; lumbar and arms are not in the
+    body). Angles resampled to {SAMPLES} phases, detrended to close, {HARMONICS} Fourier
+    harmonics kept. Pelvis height: recorded pelvis_ty plus an offset that puts the lower
+    stance foot on the floor, interpolated across the flight phases. Forward speed: the
+    treadmill belt speed seen in the kinematics (median backward speed of the stance foot's
+    grounded contact geom relative to the treadmill); the paper reports about 4 m/s for this
+    subject's fast runs; the within-stride fluctuation is the rate of change of pelvis_tx."""
+    if body == "myoleg":
+        source += " MyoLeg's knee_angle is the recorded one negated (MyoLeg flexes positive)."
+    build(replay, name="run", period=period, joints=joints,
+          pitch=cycle(t, pitch, t0, t1), ty=cycle(t, ty, t0, t1),
+          tx=cycle(t, ik["pelvis_tx"], t0, t1), stance=stance, source=source,
+          **cyc_lateral)  # fmt: skip
+
+
+WALK_CONTACT_M = 0.01
+"""normal.mot on MyoLeg: a stance foot's lowest point is within this of the floor."""
+NORMAL_PERIOD_S = 1.1
+"""Stride period chosen for normal.mot (normalised, no time): a typical adult stride at the
+self-selected walking speed (cadence ~109 steps/min)."""
+
+
+def walk_3d(ref: Path) -> None:
+    """MyoLeg walk from normal.mot: pelvis height and stance by replay (no force, no height)."""
+    nm = read_mot(ref / "normal.mot")
+    t = nm["time"] * NORMAL_PERIOD_S
+    period = NORMAL_PERIOD_S
+    joints = {
+        j: cycle(t, v, 0, period) for j, v in _body_joints("myoleg", nm, MYOLEG_JOINTS).items()
+    }
+    lateral = {k: cycle(t, np.radians(nm[c]), 0, period)
+               for k, c in (("list_", "pelvis_list"), ("rotation", "pelvis_rotation"))}  # fmt: skip
+    lateral["rotation"] -= lateral["rotation"].mean()
+    pitch = cycle(t, np.radians(nm["pelvis_tilt"]), 0, period)
+    replay = Replay("myoleg")
+    ones = np.ones(SAMPLES)
+    lows, _ = replay_feet(replay, joints, pitch, ones, **lateral)
+    height = 1.0 - np.minimum(lows["foot_right"], lows["foot_left"])  # the lower foot touches
+    lows, rel = replay_feet(replay, joints, pitch, height, **lateral)
+    stance = {
+        f: debounce((lows[f] < WALK_CONTACT_M) & (periodic_rate(rel[f"{f}:low"][:, 0], period) < 0))
+        for f in FEET
+    }
+    nobody = ~(stance["foot_right"] | stance["foot_left"])
+    lower_right = lows["foot_right"] <= lows["foot_left"]
+    stance["foot_right"] |= nobody & lower_right
+    stance["foot_left"] |= nobody & ~lower_right
+    shift = int(np.flatnonzero(stance["foot_right"] & ~np.roll(stance["foot_right"], 1))[0])
+    log.info(
+        "walk (myoleg): right foot lands at phase %.3f of normal.mot in the replay", shift / SAMPLES
+    )
+
+    def roll(x: np.ndarray) -> np.ndarray:
+        return np.roll(x, -shift, axis=0)
+
+    source = f"""OpenSim example data normal.mot (one normalised 3-D walking cycle, 51 rows, 2 %
+    apart, from heel strike), on MyoLeg: hip flexion/adduction/rotation, knee (negated: MyoLeg
+    flexes positive) and ankle per side, pelvis tilt/list/rotation (the rotation's mean, the
+    heading, removed). Period chosen: {NORMAL_PERIOD_S:g} s, a typical adult stride at the
+    self-selected speed (the file has no time). Resampled to {SAMPLES} phases,
+    {HARMONICS} Fourier harmonics kept. Pelvis height by kinematic replay on MyoLeg: set per
+    sample so that the lower foot's lowest contact point touches the floor (pelvis_ty in the
+    file is a constant). Stance from the replay: the foot's lowest point within
+    {100 * WALK_CONTACT_M:g} cm of the floor and its grounded contact geom moving backward
+    relative to the pelvis; where neither foot passes (the toe of the foot leaving the ground
+    stays within 1 cm of it for a few samples, MyoLeg's mtp being held at 0) the lower foot is
+    the stance foot. On MyoLeg the right foot
+    lands (replay) at phase {shift / SAMPLES:.3f} of normal.mot (its swing foot comes down
+    later than in the recorded model): the cycle is shifted so
+    that phase 0 is that landing. Forward speed: stride length on MyoLeg (the stance foot's
+    backward travel relative to the pelvis) / period; no within-cycle fluctuation (none
+    recorded)."""
+    build(replay, name="walk", period=period, joints={j: roll(v) for j, v in joints.items()},
+          pitch=roll(pitch), ty=roll(height), tx=None,
+          stance={f: roll(v) for f, v in stance.items()}, source=source,
+          **{k: roll(v) for k, v in lateral.items()})  # fmt: skip
 
 
 def main() -> None:
@@ -232,6 +377,9 @@ def main() -> None:
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     walk_2d(args.reference)
+    run(args.reference, "gait2d")
+    run(args.reference, "myoleg")
+    walk_3d(args.reference)
 
 
 if __name__ == "__main__":

@@ -21,8 +21,6 @@ from gaitforge.workers.sim.mujoco_build import build_spec
 
 UP = {"gait2d": 1, "myoleg": 2}
 """World up axis index per body (forward is X, index 0, for both)."""
-NEGATED = {"myoleg": ("knee_angle_r", "knee_angle_l")}
-"""Coordinates whose model sign is opposite to OpenSim's (MyoLeg's knee: positive flexes)."""
 _OS_TO_WORLD = {"myoleg": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])}
 """OpenSim ground axes (X fwd, Y up, Z right) as columns in the body's world axes."""
 
@@ -90,13 +88,13 @@ class Replay:
 
     def pose(self, joints: dict[str, float], pitch: float, height: float, x: float = 0.0,
              list_: float = 0.0, rotation: float = 0.0) -> None:  # fmt: skip
-        """Pose the body: joints (rad, OpenSim signs), pelvis tilt/list/rotation (rad), pelvis
+        """Pose the body: joints (rad, the model's own signs, as a motion stores them), pelvis
+        tilt/list/rotation (rad, OpenSim's convention and order), pelvis
         origin at forward position ``x`` (m) and ``height`` (m) above the floor."""
         m, d = self.model, self.data
         q = self.qpos0.copy()
         for name, value in joints.items():
-            sign = -1.0 if name in NEGATED.get(self.body, ()) else 1.0
-            q[m.jnt_qposadr[m.joint(name).id]] = sign * value
+            q[m.jnt_qposadr[m.joint(name).id]] = value
         if self.body in _OS_TO_WORLD:
             target = _OS_TO_WORLD[self.body] @ _rot(2, pitch) @ _rot(0, list_) @ _rot(1, rotation)
             root_rot = target @ self._pelvis_in_root.T
@@ -130,3 +128,9 @@ class Replay:
     def lowest(self, foot: str) -> float:
         """m: height of the foot's lowest contact surface point above the floor."""
         return min(_lowest(self.model, self.data, g, self.up) for g in self.feet[foot])
+
+    def lowest_geom_centre(self, foot: str) -> np.ndarray:
+        """[3] m, world: centre of the foot's contact geom that reaches lowest (the one on the
+        ground in stance: heel, then toe as the foot rolls over)."""
+        g = min(self.feet[foot], key=lambda g: _lowest(self.model, self.data, g, self.up))
+        return self.data.geom_xpos[g].copy()
