@@ -5,10 +5,11 @@ of the gait phase the imitation scene puts in the observation (``phase_sin``, ``
 Behavioural cloning on the states the policy visits: roll out in the stage's imitation scene
 (every episode starts inside the motion, at a random phase: reference state initialisation),
 label each observation with the recorded excitations at its phase (left and right muscles
-swapped when the episode is mirrored), fit the actor's mean by squared error
-(``learner.distil.fit_student``); then roll out the fitted policy, add its observations and
-fit again (``rounds``, DAgger-like), and fit the critic to the last round's returns. The
-rollouts go through the trainer's sampler and count in the stage's env steps.
+swapped when the episode is mirrored, which the observed joint angles tell:
+:class:`SideGuess`), fit the actor's mean by squared error (``learner.distil.fit_student``);
+then roll out the fitted policy, add its observations and fit again (``rounds``,
+DAgger-like), and fit the critic to the last round's returns. The rollouts go through the
+trainer's sampler and count in the stage's env steps.
 
 The excitation table comes from the motions package (``workers.motions.load_excitations``):
 one periodic cycle of the recorded excitations, ``[N, n_muscles]`` at phases ``k / N``.
@@ -21,6 +22,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -29,13 +31,15 @@ from gaitforge.learner.policy import ActorCritic, GaussianPolicy
 from gaitforge.learner.ppo import PPOSettings, batch_from_fragments
 from gaitforge.workers.fragment import Fragment
 
+if TYPE_CHECKING:
+    from gaitforge.workers.motions import Motion
+
 logger = logging.getLogger(__name__)
 
 PHASE_NAMES = ("phase_sin", "phase_cos")
 """the observation's entries the phase is read from: sin and cos of 2 pi phase"""
-MIRROR_NAME = "phase_mirrored"
-"""an observation entry (1 mirrored, 0 not) that says an episode is mirrored, if the scene
-observes one; without it the phase alone labels the observation"""
+JOINT_PREFIX = "q:"
+"""observation entries of joint angles (rad): ``q:<dof name>``"""
 
 Rollout = Callable[[ActorCritic, int], list[Fragment]]
 """``rollout(policy, env_steps)``: fragments of ``policy`` (see ``learner.transitions``)"""
@@ -126,17 +130,53 @@ def phases_of(obs: np.ndarray, obs_names: list[str]) -> np.ndarray:
     return np.mod(np.arctan2(s, c) / (2 * math.pi), 1.0)
 
 
+class SideGuess:
+    """Whether an observation comes from a mirrored episode (the env swaps left and right at
+    random; the phase in the observation is the same either way): the observed joint angles
+    are nearer the motion's mirrored reference at that phase than its own.
+
+    Args:
+        motion: the motion the scene imitates (``workers.motions.Motion``).
+    """
+
+    def __init__(self, motion: Motion) -> None:
+        n = motion.samples
+        states = [motion.at(k / n) for k in range(n)]
+        self.joints = list(motion.joints)
+        own = np.array([[s.joints[j] for j in self.joints] for s in states])
+        flipped = [motion.mirrored_state(s) for s in states]
+        mirrored = np.array([[s.joints[j] for j in self.joints] for s in flipped])
+        self._own = ExcitationTable(self.joints, own)
+        self._mirrored = ExcitationTable(self.joints, mirrored)
+
+    def mirrored(self, obs: np.ndarray, obs_names: list[str]) -> np.ndarray:
+        """[N, obs_dim] -> [N] bool: the episode is mirrored (False where no joint angle of
+        the motion is observed)."""
+        cols = [(i, obs_names.index(JOINT_PREFIX + j)) for i, j in enumerate(self.joints)
+                if JOINT_PREFIX + j in obs_names]  # fmt: skip
+        if not cols:
+            return np.zeros(len(obs), dtype=bool)
+        ref_cols, obs_cols = (np.array(c) for c in zip(*cols, strict=True))
+        phases = phases_of(obs, obs_names)
+        q = obs[:, obs_cols].astype(np.float64)
+        own = np.sum((q - self._own.at(phases)[:, ref_cols]) ** 2, axis=1)
+        flipped = np.sum((q - self._mirrored.at(phases)[:, ref_cols]) ** 2, axis=1)
+        return flipped < own
+
+
 def excitation_labels(
-    obs: np.ndarray, obs_names: list[str], act_names: list[str], table: ExcitationTable
+    obs: np.ndarray,
+    obs_names: list[str],
+    act_names: list[str],
+    table: ExcitationTable,
+    mirrored: np.ndarray | None = None,
 ) -> np.ndarray:
     """[N, obs_dim] observations -> [N, A] the recorded excitations at each one's phase, in
-    the order of ``act_names`` (mirrored where the observation says the episode is)."""
-    phases = phases_of(obs, obs_names)
-    at = table.at(phases)
+    the order of ``act_names``; left and right swapped where ``mirrored`` [N] is True."""
+    at = table.at(phases_of(obs, obs_names))
     labels = at[:, table.columns(act_names)]
-    if MIRROR_NAME in obs_names:
-        flipped = obs[:, obs_names.index(MIRROR_NAME)] > 0.5
-        labels[flipped] = at[flipped][:, table.columns(act_names, mirrored=True)]
+    if mirrored is not None and mirrored.any():
+        labels[mirrored] = at[mirrored][:, table.columns(act_names, mirrored=True)]
     return labels
 
 
@@ -153,6 +193,7 @@ def clone_excitations(
     table: ExcitationTable,
     rollout: Rollout,
     ppo: PPOSettings,
+    sides: SideGuess | None = None,
     *,
     env_steps: int = 8192,
     rounds: int = 2,
@@ -162,7 +203,8 @@ def clone_excitations(
 ) -> dict[str, float]:
     """Fit ``policy``'s mean excitation to ``table`` at the phases of the observations it
     visits (see the module's docstring); ``policy`` is changed in place (actor, critic and
-    the observation normaliser).
+    the observation normaliser). ``sides`` tells mirrored episodes' observations (their
+    labels swap left and right); None takes every episode as unmirrored.
 
     Returns diagnostics: ``action_mse_before`` and ``action_mse`` (the deterministic action
     against the labels on every observation gathered, before and after), ``value_mse`` (the
@@ -174,7 +216,9 @@ def clone_excitations(
     for r in range(rounds):
         batch = batch_from_fragments(rollout(policy, env_steps), ppo)
         obs = batch["obs"]
-        labels = torch.from_numpy(excitation_labels(obs.numpy(), obs_names, act_names, table))
+        raw = obs.numpy()
+        mirrored = None if sides is None else sides.mirrored(raw, obs_names)
+        labels = torch.from_numpy(excitation_labels(raw, obs_names, act_names, table, mirrored))
         policy.norm.update(obs)
         all_obs.append(obs)
         all_labels.append(labels)

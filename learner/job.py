@@ -106,8 +106,8 @@ class WarmStartSpec(_Strict):
     mean by squared error; then roll out the fitted policy and fit again (``rounds``)."""
 
     excitations: str
-    """the motion whose recorded excitations are cloned (e.g. ``walk``); the stage's scene
-    must imitate a motion of the same body (``task.imitate``)"""
+    """the motion whose recorded excitations are cloned (e.g. ``walk``): the motion the
+    stage's scene imitates (``task.imitate.motion``), whose phase it observes"""
     env_steps: Annotated[int, Field(ge=1)] = 8192
     """env steps of rollouts per round (they count in the stage's env steps)"""
     rounds: Annotated[int, Field(ge=1, le=10)] = 2
@@ -254,10 +254,16 @@ def check_warm_start(scene: Scene, spec: WarmStartSpec, where: str) -> None:
     """
     from gaitforge.learner.clone_excitations import ExcitationError, excitation_table
 
-    if getattr(scene.task, "imitate", None) is None:
+    imitate = getattr(scene.task, "imitate", None)
+    if imitate is None:
         raise SpecError(
             f"{where}: scene {scene.name!r} imitates no motion (task.imitate); a warm start "
             "from recorded excitations needs an imitation scene (e.g. imitate-walk-2d)"
+        )
+    if spec.excitations != imitate.motion:
+        raise SpecError(
+            f"{where}.excitations: {spec.excitations!r}: the excitations must be those of the "
+            f"motion the scene imitates ({imitate.motion!r}), whose phase it observes"
         )
     try:
         excitation_table(scene.body, spec.excitations)

@@ -18,7 +18,7 @@ import logging
 from collections.abc import Callable
 
 import torch
-from gaitforge.learner.clone_excitations import clone_excitations, excitation_table
+from gaitforge.learner.clone_excitations import SideGuess, clone_excitations, excitation_table
 from gaitforge.learner.curriculum import StageIO
 from gaitforge.learner.distil import fit_student
 from gaitforge.learner.job import NetworkSpec, Stage
@@ -107,12 +107,15 @@ def excitation_warm_start(
     to the recorded excitations of ``stage.warm_start.excitations`` at the observed phase,
     and its critic to the returns of the fitted policy's rollouts (``rollout`` gathers them
     on the stage's ``scene``)."""
+    from gaitforge.workers.motions import load_motion  # lazy: only warm starts need it
+
     spec = stage.warm_start
     assert spec is not None
     student = collapsed(policy)
+    sides = SideGuess(load_motion(scene.body, spec.excitations))
     report = clone_excitations(
         student, io.obs_names, io.act_names, excitation_table(scene.body, spec.excitations),
-        rollout, ppo, env_steps=spec.env_steps, rounds=spec.rounds, epochs=spec.epochs,
+        rollout, ppo, sides, env_steps=spec.env_steps, rounds=spec.rounds, epochs=spec.epochs,
         lr=spec.lr, seed=seed,
     )  # fmt: skip
     logger.info(

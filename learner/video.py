@@ -198,7 +198,8 @@ class VideoRecorder:
         if m.nlight == 0:  # bodies built from neutral specs have no lights: a brighter headlight
             m.vis.headlight.ambient[:] = 0.45
             m.vis.headlight.diffuse[:] = 0.7
-        self._reference = ReferenceSkeleton(env)
+        self.reference = ReferenceSkeleton(env)
+        """the reference pose's skeleton (imitation scenes)"""
         self._writer: Any = None  # ffmpeg starts with the first frame
 
     # ---- public -----------------------------------------------------------------------------
@@ -237,7 +238,7 @@ class VideoRecorder:
         if self._pelvis >= 0:  # locomotion: progress along the floor
             self._add_floor_stripes(target)
         add_model_skeleton(self._scene, self._model, self._data)
-        self._reference.draw(self._scene, env)
+        self.reference.draw(self._scene, env)
         return self._renderer.render()
 
     def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:

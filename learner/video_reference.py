@@ -62,10 +62,11 @@ def add_model_skeleton(scene: mujoco.MjvScene, m: mujoco.MjModel, d: mujoco.MjDa
 
 
 class ReferenceSkeleton:
-    """The reference pose of an imitation env, drawn as a translucent skeleton; does nothing
-    for other scenes (:attr:`active` False)."""
+    """The reference pose of an imitation env, drawn as a translucent skeleton while
+    :attr:`visible`; does nothing for other scenes (:attr:`active` False)."""
 
     def __init__(self, env: MuscleEnv) -> None:
+        self.visible = True
         self._body: ReferenceBody | None = None
         if imitating(env):
             try:
@@ -79,7 +80,7 @@ class ReferenceSkeleton:
 
     def draw(self, scene: mujoco.MjvScene, env: MuscleEnv) -> bool:
         """Add the reference skeleton at ``env``'s current phase; False when there is none."""
-        frames = None if self._body is None else self._body.frames(env)
+        frames = None if self._body is None or not self.visible else self._body.frames(env)
         if not frames:
             return False
         names = list(frames)

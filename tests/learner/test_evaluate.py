@@ -329,3 +329,68 @@ def test_a_checkpoint_the_trainer_wrote_mid_blend(tmp_path: Path) -> None:
     assert report.env_steps is not None and report.env_steps >= 64
     for result in report.results.values():
         assert result.episodes[0].steps > 0 and 0.0 <= result.fall_rate.value <= 1.0
+
+
+class PoseErrors(Observer):
+    """Observer: every step's ``info["imitation"]``."""
+
+    def __init__(self) -> None:
+        self.steps: list[dict] = []
+
+    def on_step(self, env, action, obs, reward, terminated, truncated, info) -> None:
+        self.steps.append(dict(info["imitation"]))
+
+
+def test_imitation_scenes_report_tracking_error_and_kept_gait(tmp_path: Path) -> None:
+    scene = load_scene(short_scene(tmp_path, "imitate-walk-2d", episode_s=0.4))  # 10 steps
+    n_obs = len(MuscleEnv(scene).obs_names)
+    policy = relaxed_policy(n_obs, WALK_ACT)
+    with torch.no_grad():
+        policy.actor[-1].bias.fill_(-1.5)  # excitation ~0.18
+    trace = PoseErrors()
+    result = evaluate_policy(policy, scene, episodes=4, seed=0, observers=[trace])
+    first = result.episodes[0]
+    errors = [s["pose_error_rad"] for s in trace.steps]
+    assert len(errors) == first.steps
+    assert first.tracking_error_rad == pytest.approx(math.sqrt(np.mean(np.square(errors))))
+    kept = all(s["kept"] for s in trace.steps) and first.truncated
+    assert first.kept_gait == kept
+    for e in result.episodes:
+        assert e.kept_gait == (e.truncated and not e.fell and e.health == "ok")  # bound held
+    assert result.tracking_error_rad is not None and result.kept_gait_rate is not None
+    assert result.tracking_error_rad.n == 4 and result.kept_gait_rate.n == 4
+    assert result.tracking_error_rad.mean == pytest.approx(
+        np.mean([e.tracking_error_rad for e in result.episodes])
+    )
+    assert result.kept_gait_rate.count == sum(bool(e.kept_gait) for e in result.episodes)
+    # weak constant excitations: some episodes drift past the bound early, some do not
+    assert 0 < result.kept_gait_rate.count < 4
+    assert result.kept_gait_rate.low <= result.kept_gait_rate.value <= result.kept_gait_rate.high
+
+    # the printed tables and the JSON carry them; a non-imitation scene's do not
+    run = tmp_path / "run"
+    save(run / "checkpoints", policy, scene)
+    out = tmp_path / "eval.json"
+    printed = runner.invoke(
+        app, ["evaluate", str(run), "--episodes", "2", "--per-episode", "--json-out", str(out)],
+        env={"COLUMNS": "200"},
+    )  # fmt: skip
+    assert printed.exit_code == 0, printed.output
+    assert "tracking rad" in printed.output and "kept gait" in printed.output
+    det = json.loads(out.read_text())["results"]["deterministic"]
+    assert det["tracking_error_rad"]["n"] == 2 and det["kept_gait_rate"]["n"] == 2
+    assert all(isinstance(e["kept_gait"], bool) for e in det["episodes"])
+
+
+def test_other_scenes_have_no_tracking_columns(walk: tuple[Path, Scene], tmp_path: Path) -> None:
+    run, _ = walk
+    out = tmp_path / "eval.json"
+    printed = runner.invoke(
+        app, ["evaluate", str(run), "--episodes", "1", "--per-episode", "--json-out", str(out)],
+        env={"COLUMNS": "200"},
+    )  # fmt: skip
+    assert printed.exit_code == 0, printed.output
+    assert "tracking" not in printed.output and "kept" not in printed.output
+    det = json.loads(out.read_text())["results"]["deterministic"]
+    assert det["tracking_error_rad"] is None and det["kept_gait_rate"] is None
+    assert det["episodes"][0]["tracking_error_rad"] is None

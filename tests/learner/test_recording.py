@@ -241,3 +241,65 @@ def test_video_and_mcap_of_an_opensim_episode(tmp_path: Path) -> None:
     meta, frames = _frames(tmp_path / "walk.mp4")
     assert len(frames) == summary["frames"] == 2
     assert tuple(meta["size"]) == (64, 48)
+
+
+def test_an_imitation_episode_records_its_reference(tmp_path: Path) -> None:
+    from gaitforge.learner.recording import IMITATION_TOPICS
+    from gaitforge.learner.reference_pose import ReferenceBody
+
+    env = MuscleEnv("imitate-walk-2d", backend="mujoco")
+    summary = record_episode(
+        env, lambda obs: np.full(18, 0.15), tmp_path / "imitate.mcap", seed=5, max_steps=8
+    )
+    steps = summary["steps"]
+    assert steps >= 3
+    last_reference = ReferenceBody(env).frames(env)  # the pose of the last step
+    assert last_reference is not None
+    with open(summary["path"], "rb") as f:
+        reader = make_reader(f)
+        stats = reader.get_summary()
+        counts = {
+            c.topic: stats.statistics.channel_message_counts[c.id] for c in stats.channels.values()
+        }
+        assert counts == dict.fromkeys((*TOPICS, *IMITATION_TOPICS), steps)
+        schema_ids = {c.topic: c.schema_id for c in stats.channels.values()}
+        assert stats.schemas[schema_ids["/reference"]].name == "foxglove.SceneUpdate"
+        messages = list(make_reader(f).iter_messages(topics=["/reference", "/imitation", "/tf"]))
+    by_topic: dict[str, list] = {}
+    for schema, channel, message in messages:
+        by_topic.setdefault(channel.topic, []).append((schema, message))
+    phases = [json.loads(m.data)["phase"] for _, m in by_topic["/imitation"]]
+    assert all(0.0 <= p < 1.0 for p in phases) and len(set(phases)) == steps
+    schema, message = by_topic["/reference"][-1]
+    (entity,) = _decode(schema, message.data).entities
+    assert entity.id == "reference" and entity.frame_id == "world"
+    assert 0.0 < entity.spheres[0].color.a < 1.0  # translucent
+    assert len(entity.spheres) == len(last_reference) and entity.lines
+    # the reference pelvis stands where the body's is along the ground (Y-up to Z-up)
+    pelvis = last_reference["pelvis"].position
+    schema, message = by_topic["/tf"][-1]
+    body = next(t for t in _decode(schema, message.data).transforms if t.child_frame_id == "pelvis")
+    assert body.translation.x == pytest.approx(pelvis[0])
+    centres = [(s.pose.position.x, s.pose.position.z) for s in entity.spheres]
+    assert (pytest.approx(pelvis[0]), pytest.approx(pelvis[1])) in centres
+
+
+@needs_gl
+def test_an_imitation_video_draws_the_reference(tmp_path: Path) -> None:
+    from gaitforge.learner.video import VideoRecorder
+
+    env = MuscleEnv("imitate-walk-2d", backend="mujoco")
+    summary = record_video(
+        env, lambda obs: np.full(18, 0.15), tmp_path / "imitate.mp4", 3, 4, 96, 64, every=1
+    )
+    assert summary["frames"] == summary["steps"] + 1
+    _, frames = _frames(tmp_path / "imitate.mp4")
+    assert len(frames) == summary["frames"]
+    # the same pose without the reference differs where the green skeleton was drawn
+    with VideoRecorder(tmp_path / "x.mp4", env, 96, 64) as video:
+        with_reference = video.render(env)
+        video.reference.visible = False  # the body alone
+        alone = video.render(env)
+    assert np.abs(with_reference.astype(int) - alone.astype(int)).sum() > 0
+    greener = with_reference[..., 1].astype(int) - alone[..., 1].astype(int)
+    assert greener.max() > 20
