@@ -89,8 +89,13 @@ class Imitation:
         init = self.spec.init
         self.phase0 = float(rng.uniform()) if init.random_phase else 0.0
         self.mirrored = bool(rng.uniform() < 0.5) if init.mirror else False
-        ref = self.reference(0)
         noise = rng.uniform(-init.noise, init.noise, len(self.joints))
+        return self.pose_of(self.reference(0), noise)
+
+    def pose_of(self, ref: MotionState, noise: np.ndarray | None = None) -> Pose:
+        """The simulator pose of reference state ``ref``: its tracked joints (plus ``noise``,
+        [n_tracked] rad, if given) and speeds, and its pelvis."""
+        noise = np.zeros(len(self.joints)) if noise is None else noise
         return Pose(
             coordinates={
                 j: ref.joints[j] + float(e) for j, e in zip(self.joints, noise, strict=True)

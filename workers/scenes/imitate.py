@@ -97,7 +97,7 @@ def tracked_joints(
     tracked = [j for j in motion.joints if j in kept_set]
     if not tracked:
         raise ValueError(
-            f"task.imitate.motion: the scene keeps none of motion {imitate.motion!r}'s joints "
+            f"task.imitate.motion: the scene keeps none of the joints of motion {imitate.motion!r} "
             f"{motion.joints}; keep.joints must include some"
         )
     return tracked

@@ -1,0 +1,177 @@
+"""Imitation scenes on real simulators: reference state initialisation (MuJoCo planar and free
+root, OpenSim), mirroring, the phase in the observation, the tracking terms, early end when the
+pose drifts, and that a body put exactly in the reference earns the full tracking reward."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.rewards import TERMS
+from gaitforge.workers.scenes import Scene, catalogue, load_scene
+from gaitforge.workers.scenes.imitate import IMITATION_TERMS
+from gaitforge.workers.sim.pose import pelvis_pitch_list
+
+
+def _scene(name: str, motion: str | None = None, **init: object) -> Scene:
+    """A catalogue imitation scene, its motion and ``init`` fields replaced."""
+    scene = load_scene(name)
+    imitate = scene.task.imitate
+    assert imitate is not None
+    imitate = imitate.model_copy(
+        update={
+            "init": imitate.init.model_copy(update=init),
+            **({"motion": motion} if motion else {}),
+        }
+    )
+    return scene.model_copy(update={"task": scene.task.model_copy(update={"imitate": imitate})})
+
+
+def _scene_3d(**init: object) -> Scene:
+    """MyoLeg imitation (the walk once it is shipped, else the run)."""
+    if "imitate-walk-3d" in catalogue():
+        return _scene("imitate-walk-3d", **init)
+    raw = load_scene("walk-3d").model_dump(exclude_defaults=True)
+    raw["name"] = "imitate-3d-test"
+    raw["task"]["imitate"] = {"motion": "run", "init": init}
+    return Scene.model_validate(raw)
+
+
+CASES = [
+    pytest.param(lambda **kw: _scene("imitate-walk-2d", **kw), "mujoco", id="walk-2d-mujoco"),
+    pytest.param(lambda **kw: _scene("imitate-run-2d", **kw), "mujoco", id="run-2d-mujoco"),
+    pytest.param(lambda **kw: _scene("imitate-walk-2d", **kw), "opensim", id="walk-2d-opensim"),
+    pytest.param(_scene_3d, "mujoco", id="myoleg-mujoco"),
+]
+
+
+@pytest.mark.parametrize(("make", "backend"), CASES)
+def test_reset_puts_the_body_in_the_reference(make, backend: str) -> None:
+    env = MuscleEnv(make(noise=0.0), backend)
+    for seed in (0, 1, 2):
+        _, info = env.reset(seed=seed)
+        ref = env.reference_state()
+        assert ref is not None and info["imitation"]["phase"] == pytest.approx(ref.phase)
+        state = env.sim.state()
+        coords = env.sim.coordinates()
+        for joint in env.imitation.joints:
+            k = env.sim.dof_names.index(joint)
+            assert coords[joint] == pytest.approx(ref.joints[joint], abs=1e-6), joint
+            assert state.dof_vel[k] == pytest.approx(ref.joint_speeds[joint], abs=1e-3), joint
+        assert info["imitation"]["pose_error_rad"] < 1e-6
+        pitch, list_ = pelvis_pitch_list(state.pelvis_up, env.sim.up_axis, env.sim.forward_axis)
+        assert pitch == pytest.approx(ref.pelvis_pitch, abs=1e-6)
+        assert list_ == pytest.approx(ref.pelvis_list, abs=1e-6)
+        height = state.pelvis_pos[env.sim.up_axis]
+        assert ref.pelvis_height - 1e-6 <= height <= ref.pelvis_height + 0.01  # lifted <= 1 cm
+        spheres = env.sim.contact_spheres()
+        for s in spheres.values():  # no foot sphere starts inside the floor
+            assert (s[:, env.sim.up_axis] - s[:, 3] >= -1e-6).all()
+
+
+@pytest.mark.parametrize(("make", "backend"), CASES[:3])
+def test_reset_noise_stays_within_its_bound(make, backend: str) -> None:
+    env = MuscleEnv(make(noise=0.02), backend)
+    _, info = env.reset(seed=4)
+    assert 0.0 < info["imitation"]["pose_error_rad"] <= 0.02
+
+
+def test_the_pelvis_starts_at_the_references_speed() -> None:
+    env = MuscleEnv(_scene("imitate-walk-2d", noise=0.0), "opensim")
+    env.reset(seed=3)
+    ref = env.reference_state()
+    state = env.sim.state()  # OpenSim: the pelvis origin's velocity
+    assert state.pelvis_vel[0] == pytest.approx(ref.forward_speed, abs=1e-6)
+    assert state.pelvis_vel[1] == pytest.approx(ref.pelvis_vertical_speed, abs=1e-6)
+    mujoco = MuscleEnv(_scene("imitate-walk-2d", noise=0.0), "mujoco")
+    mujoco.reset(seed=3)
+    qvel = dict(zip(["tx", "ty", "tilt"], mujoco.sim.data.qvel[:3], strict=True))
+    assert qvel["tx"] == pytest.approx(ref.forward_speed, abs=1e-6)
+    assert qvel["tilt"] == pytest.approx(ref.pelvis_angular_speed[0], abs=1e-6)
+
+
+def test_a_mirrored_reset_swaps_the_legs() -> None:
+    env = MuscleEnv(_scene("imitate-walk-2d", random_phase=False, noise=0.0))
+    seen = {}
+    for seed in range(20):
+        _, info = env.reset(seed=seed)
+        seen[info["imitation"]["mirrored"]] = env.sim.coordinates()
+    assert set(seen) == {True, False}
+    plain, mirrored = seen[False], seen[True]
+    for joint in ("hip_flexion", "knee_angle", "ankle_angle"):
+        assert mirrored[f"{joint}_r"] == pytest.approx(plain[f"{joint}_l"], abs=1e-9)
+        assert mirrored[f"{joint}_l"] == pytest.approx(plain[f"{joint}_r"], abs=1e-9)
+    assert plain["hip_flexion_r"] != pytest.approx(plain["hip_flexion_l"], abs=1e-3)
+
+
+def test_the_phase_in_the_observation_advances_with_time() -> None:
+    env = MuscleEnv("imitate-walk-2d")
+    sin_i, cos_i = env.obs_names.index("phase_sin"), env.obs_names.index("phase_cos")
+    obs, info = env.reset(seed=5)
+    phase0 = info["imitation"]["phase"]
+    step = env.dt / env.imitation.motion.period_s
+    for k in range(1, 6):
+        obs, *_, info = env.step(np.full(env.action_space.shape, 0.3, np.float32))
+        expected = (phase0 + k * step) % 1.0
+        assert info["imitation"]["phase"] == pytest.approx(expected, abs=1e-9)
+        angle = 2 * np.pi * expected
+        assert obs[sin_i] == pytest.approx(np.sin(angle), abs=1e-6)
+        assert obs[cos_i] == pytest.approx(np.cos(angle), abs=1e-6)
+
+
+def test_reward_terms_are_named_and_within_their_weights() -> None:
+    env = MuscleEnv("imitate-walk-2d")
+    weights = env.scene.task.imitate.weights
+    env.reset(seed=6)
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        _, reward, terminated, _, info = env.step(rng.uniform(0, 1, env.action_space.shape))
+        terms = info["reward_terms"]
+        assert tuple(terms) == TERMS + IMITATION_TERMS == env.reward_term_names
+        for term in IMITATION_TERMS:
+            assert 0.0 <= terms[term] <= getattr(weights, term.removeprefix("imitate_")) + 1e-12
+        assert reward == pytest.approx(sum(terms.values()))
+        if terminated:
+            break
+
+
+@pytest.mark.parametrize("backend", ["mujoco", "opensim"])
+def test_a_limp_body_loses_the_gait_and_the_episode_ends(backend: str) -> None:
+    env = MuscleEnv("imitate-walk-2d", backend)
+    env.reset(seed=0)
+    for _ in range(env.scene.steps_per_episode):
+        _, _, terminated, truncated, info = env.step(np.zeros(env.action_space.shape))
+        if terminated:
+            break
+    assert terminated and not truncated and info["health"] == "ok"
+    assert info["lost_track"] and not info["imitation"]["kept"]
+    assert info["imitation"]["pose_error_rad"] > env.scene.task.imitate.max_pose_error_rad
+    assert info["sim_time"] < 3.0
+
+
+@pytest.mark.parametrize(("make", "backend"), [CASES[0], CASES[2], CASES[3]])
+def test_a_body_held_in_the_reference_earns_the_full_tracking_reward(make, backend) -> None:
+    env = MuscleEnv(make(noise=0.0), backend)
+    env.reset(seed=7)
+    imitation = env.imitation
+    previous = env.sim.state()
+    for steps in range(1, 8):
+        ref = imitation.reference(steps)
+        env.sim.set_pose(imitation.pose_of(ref))
+        state = env.sim.state()
+        kernels = imitation.track(state, previous, env.sim, steps).kernels
+        for term in ("imitate_pose", "imitate_joint_speed", "imitate_feet", "imitate_pelvis_pitch"):
+            assert kernels[term] > 0.99, (term, kernels)
+        assert kernels["imitate_pelvis_height"] > 0.99
+        previous = state
+
+
+def test_scenes_that_imitate_nothing_keep_their_layout_and_terms() -> None:
+    for name in ("walk-2d", "stand-2d", "elbow-reach", "obstacles-2d"):
+        env = MuscleEnv(name)
+        assert env.imitation is None and env.reference_state() is None
+        assert not any(n.startswith("phase_") for n in env.obs_names)
+        _, info = env.reset(seed=0)
+        assert "imitation" not in info
+        _, _, _, _, info = env.step(np.zeros(env.action_space.shape))
+        assert tuple(info["reward_terms"]) == TERMS and "imitation" not in info
