@@ -263,9 +263,7 @@ class MujocoSimulator:
 
     def set_pose(self, pose: Pose) -> None:
         """See ``Simulator.set_pose`` and ``workers.sim.mujoco_pose``."""
-        unknown = [
-            n for n in pose.coordinates if n not in self.dof_names and n not in self._locked
-        ]
+        unknown = [n for n in pose.coordinates if n not in self.dof_names and n not in self._locked]
         if unknown:
             raise ValueError(f"set_pose: body {self.scene.body!r} has no coordinates {unknown}")
         self._poser.apply(self.data, pose)
