@@ -15,7 +15,7 @@ Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imita
 | imitate_feet          | sum over feet of |foot - pelvis - reference|^2, heading-aligned | m^2  |
 | imitate_pelvis_height | (pelvis height - reference)^2                               | m^2      |
 | imitate_pelvis_pitch  | (pitch - reference)^2 + (list - reference)^2 (OpenSim's)    | rad^2    |
-| imitate_pelvis_speed  | (forward speed over the step - reference)^2                 | (m/s)^2  |
+| imitate_pelvis_speed  | (forward speed over the step - reference at its end)^2      | (m/s)^2  |
 
 The tracked joints are the motion's joints that the scene keeps. The episode ends early
 (``terminated``, ``info["imitation"]["kept"]`` False) when the RMS pose error over them passes
@@ -125,14 +125,13 @@ class Imitation:
         pitch, list_ = pelvis_pitch_list(state.pelvis_up, self.up, self.forward)
         height = float(state.pelvis_pos[self.up]) - ref.pelvis_height
         forward = float(state.pelvis_pos[self.forward] - previous.pelvis_pos[self.forward])
-        mid = self.motion.at(self.phase(steps) - 0.5 * self.dt / self.motion.period_s)
         errors = {
             "pose": float(pose @ pose),
             "joint_speed": float(speed @ speed),
             "feet": self._feet_error(state, ref, sim),
             "pelvis_height": height**2,
             "pelvis_pitch": (pitch - ref.pelvis_pitch) ** 2 + (list_ - ref.pelvis_list) ** 2,
-            "pelvis_speed": (forward / self.dt - mid.forward_speed) ** 2,
+            "pelvis_speed": (forward / self.dt - ref.forward_speed) ** 2,
         }
         kernels = {
             f"imitate_{name}": float(np.exp(-getattr(scales, name) * err))

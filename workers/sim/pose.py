@@ -8,14 +8,19 @@ forward x up. :func:`opensim_to_world` maps the one frame onto the other.
 
 from __future__ import annotations
 
+from functools import cache
+
 import numpy as np
 
 
+@cache
 def opensim_to_world(up_axis: int, forward_axis: int) -> np.ndarray:
     """[3, 3] rotation taking OpenSim-frame vectors (X forward, Y up, Z right) to the
-    simulator's world (columns: where forward, up and right point)."""
+    simulator's world (columns: where forward, up and right point); read-only, cached."""
     forward, up = np.eye(3)[forward_axis], np.eye(3)[up_axis]
-    return np.column_stack([forward, up, np.cross(forward, up)])
+    out = np.column_stack([forward, up, np.cross(forward, up)])
+    out.flags.writeable = False
+    return out
 
 
 def _rx(a: float) -> np.ndarray:
