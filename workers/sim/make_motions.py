@@ -17,13 +17,17 @@ Method, per motion (details in each file's ``source`` and the README's "Motion i
    by a linear detrend; then the first :data:`HARMONICS` Fourier harmonics kept, so angles and
    their speeds are continuous across the seam.
 3. Replayed on the body (``mj_kinematics``): the pelvis height is the recorded (treadmill)
-   pelvis height shifted so that the stance feet's lowest contact points touch the floor (the
-   median over stance samples is 0), or, with no pelvis height in the data, set per sample so
-   that the lower foot touches; feet centroids relative to the pelvis come from the same pose.
-4. The forward speed is the treadmill belt speed seen in the kinematics: the mean backward
-   speed, relative to the treadmill, of the stance foot's centroid (so that a stance foot
-   stands still in the world when the pelvis moves at the motion's speed); the within-cycle
-   fluctuation is the rate of change of the recorded pelvis_tx.
+   pelvis height plus an offset that puts the lower stance foot's lowest contact point on the
+   floor at each sample (interpolated across flight phases), or, with no pelvis height in the
+   data, set per sample so that the lower foot touches; the feet's centroids relative to the
+   pelvis come from the same poses. Stance: force plates (walk), else the replay (see
+   :func:`kinematic_stance`).
+4. The forward speed is the treadmill belt speed seen in the kinematics: the median backward
+   speed, relative to the treadmill, of the stance foot's grounded contact geom (so that a
+   stance foot stands still in the world when the pelvis moves at the motion's speed); the
+   within-cycle fluctuation is the rate of change of the recorded pelvis_tx. ``normal.mot``
+   has no time: its period is chosen (:data:`NORMAL_PERIOD_S`), its speed follows.
+5. The CMC excitations of the walk's stride, averaged over each phase bin.
 """
 
 from __future__ import annotations
