@@ -32,7 +32,6 @@ from foxglove.messages import (
     Vector3,
 )
 from gaitforge.workers.env import GRAVITY, MuscleEnv
-from gaitforge.workers.rewards import TERMS
 from gaitforge.workers.sim.base import HEALTHY, BodyPose, SimState, Simulator
 
 WORLD = "world"
@@ -111,13 +110,14 @@ class EpisodeMessages:
         self._rot = z_up_rotation(sim.up_axis, sim.forward_axis)
         self._rot_q = matrix_to_quat(self._rot)
         self._target_speed = float(env.scene.task.target_speed or 0.0)
+        self.reward_terms = list(env.reward_term_names)
         self._weight = max(GRAVITY * sim.report.mass, 1e-9)
         self._start_forward: float | None = None
 
     def scalar_schemas(self) -> dict[str, dict]:
         """JSON schema of each scalar channel, by topic."""
         return {
-            "/reward": json_schema("gaitforge.Reward", ["total", *TERMS]),
+            "/reward": json_schema("gaitforge.Reward", ["total", *self.reward_terms]),
             "/speed": json_schema(
                 "gaitforge.Speed", ["forward", "target", "distance", "pelvis_height"]
             ),
