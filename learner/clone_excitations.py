@@ -149,19 +149,44 @@ class SideGuess:
         self._own = ExcitationTable(self.joints, own)
         self._mirrored = ExcitationTable(self.joints, mirrored)
 
-    def mirrored(self, obs: np.ndarray, obs_names: list[str]) -> np.ndarray:
-        """[N, obs_dim] -> [N] bool: the episode is mirrored (False where no joint angle of
-        the motion is observed)."""
+    def margin(self, obs: np.ndarray, obs_names: list[str]) -> np.ndarray:
+        """[N, obs_dim] -> [N] squared distance (rad^2) of the observed joint angles to the
+        reference minus that to the mirrored reference: > 0 looks mirrored (0 where no joint
+        angle of the motion is observed)."""
         cols = [(i, obs_names.index(JOINT_PREFIX + j)) for i, j in enumerate(self.joints)
                 if JOINT_PREFIX + j in obs_names]  # fmt: skip
         if not cols:
-            return np.zeros(len(obs), dtype=bool)
+            return np.zeros(len(obs))
         ref_cols, obs_cols = (np.array(c) for c in zip(*cols, strict=True))
         phases = phases_of(obs, obs_names)
         q = obs[:, obs_cols].astype(np.float64)
         own = np.sum((q - self._own.at(phases)[:, ref_cols]) ** 2, axis=1)
         flipped = np.sum((q - self._mirrored.at(phases)[:, ref_cols]) ** 2, axis=1)
-        return flipped < own
+        return own - flipped
+
+    def mirrored(self, obs: np.ndarray, obs_names: list[str]) -> np.ndarray:
+        """[N, obs_dim] -> [N] bool: each observation on its own looks mirrored."""
+        return self.margin(obs, obs_names) > 0
+
+    def mirrored_episodes(self, fragments: list[Fragment], obs_names: list[str]) -> np.ndarray:
+        """[N] bool over the fragments' steps (flattened as ``batch_from_fragments`` does:
+        fragment by fragment, time-major): whether each step's episode is mirrored, decided
+        once per episode (its margins summed over its steps in the fragment), since an
+        episode keeps its side from reset to end."""
+        out = []
+        for f in fragments:
+            t_len, k_len = f.obs.shape[:2]
+            margin = self.margin(f.obs.reshape(t_len * k_len, -1), obs_names).reshape(t_len, k_len)
+            ends = np.asarray(f.terminated) | np.asarray(f.truncated)
+            flags = np.zeros((t_len, k_len), dtype=bool)
+            for k in range(k_len):
+                start = 0
+                for t in [*np.flatnonzero(ends[:, k]), t_len - 1]:
+                    if t >= start:
+                        flags[start : t + 1, k] = margin[start : t + 1, k].sum() > 0
+                        start = t + 1
+            out.append(flags.reshape(-1))
+        return np.concatenate(out) if out else np.zeros(0, dtype=bool)
 
 
 def excitation_labels(
@@ -199,12 +224,16 @@ def clone_excitations(
     rounds: int = 2,
     epochs: int = 30,
     lr: float = 1e-3,
+    rollout_std: float | None = 0.05,
     seed: int = 0,
 ) -> dict[str, float]:
     """Fit ``policy``'s mean excitation to ``table`` at the phases of the observations it
     visits (see the module's docstring); ``policy`` is changed in place (actor, critic and
     the observation normaliser). ``sides`` tells mirrored episodes' observations (their
-    labels swap left and right); None takes every episode as unmirrored.
+    labels swap left and right); None takes every episode as unmirrored. The rollouts act
+    with the standard deviation ``rollout_std`` (None: the policy's own), restored after:
+    near-deterministic rollouts visit the states a deterministic policy sees (previous
+    excitations are in the observation, and exploration noise makes them unlike its own).
 
     Returns diagnostics: ``action_mse_before`` and ``action_mse`` (the deterministic action
     against the labels on every observation gathered, before and after), ``value_mse`` (the
@@ -214,10 +243,19 @@ def clone_excitations(
     all_labels: list[torch.Tensor] = []
     report: dict[str, float] = {}
     for r in range(rounds):
-        batch = batch_from_fragments(rollout(policy, env_steps), ppo)
+        log_std = policy.log_std.detach().clone()
+        if rollout_std is not None:
+            with torch.no_grad():
+                policy.log_std.fill_(math.log(rollout_std))
+        try:
+            fragments = rollout(policy, env_steps)
+        finally:
+            with torch.no_grad():
+                policy.log_std.copy_(log_std)
+        batch = batch_from_fragments(fragments, ppo)
         obs = batch["obs"]
         raw = obs.numpy()
-        mirrored = None if sides is None else sides.mirrored(raw, obs_names)
+        mirrored = None if sides is None else sides.mirrored_episodes(fragments, obs_names)
         labels = torch.from_numpy(excitation_labels(raw, obs_names, act_names, table, mirrored))
         policy.norm.update(obs)
         all_obs.append(obs)

@@ -15,6 +15,7 @@ import yaml
 from gaitforge.learner.clone_excitations import (
     ExcitationError,
     ExcitationTable,
+    SideGuess,
     excitation_labels,
     excitation_table,
     mirror_name,
@@ -24,6 +25,7 @@ from gaitforge.learner.evaluate import make_runner, policy_act
 from gaitforge.learner.job import Job, load_job
 from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.episode import Observer
+from gaitforge.workers.motions import load_motion
 from gaitforge.workers.spec_io import SpecError
 
 SCENE = "imitate-walk-2d"
@@ -97,19 +99,25 @@ def test_bad_warm_start_options_are_one_line(tmp_path: Path) -> None:
 
 
 class Phases(Observer):
-    """Observer: each step's observation and action (the deterministic excitation)."""
+    """Observer: each step's observation, action (the deterministic excitation) and whether
+    the episode is mirrored (as the env says)."""
 
     def __init__(self) -> None:
         self.obs: list[np.ndarray] = []
         self.actions: list[np.ndarray] = []
+        self.mirrored: list[bool] = []
+        self.episodes: list[slice] = []
         self._last: np.ndarray | None = None
 
     def on_reset(self, env, obs, info) -> None:
         self._last = obs
+        self.episodes.append(slice(len(self.obs), None))
 
     def on_step(self, env, action, obs, reward, terminated, truncated, info) -> None:
+        self.episodes[-1] = slice(self.episodes[-1].start, len(self.obs) + 1)
         self.obs.append(self._last)
         self.actions.append(action)
+        self.mirrored.append(bool(info["imitation"]["mirrored"]))
         self._last = obs
 
 
@@ -123,8 +131,16 @@ def action_error(trainer: Trainer, seeds: range) -> float:
     with make_runner(policy, scene, "mujoco") as runner:
         for seed in seeds:
             runner.run(policy_act(policy, "deterministic", seed), seed, [watch], max_steps=40)
-    obs = np.array(watch.obs)
-    labels = excitation_labels(obs, runner.obs_names, runner.act_names, table)
+    obs, mirrored = np.array(watch.obs), np.array(watch.mirrored)
+    assert mirrored.any() and not mirrored.all()  # both sides seen
+    # the observed joint angles tell the side the env drew: most steps alone, every
+    # episode by its summed margin
+    sides = SideGuess(load_motion("gait2d", "walk"))
+    assert (sides.mirrored(obs, runner.obs_names) == mirrored).mean() > 0.8
+    margins = sides.margin(obs, runner.obs_names)
+    for episode in watch.episodes:
+        assert (margins[episode].sum() > 0) == mirrored[episode][0]
+    labels = excitation_labels(obs, runner.obs_names, runner.act_names, table, mirrored)
     return float(np.abs(np.array(watch.actions) - labels).mean())
 
 
@@ -142,11 +158,11 @@ def test_the_warm_start_clones_the_recorded_excitations(tmp_path: Path) -> None:
     })  # fmt: skip
     cold = Trainer(job.model_copy(update={"stages": [job.stages[0].model_copy(
         update={"warm_start": None})]}), tmp_path / "cold", tensorboard=False)  # fmt: skip
-    before = action_error(cold, range(3))
+    before = action_error(cold, range(6))
     torch.manual_seed(0)
     warm = Trainer(job, tmp_path / "warm", tensorboard=False)
     warm.run(max_iterations=1)
-    after = action_error(warm, range(3))
+    after = action_error(warm, range(6))
     # the warm-up rollouts count in the stage: 2 rounds of 1024 env steps, then the batch
     assert warm.env_steps >= 2 * 1024 + 256
     # an untrained network sends ~0.5 everywhere; the CMC walk's excitations are mostly low
