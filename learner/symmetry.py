@@ -6,7 +6,9 @@ Mirroring is in the sagittal plane: names ending ``_r``/``_l`` (or ``_right``/``
 swap; of the pelvis vectors, the lateral component of ``pelvis_up_*`` and ``pelvis_vel_*``
 changes sign, and of the angular velocity (a pseudovector) the other two components do.
 Joint angles swap without a sign change: both backends define left and right joint axes so
-that the same angle is the same anatomical motion.
+that the same angle is the same anatomical motion. In imitation scenes ``phase_mirror`` (+1 in
+an episode that tracks the motion mirrored) changes sign: the mirror image of a state that
+tracks the motion at a phase is one that tracks the mirrored motion at the same phase.
 """
 
 from __future__ import annotations
@@ -61,7 +63,7 @@ class MirrorMap:
         lateral = AXES[lateral_axis]
         sign = []
         for name in obs_names:
-            flip = name in (f"pelvis_up_{lateral}", f"pelvis_vel_{lateral}") or (
+            flip = name in (f"pelvis_up_{lateral}", f"pelvis_vel_{lateral}", "phase_mirror") or (
                 name.startswith("pelvis_angvel_") and not name.endswith(f"_{lateral}")
             )
             sign.append(-1.0 if flip else 1.0)

@@ -7,7 +7,8 @@ Observation (float32, names in ``env.obs_names``), in this order:
     muscle activations [n_muscles]; previous excitations [n_muscles];
     task: target speed (m/s) or reach target (rad); with obstacles, the nearest obstacle
     ahead: forward distance, height, radius (m; 0, 0, 0 when none is left); imitating a
-    motion (``task.imitate``): the gait phase as ``phase_sin``, ``phase_cos``.
+    motion (``task.imitate``): the gait phase as ``phase_sin``, ``phase_cos``, and
+    ``phase_mirror`` (+1 in a mirrored episode, -1 otherwise).
 Action: excitations [n_muscles] in [0, 1].
 
 Imitation scenes (``workers.imitation``) start each episode in the motion, add the tracking

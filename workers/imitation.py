@@ -34,7 +34,9 @@ from gaitforge.workers.scenes.imitate import IMITATION_TERMS, Imitate, tracked_j
 from gaitforge.workers.sim.base import Pose, SimState, Simulator
 from gaitforge.workers.sim.pose import opensim_to_world, pelvis_pitch_list, pelvis_rotation
 
-PHASE_OBS = ("phase_sin", "phase_cos")
+PHASE_OBS = ("phase_sin", "phase_cos", "phase_mirror")
+"""The observation's imitation entries: sin and cos of 2 pi phase, and +1 in a mirrored
+episode (left and right swapped), -1 otherwise (a mirror image flips its sign)."""
 
 
 @dataclass(frozen=True)
@@ -78,9 +80,9 @@ class Imitation:
         return self.motion.mirrored_state(state) if self.mirrored else state
 
     def observe(self, steps: int) -> list[float]:
-        """``phase_sin``, ``phase_cos`` of the phase after ``steps`` steps."""
+        """``PHASE_OBS`` after ``steps`` steps."""
         angle = 2.0 * np.pi * self.phase(steps)
-        return [float(np.sin(angle)), float(np.cos(angle))]
+        return [float(np.sin(angle)), float(np.cos(angle)), 1.0 if self.mirrored else -1.0]
 
     # ---- reference state initialisation ----------------------------------------------
 

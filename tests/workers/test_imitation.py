@@ -94,8 +94,11 @@ def test_a_mirrored_reset_swaps_the_legs() -> None:
     env = MuscleEnv(_scene("imitate-walk-2d", random_phase=False, noise=0.0))
     seen = {}
     for seed in range(20):
-        _, info = env.reset(seed=seed)
+        obs, info = env.reset(seed=seed)
         seen[info["imitation"]["mirrored"]] = env.sim.coordinates()
+        assert obs[env.obs_names.index("phase_mirror")] == (
+            1.0 if info["imitation"]["mirrored"] else -1.0
+        )
     assert set(seen) == {True, False}
     plain, mirrored = seen[False], seen[True]
     for joint in ("hip_flexion", "knee_angle", "ankle_angle"):
@@ -107,8 +110,10 @@ def test_a_mirrored_reset_swaps_the_legs() -> None:
 def test_the_phase_in_the_observation_advances_with_time() -> None:
     env = MuscleEnv("imitate-walk-2d")
     sin_i, cos_i = env.obs_names.index("phase_sin"), env.obs_names.index("phase_cos")
+    assert env.obs_names[-3:] == ["phase_sin", "phase_cos", "phase_mirror"]
     obs, info = env.reset(seed=5)
     phase0 = info["imitation"]["phase"]
+    assert obs[-1] == (1.0 if info["imitation"]["mirrored"] else -1.0)
     step = env.dt / env.imitation.motion.period_s
     for k in range(1, 6):
         obs, *_, info = env.step(np.full(env.action_space.shape, 0.3, np.float32))

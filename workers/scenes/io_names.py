@@ -31,7 +31,7 @@ def observation_layout(
     ``pelvis_angvel_{x,y,z}``, ``grf:<foot>``; ``act:<muscle>``, ``prev_exc:<muscle>``;
     ``target_speed`` (locomotion) or ``reach_target``; with obstacles ``obstacle_dx``,
     ``obstacle_height``, ``obstacle_radius``; imitating a motion ``phase_sin``,
-    ``phase_cos``."""
+    ``phase_cos``, ``phase_mirror``."""
     locomotion = scene.task.kind == "locomotion"
     names = [f"q:{d}" for d in dofs] + [f"qd:{d}" for d in dofs]
     if locomotion:
@@ -44,7 +44,7 @@ def observation_layout(
     if scene.obstacles is not None:
         names += ["obstacle_dx", "obstacle_height", "obstacle_radius"]
     if scene.task.imitate is not None:
-        names += ["phase_sin", "phase_cos"]
+        names += ["phase_sin", "phase_cos", "phase_mirror"]
     return names
 
 
