@@ -180,3 +180,18 @@ def test_scenes_that_imitate_nothing_keep_their_layout_and_terms() -> None:
         assert "imitation" not in info
         _, _, _, _, info = env.step(np.zeros(env.action_space.shape))
         assert tuple(info["reward_terms"]) == TERMS and "imitation" not in info
+
+
+def test_mujoco_and_opensim_start_from_the_same_pose() -> None:
+    """Also where the run's ankle passes the body's limit: both clip to the limit range."""
+    scene = _scene("imitate-run-2d", noise=0.0)
+    envs = [MuscleEnv(scene, backend) for backend in ("mujoco", "opensim")]
+    for seed in (0, 1, 2, 21):  # seed 21: the left ankle starts clipped at its limit
+        a, b = (env.reset(seed=seed)[1]["imitation"] for env in envs)
+        assert a == b
+        ca, cb = (env.sim.coordinates() for env in envs)
+        assert ca.keys() == cb.keys()
+        for name in ca:
+            assert ca[name] == pytest.approx(cb[name], abs=1e-6), (seed, name)
+        va, vb = (env.sim.state().dof_vel for env in envs)
+        np.testing.assert_allclose(va, vb, atol=1e-3)

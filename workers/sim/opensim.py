@@ -75,6 +75,13 @@ class OpenSimSimulator:
         self._lift_dof = next(
             (d.name for d in root.dofs if d.type == "slide" and abs(d.axis[UP]) > 0.999), None
         )
+        self._ranges = {
+            d.name: (d.limit.range if d.limit else d.range)
+            for j in self._body.joints
+            for d in j.dofs
+        }
+        """Each dof's range as MuJoCo enforces it (the passive limit's, else the dof's):
+        ``set_pose`` clips to it, so both backends start from the same pose."""
         self._forward_dof = next(
             (d.name for d in root.dofs if d.type == "slide" and abs(d.axis[FORWARD]) > 0.999),
             None,
@@ -220,15 +227,21 @@ class OpenSimSimulator:
         )
 
     def set_pose(self, pose: Pose) -> None:
-        """See ``Simulator.set_pose``: coordinate values and speeds by name (root:
-        ``pelvis_tilt`` (``_list``, ``_rotation``) and the up and forward slides, which
-        OpenSim's planar root expresses in the ground frame), then muscles equilibrated."""
+        """See ``Simulator.set_pose``: coordinate values (clipped to the dof's limit range, as
+        on MuJoCo) and speeds by name (root: ``pelvis_tilt`` (``_list``, ``_rotation``) and
+        the up and forward slides, which OpenSim's planar root expresses in the ground
+        frame), then muscles equilibrated."""
         locked = self._plan.locked_dofs
         unknown = [n for n in pose.coordinates if n not in self.dof_names and n not in locked]
         if unknown:
             raise ValueError(f"set_pose: body {self.scene.body!r} has no coordinates {unknown}")
         state = self.osim_state
-        values = {n: (v, pose.speeds.get(n, 0.0)) for n, v in pose.coordinates.items()}
+        values = {}
+        for name, value in pose.coordinates.items():
+            lo, hi = self._ranges.get(name, (-np.inf, np.inf))
+            inside = lo <= value <= hi  # at a limit the joint rests there, as on MuJoCo
+            speed = pose.speeds.get(name, 0.0) if inside else 0.0
+            values[name] = (float(np.clip(value, lo, hi)), speed)
         rates = pose.pelvis_angular_speed
         root = {
             "pelvis_tilt": (pose.pelvis_pitch, rates[0]),
