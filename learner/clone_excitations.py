@@ -5,11 +5,11 @@ of the gait phase the imitation scene puts in the observation (``phase_sin``, ``
 Behavioural cloning on the states the policy visits: roll out in the stage's imitation scene
 (every episode starts inside the motion, at a random phase: reference state initialisation),
 label each observation with the recorded excitations at its phase (left and right muscles
-swapped when the episode is mirrored, which the observed joint angles tell:
-:class:`SideGuess`), fit the actor's mean by squared error (``learner.distil.fit_student``);
-then roll out the fitted policy, add its observations and fit again (``rounds``,
-DAgger-like), and fit the critic to the last round's returns. The rollouts go through the
-trainer's sampler and count in the stage's env steps.
+swapped when the episode is mirrored, as ``phase_mirror`` in the observation says, or else
+the observed joint angles: :class:`SideGuess`), fit the actor's mean by squared error
+(``learner.distil.fit_student``); then roll out the fitted policy, add its observations and
+fit again (``rounds``, DAgger-like), and fit the critic to the last round's returns. The
+rollouts go through the trainer's sampler and count in the stage's env steps.
 
 The excitation table comes from the motions package (``workers.motions.load_excitations``):
 one periodic cycle of the recorded excitations, ``[N, n_muscles]`` at phases ``k / N``.
@@ -38,6 +38,8 @@ logger = logging.getLogger(__name__)
 
 PHASE_NAMES = ("phase_sin", "phase_cos")
 """the observation's entries the phase is read from: sin and cos of 2 pi phase"""
+MIRROR_NAME = "phase_mirror"
+"""the observation's entry that says an episode is mirrored (+1) or not (-1)"""
 JOINT_PREFIX = "q:"
 """observation entries of joint angles (rad): ``q:<dof name>``"""
 
@@ -229,11 +231,12 @@ def clone_excitations(
 ) -> dict[str, float]:
     """Fit ``policy``'s mean excitation to ``table`` at the phases of the observations it
     visits (see the module's docstring); ``policy`` is changed in place (actor, critic and
-    the observation normaliser). ``sides`` tells mirrored episodes' observations (their
-    labels swap left and right); None takes every episode as unmirrored. The rollouts act
-    with the standard deviation ``rollout_std`` (None: the policy's own), restored after:
-    near-deterministic rollouts visit the states a deterministic policy sees (previous
-    excitations are in the observation, and exploration noise makes them unlike its own).
+    the observation normaliser). Mirrored episodes' labels swap left and right: the
+    observation's ``phase_mirror`` tells them, or else ``sides`` (None: none mirrored). The
+    rollouts act with the standard deviation ``rollout_std`` (None: the policy's own),
+    restored after: near-deterministic rollouts visit the states a deterministic policy sees
+    (previous excitations are in the observation, and exploration noise makes them unlike
+    its own).
 
     Returns diagnostics: ``action_mse_before`` and ``action_mse`` (the deterministic action
     against the labels on every observation gathered, before and after), ``value_mse`` (the
@@ -255,7 +258,10 @@ def clone_excitations(
         batch = batch_from_fragments(fragments, ppo)
         obs = batch["obs"]
         raw = obs.numpy()
-        mirrored = None if sides is None else sides.mirrored_episodes(fragments, obs_names)
+        if MIRROR_NAME in obs_names:  # the scene says it
+            mirrored = raw[:, obs_names.index(MIRROR_NAME)] > 0
+        else:
+            mirrored = None if sides is None else sides.mirrored_episodes(fragments, obs_names)
         labels = torch.from_numpy(excitation_labels(raw, obs_names, act_names, table, mirrored))
         policy.norm.update(obs)
         all_obs.append(obs)

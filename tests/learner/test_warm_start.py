@@ -140,6 +140,8 @@ def action_error(trainer: Trainer, seeds: range) -> float:
     margins = sides.margin(obs, runner.obs_names)
     for episode in watch.episodes:
         assert (margins[episode].sum() > 0) == mirrored[episode][0]
+    flag = obs[:, runner.obs_names.index("phase_mirror")]
+    np.testing.assert_array_equal(flag > 0, mirrored)  # what the warm start labels by
     labels = excitation_labels(obs, runner.obs_names, runner.act_names, table, mirrored)
     return float(np.abs(np.array(watch.actions) - labels).mean())
 
