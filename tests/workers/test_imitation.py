@@ -195,3 +195,14 @@ def test_mujoco_and_opensim_start_from_the_same_pose() -> None:
             assert ca[name] == pytest.approx(cb[name], abs=1e-6), (seed, name)
         va, vb = (env.sim.state().dof_vel for env in envs)
         np.testing.assert_allclose(va, vb, atol=1e-3)
+
+
+def test_catalogue_imitation_scenes_target_their_motions_speed() -> None:
+    from gaitforge.workers.motions import load_motion
+
+    names = [n for n in catalogue() if load_scene(n).task.imitate is not None]
+    assert {"imitate-walk-2d", "imitate-run-2d", "imitate-walk-3d"} <= set(names)
+    for name in names:
+        scene = load_scene(name)
+        motion = load_motion(scene.body, scene.task.imitate.motion)
+        assert scene.task.target_speed == pytest.approx(motion.speed_m_s, abs=1e-3), name
