@@ -17,6 +17,9 @@ network (``blend``, ``distil`` or ``scratch``). Errors are one line naming the f
         network: {hidden: [128, 128]}
         transition: blend
         blend: {ramp_env_steps: 200000}
+
+An imitation stage may start from the motion's recorded muscle excitations, cloned into the
+actor's mean (``warm_start: {excitations: walk}``, :class:`WarmStartSpec`).
 """
 
 from __future__ import annotations

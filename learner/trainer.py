@@ -17,6 +17,8 @@ the live workers and, where the stage asks for it, a new network is built
   to the returns, then PPO;
 - ``scratch``: a fresh network.
 
+After the transition, a stage with ``warm_start`` clones a motion's recorded excitations into
+the actor's mean (``learner.clone_excitations``), the first stage included.
 Warm-up rollouts count as env steps of the stage, so the three compare at equal env steps.
 A checkpoint is written every ``checkpoint.every_iters`` iterations and at each stage end;
 ``Trainer`` resumes from the newest one in ``run_dir/checkpoints``.
