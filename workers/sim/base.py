@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from typing import NamedTuple, Protocol
 
@@ -89,6 +90,13 @@ class Pose:
     pelvis_angular_speed: tuple[float, float, float] = (0.0, 0.0, 0.0)
     forward_speed: float = 0.0
     vertical_speed: float = 0.0
+
+
+def check_pose_names(pose: Pose, body: str, kept: Collection[str], locked: Collection[str]) -> None:
+    """Raise ``ValueError`` if ``pose`` names a coordinate that is neither kept nor locked."""
+    unknown = [n for n in pose.coordinates if n not in kept and n not in locked]
+    if unknown:
+        raise ValueError(f"set_pose: body {body!r} has no coordinates {unknown}")
 
 
 class BodyPose(NamedTuple):

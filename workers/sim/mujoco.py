@@ -24,6 +24,7 @@ from gaitforge.workers.sim.base import (
     Health,
     Pose,
     SimState,
+    check_pose_names,
 )
 from gaitforge.workers.sim.mjcf_contacts import model_size, restrict_contacts
 from gaitforge.workers.sim.mjcf_lock import lock_joints
@@ -263,9 +264,7 @@ class MujocoSimulator:
 
     def set_pose(self, pose: Pose) -> None:
         """See ``Simulator.set_pose`` and ``workers.sim.mujoco_pose``."""
-        unknown = [n for n in pose.coordinates if n not in self.dof_names and n not in self._locked]
-        if unknown:
-            raise ValueError(f"set_pose: body {self.scene.body!r} has no coordinates {unknown}")
+        check_pose_names(pose, self.scene.body, self.dof_names, self._locked)
         self._poser.apply(self.data, pose)
 
     def foot_positions(self) -> dict[str, np.ndarray]:

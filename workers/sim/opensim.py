@@ -34,6 +34,7 @@ from gaitforge.workers.sim.base import (
     Health,
     Pose,
     SimState,
+    check_pose_names,
 )
 from gaitforge.workers.sim.opensim_build import PARKED, build_model, quiet_opensim_log
 from gaitforge.workers.sim.opensim_size import full_plan, model_size
@@ -231,10 +232,7 @@ class OpenSimSimulator:
         on MuJoCo) and speeds by name (root: ``pelvis_tilt`` (``_list``, ``_rotation``) and
         the up and forward slides, which OpenSim's planar root expresses in the ground
         frame), then muscles equilibrated."""
-        locked = self._plan.locked_dofs
-        unknown = [n for n in pose.coordinates if n not in self.dof_names and n not in locked]
-        if unknown:
-            raise ValueError(f"set_pose: body {self.scene.body!r} has no coordinates {unknown}")
+        check_pose_names(pose, self.scene.body, self.dof_names, self._plan.locked_dofs)
         state = self.osim_state
         values = {}
         for name, value in pose.coordinates.items():
@@ -261,7 +259,7 @@ class OpenSimSimulator:
             self.model.realizePosition(state)
             height = self._pelvis.getPositionInGround(state).get(UP)
             lift.setValue(state, lift.getValue(state) + pose.pelvis_height - height, False)
-            self._lift_out_of_floor(state)
+            self._touch_floor(state, raise_only=True)
         self.model.equilibrateMuscles(state)
 
     def foot_positions(self) -> dict[str, np.ndarray]:
@@ -367,8 +365,9 @@ class OpenSimSimulator:
 
     # ---- helpers ----------------------------------------------------------------------
 
-    def _touch_floor(self, state: opensim.State) -> None:
-        """Shift the pelvis height so the lowest foot sphere just touches the floor."""
+    def _touch_floor(self, state: opensim.State, raise_only: bool = False) -> None:
+        """Shift the pelvis height so the lowest foot sphere just touches the floor (with
+        ``raise_only``, only if it lies inside the floor)."""
         lift = self._coords.get(self._lift_dof) if self._lift_dof else None
         if lift is None or not self._foot_spheres:
             return
@@ -377,19 +376,7 @@ class OpenSimSimulator:
             body.findStationLocationInGround(state, where).get(UP) - radius
             for body, where, radius in self._foot_spheres
         )
-        lift.setValue(state, lift.getValue(state) - lowest, False)
-
-    def _lift_out_of_floor(self, state: opensim.State) -> None:
-        """Raise the pelvis if a foot sphere lies inside the floor (never lower it)."""
-        lift = self._coords.get(self._lift_dof) if self._lift_dof else None
-        if lift is None or not self._foot_spheres:
-            return
-        self.model.realizePosition(state)
-        lowest = min(
-            body.findStationLocationInGround(state, where).get(UP) - radius
-            for body, where, radius in self._foot_spheres
-        )
-        if lowest < 0.0:
+        if lowest < 0.0 or not raise_only:
             lift.setValue(state, lift.getValue(state) - lowest, False)
 
     def _place_obstacles(self) -> None:
