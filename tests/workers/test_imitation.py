@@ -206,3 +206,23 @@ def test_catalogue_imitation_scenes_target_their_motions_speed() -> None:
         scene = load_scene(name)
         motion = load_motion(scene.body, scene.task.imitate.motion)
         assert scene.task.target_speed == pytest.approx(motion.speed_m_s, abs=1e-3), name
+
+
+def test_myoleg_starts_with_the_pelvis_velocity_of_the_reference() -> None:
+    env = MuscleEnv(_scene_3d(noise=0.0))
+    for seed in (0, 1):
+        env.reset(seed=seed)
+        ref = env.reference_state()
+        vel = env.sim.data.qvel[:3]  # the free root's origin is the pelvis's, world frame
+        assert vel[env.sim.forward_axis] == pytest.approx(ref.forward_speed, abs=1e-4)
+        assert vel[env.sim.up_axis] == pytest.approx(ref.pelvis_vertical_speed, abs=1e-4)
+        assert abs(vel[1]) < 1e-4  # no sideways speed
+
+
+@pytest.mark.parametrize("name", ["imitate-walk-2d", "imitate-run-2d", "imitate-walk-3d"])
+def test_every_start_steps_healthily(name: str) -> None:
+    env = MuscleEnv(name)
+    for seed in range(30):
+        env.reset(seed=seed)
+        _, _, _, _, info = env.step(np.full(env.action_space.shape, 0.1, np.float32))
+        assert info["health"] == "ok" and not info["fell"], (seed, info)
