@@ -226,3 +226,18 @@ def test_every_start_steps_healthily(name: str) -> None:
         env.reset(seed=seed)
         _, _, _, _, info = env.step(np.full(env.action_space.shape, 0.1, np.float32))
         assert info["health"] == "ok" and not info["fell"], (seed, info)
+
+
+def test_the_feet_term_compares_in_the_bodys_heading() -> None:
+    """A MyoLeg turned about the vertical still has its feet where the reference has them,
+    relative to its pelvis and heading."""
+    import dataclasses
+
+    env = MuscleEnv(_scene_3d(noise=0.0))
+    env.reset(seed=3)
+    imitation = env.imitation
+    ref = imitation.reference(1)
+    turned = dataclasses.replace(imitation.pose_of(ref), pelvis_rotation=ref.pelvis_rotation + 0.5)
+    env.sim.set_pose(turned)
+    state = env.sim.state()
+    assert imitation.track(state, state, env.sim, 1).kernels["imitate_feet"] > 0.95
