@@ -3,6 +3,7 @@
 Usage: python bench/learning.py [--tasks elbow-reach stand-2d walk-2d] [--minutes M ...]
                                 [--seeds S ...] [--eval-episodes N] [--no-rllib]
                                 [--workers W] [--out DIR]
+       python bench/learning.py --merge A/learning.json B/learning.json --out DIR
 
 A task is an example job (``examples/<task>.yaml``); its target is its stage's promotion
 rule(s): elbow-reach ``return >= -12 over 50``; stand-2d ``survival >= 0.95 over 100``
@@ -222,19 +223,33 @@ def table(results: dict) -> Table:
 
 
 def plot(results: dict, path: Path) -> None:
-    fig, axes = plt.subplots(1, len(results), figsize=(5 * len(results), 3.5), squeeze=False)
-    for ax, (task, by_framework) in zip(axes[0], results.items(), strict=True):
-        metric = by_framework["metric"]
-        for name, r in by_framework["runs"].items():
+    """Per task, two panels against wall-clock minutes: the first promotion rule's metric
+    (with its threshold) and the return, one line per run."""
+    fig, axes = plt.subplots(2, len(results), figsize=(5 * len(results), 6.5), squeeze=False)
+    for column, (task, by_task) in enumerate(results.items()):
+        rule_ax, return_ax = axes[0][column], axes[1][column]
+        for name, r in by_task["runs"].items():
             xs = [p["wall_s"] / 60 for p in r["curve"]]
-            ax.plot(xs, [p.get(metric, float("nan")) for p in r["curve"]], label=name)
-        ax.axhline(by_framework["threshold"], color="grey", linestyle="--", linewidth=1)
-        ax.set_title(task)
-        ax.set_xlabel("wall-clock min")
-        ax.set_ylabel(metric)
-        ax.legend()
+            for ax, key in ((rule_ax, by_task["metric"]), (return_ax, "return")):
+                ax.plot(xs, [p.get(key, float("nan")) for p in r["curve"]], label=name)
+        rule_ax.axhline(by_task["threshold"], color="grey", linestyle="--", linewidth=1)
+        rule_ax.set_title(task)
+        rule_ax.set_ylabel(by_task["metric"])
+        return_ax.set_ylabel("return (last 100 episodes)")
+        return_ax.set_xlabel("wall-clock min")
+        rule_ax.legend(fontsize="small")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+
+
+def merge(paths: list[Path]) -> dict:
+    """``learning.json`` files of separate invocations (e.g. seeds run one after another)
+    as one: per task, the runs of all of them."""
+    merged: dict = {}
+    for path in paths:
+        for task, by_task in json.loads(path.read_text()).items():
+            merged.setdefault(task, {**by_task, "runs": {}})["runs"].update(by_task["runs"])
+    return merged
 
 
 def main() -> None:
@@ -251,7 +266,20 @@ def main() -> None:
     parser.add_argument("--no-rllib", action="store_true")
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--out", type=Path, default=Path("bench/results/learning"))
+    parser.add_argument(
+        "--merge",
+        type=Path,
+        nargs="+",
+        help="only merge these learning.json files into --out (table, plot)",
+    )
     args = parser.parse_args()
+    if args.merge:
+        results = merge(args.merge)
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "learning.json").write_text(json.dumps(results, indent=1))
+        console.print(table(results))
+        plot(results, args.out / "learning.png")
+        return
     minutes = args.minutes or [DEFAULT_MINUTES.get(t, 5.0) for t in args.tasks]
     if len(minutes) != len(args.tasks):
         parser.error("--minutes: one value per task")
