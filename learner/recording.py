@@ -59,7 +59,6 @@ import os
 from collections.abc import Mapping
 from contextlib import ExitStack
 from pathlib import Path
-from types import TracebackType
 from typing import Any
 
 import foxglove
@@ -70,7 +69,12 @@ from gaitforge.learner.checkpoint_meta import META_FILE, read_meta
 from gaitforge.learner.recording_messages import EpisodeMessages
 from gaitforge.learner.reference_pose import ReferenceBody, imitating
 from gaitforge.workers.env import MuscleEnv
-from gaitforge.workers.episode import Act, EpisodeObserver, EpisodeSummary, run_episode
+from gaitforge.workers.episode import (
+    Act,
+    ClosingObserver,
+    EpisodeObserver,
+    run_episode,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -113,7 +117,7 @@ def checkpoint_metadata(path: str | os.PathLike[str]) -> dict[str, str]:
 # ---- recorder ---------------------------------------------------------------------------------
 
 
-class EpisodeRecorder:
+class EpisodeRecorder(ClosingObserver):
     """Writes one episode of ``env`` to an MCAP file at ``path``.
 
     An episode observer (``workers.episode``); or by hand: call :meth:`log_step` after every
@@ -206,9 +210,6 @@ class EpisodeRecorder:
             imitation.log(self._messages.imitation(info), log_time=log_time)
         self.steps += 1
 
-    def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
-        """Episode observer (``workers.episode``): nothing is logged at reset."""
-
     def on_step(
         self,
         env: MuscleEnv,
@@ -222,10 +223,6 @@ class EpisodeRecorder:
         """Episode observer: :meth:`log_step` with the step's reward terms."""
         self.log_step(env, action, info.get("reward_terms"), info)
 
-    def on_end(self, summary: EpisodeSummary | None) -> None:
-        """Episode observer: :meth:`close`."""
-        self.close()
-
     def close(self) -> None:
         """Finish the file (summary, index); idempotent."""
         if not self._closed:
@@ -236,17 +233,6 @@ class EpisodeRecorder:
             for channel in channels:
                 channel.close()
             logger.info("recording: %d steps to %s", self.steps, self.path)
-
-    def __enter__(self) -> EpisodeRecorder:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     # ---- helpers ----------------------------------------------------------------------------
 

@@ -27,7 +27,6 @@ import importlib
 import logging
 import os
 from pathlib import Path
-from types import TracebackType
 from typing import Any
 
 import imageio_ffmpeg
@@ -35,7 +34,7 @@ import mujoco
 import numpy as np
 from gaitforge.learner.video_reference import ReferenceSkeleton, add_geom, add_model_skeleton
 from gaitforge.workers.env import MuscleEnv
-from gaitforge.workers.episode import Act, EpisodeSummary, run_episode
+from gaitforge.workers.episode import Act, ClosingObserver, run_episode
 from gaitforge.workers.sim.mujoco import OBSTACLE_PREFIX, MujocoSimulator
 
 logger = logging.getLogger(__name__)
@@ -133,7 +132,7 @@ class MujocoReplay:
         mujoco.mj_fwdPosition(m, d)
 
 
-class VideoRecorder:
+class VideoRecorder(ClosingObserver):
     """Renders frames of ``env`` into an MP4 at ``path``.
 
     An episode observer (``workers.episode``); or by hand: call :meth:`capture` after
@@ -258,10 +257,6 @@ class VideoRecorder:
         """Episode observer: :meth:`capture` the step."""
         self.capture(env)
 
-    def on_end(self, summary: EpisodeSummary | None) -> None:
-        """Episode observer: :meth:`close`."""
-        self.close()
-
     def close(self) -> None:
         """Finish the MP4 and free the GL resources; idempotent."""
         if self._closed:
@@ -271,17 +266,6 @@ class VideoRecorder:
             self._writer.close()
         self._renderer.close()
         logger.info("video: %d frames at %.1f fps to %s", self.frames, self.fps, self.path)
-
-    def __enter__(self) -> VideoRecorder:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     # ---- helpers ----------------------------------------------------------------------------
 

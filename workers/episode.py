@@ -18,7 +18,7 @@ import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Any, Protocol
+from typing import Any, Protocol, Self
 
 import numpy as np
 from gaitforge.workers.env import MuscleEnv
@@ -106,6 +106,28 @@ class Observer:
 
     def on_end(self, summary: EpisodeSummary | None) -> None:
         pass
+
+
+class ClosingObserver(Observer):
+    """An observer that owns a resource (a file, a renderer): the episode's end and a
+    ``with`` block both :meth:`close` it; ``close`` must be idempotent."""
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def on_end(self, summary: EpisodeSummary | None) -> None:
+        self.close()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
 
 
 def _end(observers: Sequence[EpisodeObserver], summary: EpisodeSummary | None) -> None:
