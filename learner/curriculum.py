@@ -36,7 +36,8 @@ class StageIO:
     def __init__(self, scene: Scene, backend: str) -> None:
         planar = None
         if needs_planar_muscles(scene, backend):
-            from gaitforge.workers.sim.mujoco import planar_muscles_of  # lazy: imports mujoco
+            # lazy: imports mujoco
+            from gaitforge.workers.sim.mujoco_compile import planar_muscles_of
 
             planar = planar_muscles_of(scene)
         self.obs_names: list[str] = observation_names(scene, backend, planar)

@@ -35,7 +35,8 @@ import numpy as np
 from gaitforge.learner.video_reference import ReferenceSkeleton, add_geom, add_model_skeleton
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.episode import Act, ClosingObserver, run_episode
-from gaitforge.workers.sim.mujoco import OBSTACLE_PREFIX, MujocoSimulator
+from gaitforge.workers.sim.mujoco import MujocoSimulator
+from gaitforge.workers.sim.mujoco_compile import OBSTACLE_PREFIX
 
 logger = logging.getLogger(__name__)
 

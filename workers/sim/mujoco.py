@@ -1,4 +1,5 @@
-"""MuJoCo backend: a scene compiled to a pruned ``MjModel``, stepped with health checks.
+"""MuJoCo backend: a scene compiled to a pruned ``MjModel`` (``mujoco_compile``), stepped
+with health checks.
 
 MuJoCo does not raise on numerical failure: on a NaN or huge acceleration it resets the
 state (``mj_resetData``) and only bumps ``data.warning`` counters. So every control step
@@ -9,41 +10,26 @@ CONTACTFULL) besides checking the state for non-finite values.
 from __future__ import annotations
 
 import logging
-from functools import lru_cache
 
 import mujoco
 import numpy as np
-from gaitforge.workers.bodies import load_body
-from gaitforge.workers.bodies.topology import Topology, topology_for
-from gaitforge.workers.scenes import PrunePlan, Scene, plan_pruning
+from gaitforge.workers.scenes import Scene
 from gaitforge.workers.sim.base import (
     HEALTHY,
     MAX_SPEED,
     BodyPose,
-    CompileReport,
     Health,
     Pose,
     SimState,
     check_pose_names,
 )
-from gaitforge.workers.sim.mjcf_contacts import model_size, restrict_contacts
-from gaitforge.workers.sim.mjcf_lock import lock_joints
-from gaitforge.workers.sim.mjcf_moment_arms import planar_muscles
-from gaitforge.workers.sim.mjcf_muscles import remove_muscles, strip_unused
-from gaitforge.workers.sim.mjcf_sources import MJCF_SOURCES
-from gaitforge.workers.sim.mujoco_build import CONTACT_GROUP, FLOOR, build_spec
+from gaitforge.workers.sim.mujoco_compile import OBSTACLE_PREFIX, compile_scene
 from gaitforge.workers.sim.mujoco_pose import PoseSetter
 from gaitforge.workers.sim.mujoco_warnings import route_warnings
 
 logger = logging.getLogger(__name__)
 route_warnings()  # MuJoCo's warnings to logging, not to MUJOCO_LOG.TXT in the cwd
 
-INTEGRATORS = {
-    "euler": mujoco.mjtIntegrator.mjINT_EULER,
-    "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
-    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
-    "rk4": mujoco.mjtIntegrator.mjINT_RK4,
-}
 WATCHED_WARNINGS = {
     "mujoco_badqacc": mujoco.mjtWarning.mjWARN_BADQACC,
     "mujoco_badqpos": mujoco.mjtWarning.mjWARN_BADQPOS,
@@ -57,87 +43,6 @@ PELVIS_UP = 1
 """The pelvis frame's up axis (Y in OpenSim-derived bodies, MyoLeg's included)."""
 STAND_KEY = "stand"
 """Keyframe that, where a model has it, is the reset pose (MyoLeg)."""
-OBSTACLE_PREFIX = "obstacle_"
-PARKED = -100.0
-"""Forward position (m) of obstacle geoms until the first reset places them."""
-
-
-def source_spec(body: str) -> mujoco.MjSpec:
-    """The body as an ``MjSpec`` with nothing removed."""
-    if body in MJCF_SOURCES:
-        return MJCF_SOURCES[body]()
-    return build_spec(load_body(body))
-
-
-@lru_cache(maxsize=8)
-def _full_model_facts(body: str, sagittal: tuple[str, ...]) -> tuple[dict[str, int], list[str]]:
-    """Size of the unpruned model, and its muscles that act in the given dofs' plane."""
-    model = source_spec(body).compile()
-    planar = planar_muscles(model, list(sagittal)) if sagittal else []
-    return model_size(model), planar
-
-
-def _add_obstacles(spec: mujoco.MjSpec, count: int) -> list[str]:
-    names = [f"{OBSTACLE_PREFIX}{i}" for i in range(count)]
-    for name in names:
-        spec.worldbody.add_geom(
-            name=name,
-            type=mujoco.mjtGeom.mjGEOM_SPHERE,
-            size=[0.1, 0, 0],
-            pos=[PARKED, 0, 0],
-            group=CONTACT_GROUP,
-            rgba=[0.6, 0.4, 0.3, 1.0],
-        )
-    return names
-
-
-def _sagittal(scene: Scene) -> tuple[str, ...]:
-    """With ``keep.planar``, the scene's kept dofs (they do not depend on the planar muscle
-    set, so a plan without it gives them); else none."""
-    if not scene.keep.planar:
-        return ()
-    return tuple(plan_pruning(scene, topology_for(scene.body)).kept_dofs)
-
-
-def planar_muscles_of(scene: Scene) -> list[str] | None:
-    """With ``keep.planar``, the body's muscles that act in the plane of the scene's kept
-    dofs, measured on the unpruned model (cached; no simulator built); else None. What
-    ``workers.scenes.io_names`` needs for such a scene on MuJoCo."""
-    return _full_model_facts(scene.body, _sagittal(scene))[1] if scene.keep.planar else None
-
-
-def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology]:
-    """Compile ``scene`` to a pruned model, with the report of what was removed."""
-    topology = topology_for(scene.body)
-    size_full, planar = _full_model_facts(scene.body, _sagittal(scene))
-    plan: PrunePlan = plan_pruning(scene, topology, planar if scene.keep.planar else None)
-    spec = source_spec(scene.body)
-    dropped = lock_joints(spec, plan.locked_dofs)
-    remove_muscles(spec, list(plan.removed_muscles))
-    obstacles = _add_obstacles(spec, plan.obstacles)
-    world = [g.name for g in spec.geoms if g.name in {FLOOR, *obstacles}]
-    restrict_contacts(spec, plan.contact_geoms if world else [], world)
-    if not scene.keep.visuals:
-        strip_unused(spec)
-    for geom in spec.geoms:
-        if geom.name == FLOOR:
-            geom.friction = [scene.terrain.friction, 0.005, 0.0001]
-    profile = scene.profile("mujoco")
-    spec.option.integrator = INTEGRATORS[profile.integrator]
-    spec.option.timestep = profile.timestep
-    model = spec.compile()
-    report = CompileReport(
-        scene=scene.name,
-        backend="mujoco",
-        body=scene.body,
-        profile=profile,
-        plan=plan,
-        size_full=size_full,
-        size=model_size(model),
-        mass=float(sum(model.body_mass)),
-        dropped_joints=dropped,
-    )
-    return model, report, topology
 
 
 class MujocoSimulator:

@@ -16,7 +16,7 @@ from gaitforge.workers.scenes.io_names import (
     observation_names,
     world_axes,
 )
-from gaitforge.workers.sim.mujoco import planar_muscles_of
+from gaitforge.workers.sim.mujoco_compile import planar_muscles_of
 
 CASES = [(name, backend) for name in catalogue() for backend in load_scene(name).backends]
 

@@ -1,0 +1,111 @@
+"""A scene compiled to a pruned MuJoCo model, with the report of what was removed.
+
+The body's unpruned model is the source (a neutral body built by ``mujoco_build``, or a
+MyoSuite MJCF); pruning welds the scene's locked joints, removes muscles, restricts contacts,
+adds the scene's obstacles and strips visuals, then sets the fidelity profile's integrator
+and timestep.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import mujoco
+from gaitforge.workers.bodies import load_body
+from gaitforge.workers.bodies.topology import Topology, topology_for
+from gaitforge.workers.scenes import PrunePlan, Scene, plan_pruning
+from gaitforge.workers.sim.base import CompileReport
+from gaitforge.workers.sim.mjcf_contacts import model_size, restrict_contacts
+from gaitforge.workers.sim.mjcf_lock import lock_joints
+from gaitforge.workers.sim.mjcf_moment_arms import planar_muscles
+from gaitforge.workers.sim.mjcf_muscles import remove_muscles, strip_unused
+from gaitforge.workers.sim.mjcf_sources import MJCF_SOURCES
+from gaitforge.workers.sim.mujoco_build import CONTACT_GROUP, FLOOR, build_spec
+
+INTEGRATORS = {
+    "euler": mujoco.mjtIntegrator.mjINT_EULER,
+    "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
+    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+    "rk4": mujoco.mjtIntegrator.mjINT_RK4,
+}
+OBSTACLE_PREFIX = "obstacle_"
+PARKED = -100.0
+"""Forward position (m) of obstacle geoms until the first reset places them."""
+
+
+def source_spec(body: str) -> mujoco.MjSpec:
+    """The body as an ``MjSpec`` with nothing removed."""
+    if body in MJCF_SOURCES:
+        return MJCF_SOURCES[body]()
+    return build_spec(load_body(body))
+
+
+@lru_cache(maxsize=8)
+def _full_model_facts(body: str, sagittal: tuple[str, ...]) -> tuple[dict[str, int], list[str]]:
+    """Size of the unpruned model, and its muscles that act in the given dofs' plane."""
+    model = source_spec(body).compile()
+    planar = planar_muscles(model, list(sagittal)) if sagittal else []
+    return model_size(model), planar
+
+
+def _add_obstacles(spec: mujoco.MjSpec, count: int) -> list[str]:
+    names = [f"{OBSTACLE_PREFIX}{i}" for i in range(count)]
+    for name in names:
+        spec.worldbody.add_geom(
+            name=name,
+            type=mujoco.mjtGeom.mjGEOM_SPHERE,
+            size=[0.1, 0, 0],
+            pos=[PARKED, 0, 0],
+            group=CONTACT_GROUP,
+            rgba=[0.6, 0.4, 0.3, 1.0],
+        )
+    return names
+
+
+def _sagittal(scene: Scene) -> tuple[str, ...]:
+    """With ``keep.planar``, the scene's kept dofs (they do not depend on the planar muscle
+    set, so a plan without it gives them); else none."""
+    if not scene.keep.planar:
+        return ()
+    return tuple(plan_pruning(scene, topology_for(scene.body)).kept_dofs)
+
+
+def planar_muscles_of(scene: Scene) -> list[str] | None:
+    """With ``keep.planar``, the body's muscles that act in the plane of the scene's kept
+    dofs, measured on the unpruned model (cached; no simulator built); else None. What
+    ``workers.scenes.io_names`` needs for such a scene on MuJoCo."""
+    return _full_model_facts(scene.body, _sagittal(scene))[1] if scene.keep.planar else None
+
+
+def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology]:
+    """Compile ``scene`` to a pruned model, with the report of what was removed."""
+    topology = topology_for(scene.body)
+    size_full, planar = _full_model_facts(scene.body, _sagittal(scene))
+    plan: PrunePlan = plan_pruning(scene, topology, planar if scene.keep.planar else None)
+    spec = source_spec(scene.body)
+    dropped = lock_joints(spec, plan.locked_dofs)
+    remove_muscles(spec, list(plan.removed_muscles))
+    obstacles = _add_obstacles(spec, plan.obstacles)
+    world = [g.name for g in spec.geoms if g.name in {FLOOR, *obstacles}]
+    restrict_contacts(spec, plan.contact_geoms if world else [], world)
+    if not scene.keep.visuals:
+        strip_unused(spec)
+    for geom in spec.geoms:
+        if geom.name == FLOOR:
+            geom.friction = [scene.terrain.friction, 0.005, 0.0001]
+    profile = scene.profile("mujoco")
+    spec.option.integrator = INTEGRATORS[profile.integrator]
+    spec.option.timestep = profile.timestep
+    model = spec.compile()
+    report = CompileReport(
+        scene=scene.name,
+        backend="mujoco",
+        body=scene.body,
+        profile=profile,
+        plan=plan,
+        size_full=size_full,
+        size=model_size(model),
+        mass=float(sum(model.body_mass)),
+        dropped_joints=dropped,
+    )
+    return model, report, topology
