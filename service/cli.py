@@ -1,4 +1,6 @@
-"""The ``gaitforge`` command line: ``scenes``, ``train``, ``evaluate`` and ``fidelity``.
+"""The ``gaitforge`` command line: ``scenes``, ``train``, ``evaluate`` and ``fidelity``; the
+REST service (``serve``) and its client (``submit``, ``jobs``, ``status``, ``logs``,
+``cancel``, ``resume``, ``download``).
 
 Commands parse their arguments, call :mod:`gaitforge.service.ops` and print: results to
 stdout (``--json`` on list, show and evaluate commands for programs), errors, progress and
@@ -8,10 +10,12 @@ log lines to stderr.
 from __future__ import annotations
 
 import typer
+from gaitforge.service.client.commands import register as register_client
 from gaitforge.service.console import configure_logging
 from gaitforge.service.evaluate_commands import evaluate
 from gaitforge.service.fidelity_commands import fidelity_app
 from gaitforge.service.scene_commands import scenes_app
+from gaitforge.service.serve_commands import serve
 from gaitforge.service.train_commands import train
 
 app = typer.Typer(
@@ -23,6 +27,8 @@ app.add_typer(scenes_app, name="scenes")
 app.add_typer(fidelity_app, name="fidelity")
 app.command("evaluate")(evaluate)
 app.command("train")(train)
+app.command("serve")(serve)
+register_client(app)
 
 
 @app.callback()
