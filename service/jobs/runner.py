@@ -1,0 +1,328 @@
+"""The job runner: a queue of jobs run as Ray jobs with a fixed entrypoint, followed from a
+background thread.
+
+    runner = JobRunner(settings, store, connect_ray(settings))
+    runner.start()                              # reconcile every settings.poll_interval_s
+    record = runner.submit("alice", spec)       # queued; LimitError past the owner's limit
+    runner.cancel(record.id, "alice")           # stops after the iteration, with a checkpoint
+    runner.stop()                               # the thread only: jobs keep running on Ray
+
+Each pass (:meth:`JobRunner.reconcile`) copies every running job's ``progress.json`` into its
+record, settles the jobs whose Ray job ended, and starts queued jobs, oldest first, while
+fewer than ``max_running_jobs`` run. The state lives in the store and on disk, so a new
+runner (a restarted service) re-attaches to the jobs still running and marks those whose
+trainer died as failed ("trainer died: ..."), to be resumed from their newest checkpoint.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import shlex
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from gaitforge.service.jobs.layout import JobLayout
+from gaitforge.service.jobs.progress import JobProgress, read_progress
+from gaitforge.service.jobs.ray_cluster import first_line
+from gaitforge.service.store import JobRecord, JobStore, utcnow
+
+if TYPE_CHECKING:
+    from gaitforge.service.jobs.ray_cluster import RayConnection
+    from gaitforge.service.settings import ServiceSettings
+
+logger = logging.getLogger(__name__)
+
+CANCEL_GRACE_S = 120.0
+"""how long a cancelled job may take to end its iteration before Ray stops it, s"""
+LOG_TAIL_LINES = 5
+"""log lines quoted in the error of a trainer that died"""
+
+
+class LimitError(Exception):
+    """The owner has as many queued and running jobs as allowed (the API answers 429)."""
+
+
+class JobStateError(ValueError):
+    """The job is not in a state that allows the action (the API answers 409)."""
+
+
+def submission_id(job_id: str, attempt: int) -> str:
+    """The Ray submission id of a job's attempt: ``gaitforge-<job id>-<attempt>``."""
+    return f"gaitforge-{job_id}-{attempt}"
+
+
+class JobRunner:
+    """Queues, starts, follows, cancels and resumes jobs on the Ray cluster of
+    ``connection``; thread-safe (one lock around every change of a job's state)."""
+
+    def __init__(
+        self,
+        settings: ServiceSettings,
+        store: JobStore,
+        connection: RayConnection,
+        cancel_grace_s: float = CANCEL_GRACE_S,
+        evaluate_episodes: int | None = None,
+    ) -> None:
+        self.settings = settings
+        self.store = store
+        self.connection = connection
+        self.cancel_grace_s = cancel_grace_s
+        self.evaluate_episodes = evaluate_episodes
+        self.root = Path(settings.artifacts).resolve()
+        self.last_error: str | None = None
+        """why the newest pass failed (None: it went through)"""
+        self.last_pass_at: float | None = None
+        """``time.time()`` of the newest pass that went through"""
+        self._lock = threading.RLock()
+        self._wake = threading.Event()
+        self._halt = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    # the background thread
+
+    def start(self) -> None:
+        """Reconcile now and then every ``settings.poll_interval_s`` in a daemon thread."""
+        if self._thread is not None and self._thread.is_alive():
+            return
+        self._halt.clear()
+        self._thread = threading.Thread(target=self._loop, name="gaitforge-runner", daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout_s: float = 30.0) -> None:
+        """Stop the thread (after its current pass); jobs on Ray are left running."""
+        self._halt.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+            self._thread = None
+
+    def wake(self) -> None:
+        """Make the thread pass again now (a job was queued or cancelled)."""
+        self._wake.set()
+
+    def _loop(self) -> None:
+        while not self._halt.is_set():
+            try:
+                self.reconcile()
+            except Exception as exc:  # keep following: the next pass may go through
+                self.last_error = first_line(exc)
+                logger.warning("runner pass failed: %s", exc, exc_info=logger.isEnabledFor(10))
+            self._wake.wait(self.settings.poll_interval_s)
+            self._wake.clear()
+
+    # actions
+
+    def layout(self, job_id: str) -> JobLayout:
+        """The files of job ``job_id``."""
+        return JobLayout(self.root, job_id)
+
+    def submit(self, owner: str, spec: dict[str, Any] | str) -> JobRecord:
+        """Validate ``spec`` (a job as in a job file: a mapping, YAML or JSON text) and queue
+        it for ``owner``.
+
+        Raises:
+            SpecError: the spec does not validate (naming the field).
+            LimitError: ``owner`` has ``max_jobs_per_owner`` queued and running jobs.
+        """
+        from gaitforge.service.jobs.spec import prepare_submission, write_job_files
+
+        job = prepare_submission(spec)
+        with self._lock:
+            self._check_limit(owner)
+            record = self.store.create(owner, job["name"], job)
+            try:
+                write_job_files(self.layout(record.id), job)
+            except Exception as exc:
+                self.store.update(record.id, state="failed", error=f"job files: {exc}",
+                                  finished_at=utcnow())  # fmt: skip
+                raise
+        logger.info("job %s (%s) of %s queued", record.id, record.name, owner)
+        self.wake()
+        return record
+
+    def cancel(self, job_id: str, owner: str | None = None) -> JobRecord | None:
+        """Cancel ``owner``'s job: a queued one at once; a running one ends its iteration,
+        writes a checkpoint and stops (Ray stops it after ``cancel_grace_s`` otherwise).
+        None if there is no such job of ``owner``; a cancelled job is returned as it is.
+
+        Raises:
+            JobStateError: the job has succeeded or failed already.
+        """
+        with self._lock:
+            record = self.store.get(job_id, owner=owner)
+            if record is None or record.state == "cancelled":
+                return record
+            if record.state == "queued":
+                record = self.store.update(job_id, state="cancelled", cancel_requested=True,
+                                           finished_at=utcnow())  # fmt: skip
+            elif record.state == "running":
+                cancel_file = self.layout(job_id).cancel_file
+                if not cancel_file.exists():
+                    cancel_file.touch()
+                record = self.store.update(job_id, cancel_requested=True)
+            else:
+                raise JobStateError(f"job {job_id} has {record.state}: nothing to cancel")
+        logger.info("job %s: cancel requested", job_id)
+        self.wake()
+        return record
+
+    def resume(self, job_id: str, owner: str | None = None) -> JobRecord | None:
+        """Queue ``owner``'s failed or cancelled job again; its next attempt goes on from the
+        newest checkpoint in its run directory (from the start if there is none). None if
+        there is no such job of ``owner``.
+
+        Raises:
+            JobStateError: the job is queued, running or has succeeded.
+            LimitError: ``owner`` has ``max_jobs_per_owner`` queued and running jobs.
+        """
+        with self._lock:
+            record = self.store.get(job_id, owner=owner)
+            if record is None:
+                return None
+            if record.state not in ("failed", "cancelled"):
+                raise JobStateError(f"job {job_id} is {record.state}: only a failed or "
+                                    "cancelled job resumes")  # fmt: skip
+            self._check_limit(record.owner)
+            self.layout(job_id).cancel_file.unlink(missing_ok=True)
+            record = self.store.update(job_id, state="queued", error=None,
+                                       cancel_requested=False, finished_at=None)  # fmt: skip
+        logger.info("job %s queued again (resume)", job_id)
+        self.wake()
+        return record
+
+    def _check_limit(self, owner: str) -> None:
+        limit = self.settings.max_jobs_per_owner
+        if self.store.count_active(owner) >= limit:
+            raise LimitError(f"{owner} has {limit} queued or running jobs (the limit); "
+                             "wait for one to end or cancel one")  # fmt: skip
+
+    # reconciling
+
+    def reconcile(self) -> None:
+        """One pass: follow every running job, then start queued jobs while there is room.
+
+        Raises:
+            Exception: Ray's jobs API failed (nothing is marked on the way).
+        """
+        with self._lock:
+            running = 0
+            for record in self.store.by_state("running"):
+                running += self._follow(record)
+            queued = self.store.by_state("queued")
+            while queued and running < self.settings.max_running_jobs:
+                self._start(queued.pop(0))
+                running += 1
+        self.last_error, self.last_pass_at = None, time.time()
+
+    def _job_info(self, sid: str) -> Any | None:
+        """Ray's ``JobDetails`` of submission ``sid``; None if Ray has no such job."""
+        try:
+            return self.connection.client.get_job_info(sid)
+        except RuntimeError as exc:
+            if "status code 404" in str(exc):
+                return None
+            raise
+
+    def _follow(self, record: JobRecord) -> bool:
+        """Copy the running job's progress; settle it if its Ray job ended. True if it still
+        runs."""
+        sid = record.ray_submission_id or submission_id(record.id, record.attempt)
+        info = self._job_info(sid)
+        layout = self.layout(record.id)
+        progress = read_progress(layout.progress_file)
+        status = None if info is None else str(info.status.value)
+        if status in ("PENDING", "RUNNING"):
+            if progress is not None and progress.model_dump_json() != record.progress_json:
+                self.store.update_if(
+                    record.id, ["running"], progress_json=progress.model_dump_json()
+                )
+            if record.cancel_requested:
+                self._stop_after_grace(layout, sid)
+            return True
+        fields = self._outcome(record, layout, sid, info, progress)
+        if progress is not None:
+            fields["progress_json"] = progress.model_dump_json()
+        self.store.update_if(record.id, ["running"], finished_at=utcnow(), **fields)
+        logger.info("job %s %s%s", record.id, fields["state"],
+                    f": {fields['error']}" if fields.get("error") else "")  # fmt: skip
+        return False
+
+    def _stop_after_grace(self, layout: JobLayout, sid: str) -> None:
+        try:
+            waited = time.time() - layout.cancel_file.stat().st_mtime
+        except FileNotFoundError:
+            layout.cancel_file.touch()
+            return
+        if waited > self.cancel_grace_s:
+            logger.warning("%s: no clean stop %.0f s after the cancel; Ray stops it", sid, waited)
+            self.connection.client.stop_job(sid)
+
+    def _outcome(
+        self, record: JobRecord, layout: JobLayout, sid: str, info: Any | None,
+        progress: JobProgress | None,
+    ) -> dict[str, Any]:  # fmt: skip
+        """The state (and error) of a job whose Ray job ended (``info``: None if gone)."""
+        phase = progress.phase if progress is not None else None
+        if phase == "finished" and info is not None and str(info.status.value) == "SUCCEEDED":
+            return {"state": "succeeded", "error": None}
+        if phase == "failed":
+            return {"state": "failed", "error": progress.error or self._died(layout, sid, info)}
+        if record.cancel_requested:
+            forced = None if phase == "stopped" else "stopped by Ray after the cancel's grace"
+            return {"state": "cancelled", "error": forced}
+        return {"state": "failed", "error": f"trainer died: {self._died(layout, sid, info)}"}
+
+    def _died(self, layout: JobLayout, sid: str, info: Any | None) -> str:
+        """Ray's word on how submission ``sid`` ended, and the last lines of its log."""
+        if info is None:
+            reason = f"Ray has no job {sid} (its cluster was restarted?)"
+        else:
+            message = first_line(info.message or "").split(", last available")[0]
+            code = info.driver_exit_code
+            reason = f"Ray job {str(info.status.value).lower()}" + (
+                f" (exit code {code})" if code is not None else "") + (
+                f": {message}" if message else "")  # fmt: skip
+        tail = self._log_tail(layout, sid if info is not None else None)
+        return f"{reason}; log: {tail}" if tail else reason
+
+    def _log_tail(self, layout: JobLayout, sid: str | None) -> str:
+        """The last log lines of the job (``log.txt``; else Ray's log of ``sid``), joined."""
+        text = ""
+        with contextlib.suppress(OSError), layout.log_file.open("rb") as f:
+            f.seek(max(0, layout.log_file.stat().st_size - 8192))
+            text = f.read().decode(errors="replace")
+        if not text.strip() and sid is not None:
+            with contextlib.suppress(Exception):
+                text = self.connection.client.get_job_logs(sid)[-8192:]
+        lines = [line.strip() for line in text.splitlines() if line.strip()]
+        return " | ".join(lines[-LOG_TAIL_LINES:])
+
+    def _start(self, record: JobRecord) -> None:
+        """Submit the queued job's next attempt as a Ray job and mark it running."""
+        attempt = record.attempt + 1
+        sid = submission_id(record.id, attempt)
+        layout = self.layout(record.id)
+        if self._job_info(sid) is None:  # else: submitted before a crash; adopt it
+            layout.progress_file.unlink(missing_ok=True)  # the last attempt's: stale now
+            layout.cancel_file.unlink(missing_ok=True)
+            self.connection.client.submit_job(
+                entrypoint=self.entrypoint(layout), submission_id=sid,
+                runtime_env={"env_vars": {"GAITFORGE_JOB_ID": record.id,
+                                          "PYTHONUNBUFFERED": "1"}},
+                metadata={"gaitforge_job": record.id, "owner": record.owner},
+            )  # fmt: skip
+        self.store.update(record.id, state="running", attempt=attempt, ray_submission_id=sid,
+                          started_at=utcnow(), finished_at=None, error=None)  # fmt: skip
+        logger.info("job %s started (attempt %d, Ray job %s)", record.id, attempt, sid)
+
+    def entrypoint(self, layout: JobLayout) -> str:
+        """The fixed command a job runs: the entry module on the job's directory."""
+        python = sys.executable if self.connection.local else "python"
+        command = [python, "-m", "gaitforge.service.jobs.entry", "--job-dir", str(layout.dir)]
+        if self.evaluate_episodes is not None:
+            command += ["--evaluate-episodes", str(self.evaluate_episodes)]
+        return shlex.join(command)
