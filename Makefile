@@ -14,14 +14,16 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e ".[dev]"
 	touch $(STAMP)
 
-# The main job, short: the gait2d curriculum (stand, walk with a blended bigger network, run,
-# obstacles) at 1/1000 of its budget, then an evaluation with an MCAP recording and a video.
+# The service's round trip on embedded defaults (local Ray, SQLite, files under
+# runs/make-run/service): start `gaitforge serve`, submit the gait2d curriculum (stand, walk
+# with a blended bigger network, run, obstacles) at 1/1000 of its budget, follow it live,
+# download its final checkpoint and recordings, evaluate the checkpoint with an MCAP recording
+# and a video, stop the service and its Ray head (also on failure), print where everything is.
 RUN_DIR := runs/make-run
 run: $(STAMP)
 	$(BIN)/gaitforge scenes check --all --seconds 1
-	$(BIN)/gaitforge train examples/gait2d-curriculum.yaml --budget-scale 0.001 --run-dir $(RUN_DIR)
-	$(BIN)/gaitforge evaluate $(RUN_DIR) --episodes 5 --sweep \
-		--record $(RUN_DIR)/evaluate.mcap --video $(RUN_DIR)/evaluate.mp4 --json-out $(RUN_DIR)/evaluate.json
+	$(BIN)/python -m gaitforge.service.client.round_trip --job examples/gait2d-curriculum.yaml \
+		--budget-scale 0.001 --out $(RUN_DIR) --episodes 5
 
 test: $(STAMP)
 	$(BIN)/ruff check .

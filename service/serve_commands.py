@@ -102,6 +102,6 @@ def _stop_ray(settings: ServiceSettings) -> None:
     """Stop the local Ray head recorded under ``settings.home`` (if any)."""
     from gaitforge.service.jobs.ray_cluster import stop_local_ray
 
-    stopped = stop_local_ray(settings)
+    stopped = stop_local_ray(settings.home)
     err.print(f"local Ray head of {settings.home}: {'stopped' if stopped else 'none running'}",
               highlight=False)  # fmt: skip

@@ -48,7 +48,7 @@ def resolve_name(client: GaitforgeClient, job_id: str, kind: str, name: str) -> 
         return [sorted(names)[-1]]
     checkpoints = sorted(listed_names(client.artifacts(job_id, "checkpoints")))
     if checkpoints:
-        final = [n for n in names if PurePosixPath(n).stem.endswith(checkpoints[-1])]
+        final = [n for n in names if PurePosixPath(n).stem == checkpoints[-1]]
         if final:
             return final
     return [names[-1]]

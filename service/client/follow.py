@@ -91,20 +91,16 @@ def tail_logs(
     follow: bool = False,
     poll_s: float = 1.0,
 ) -> int:
-    """Write the job's log from byte ``offset`` on; with ``follow``, keep polling until the
-    job has ended and its log is read to the end. Returns the next offset."""
+    """Write the job's log from byte ``offset`` on; with ``follow``, keep asking from the
+    next offset until the service says ``eof`` (the job has ended and its log is read to
+    the end). Returns the next offset."""
     while True:
         chunk = client.logs(job_id, offset)
         text = chunk.get("text") or ""
         if text:
             write(text)
-        offset = int(chunk.get("next_offset", offset + len(text.encode())))
-        if not follow:
+        offset = int(chunk.get("next_offset", offset))
+        if not follow or chunk.get("eof"):
             return offset
         if not text:
-            if client.status(job_id).get("state") in TERMINAL:
-                last = client.logs(job_id, offset)  # written between the two reads
-                if last.get("text"):
-                    write(last["text"])
-                return int(last.get("next_offset", offset))
             time.sleep(poll_s)

@@ -79,8 +79,9 @@ def resolve_token(
     token: str | None = None, token_file: Path | None = None, home: Path | None = None
 ) -> str | None:
     """The bearer token: ``token``, else ``$GAITFORGE_TOKEN``, else the first line of
-    ``token_file`` / ``$GAITFORGE_TOKEN_FILE``, else ``{home}/token`` (home from
-    ``ServiceSettings``, where the service writes its generated token); None if none exists.
+    ``token_file`` / ``$GAITFORGE_TOKEN_FILE`` (the token alone; ``#`` lines skipped), else
+    ``{home}/token`` (home from ``ServiceSettings``, where the service writes the token it
+    generates); None if there is none.
 
     Raises:
         ClientError: a token file that was named but cannot be read.
@@ -100,8 +101,7 @@ def resolve_token(
         lines = [line.strip() for line in named.read_text().splitlines()]
     except OSError as exc:
         raise ClientError(f"token file {named}: {exc.strerror}") from None
-    found = next((line for line in lines if line and not line.startswith("#")), "")
-    return found.rpartition(":")[2].strip() or None  # 'owner:token' lines work too
+    return next((line for line in lines if line and not line.startswith("#")), None)
 
 
 class GaitforgeClient:
