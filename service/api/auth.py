@@ -1,0 +1,85 @@
+"""Bearer-token authentication: each token belongs to an owner; compared in constant time.
+
+Tokens come from the settings (``tokens``, ``tokens_file``). With none configured the
+service uses one token for the owner ``local``, generated once into ``{home}/token``
+(mode 0600), where the CLI client finds it.
+"""
+
+from __future__ import annotations
+
+import hmac
+import logging
+import os
+import secrets
+from typing import Annotated
+
+from fastapi import Request, Security
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from gaitforge.service.api.problems import ProblemError
+from gaitforge.service.settings import LOCAL_OWNER, ServiceSettings
+
+logger = logging.getLogger(__name__)
+
+bearer = HTTPBearer(
+    auto_error=False,
+    scheme_name="bearer",
+    description="`Authorization: Bearer <token>`; each token belongs to one owner",
+)
+_CHALLENGE = 'Bearer realm="gaitforge"'
+
+
+def load_tokens(settings: ServiceSettings) -> dict[str, str]:
+    """token -> owner: the configured tokens, else the local token (generated if missing).
+
+    Raises:
+        ValueError: a malformed token entry (naming ``tokens`` or the file and line).
+    """
+    tokens = settings.token_map()
+    if tokens:
+        return tokens
+    return {local_token(settings): LOCAL_OWNER}
+
+
+def local_token(settings: ServiceSettings) -> str:
+    """The token in ``settings.token_file``, written there (mode 0600) if it does not exist."""
+    path = settings.token_file
+    if path.exists():
+        token = path.read_text().strip()
+        if token:
+            return token
+    path.parent.mkdir(parents=True, exist_ok=True)
+    token = secrets.token_urlsafe(32)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "w") as f:
+        f.write(token + "\n")
+    os.replace(tmp, path)
+    logger.info("generated a token for owner %r in %s", LOCAL_OWNER, path)
+    return token
+
+
+def owner_of(token: str, tokens: dict[str, str]) -> str | None:
+    """The owner of ``token``, comparing it with every configured token (no early exit)."""
+    given = token.encode()
+    found = None
+    for known, owner in tokens.items():
+        if hmac.compare_digest(given, known.encode()):
+            found = owner
+    return found
+
+
+Credentials = Annotated[HTTPAuthorizationCredentials | None, Security(bearer)]
+
+
+def require_owner(request: Request, credentials: Credentials) -> str:
+    """Dependency: the owner of the request's bearer token, else 401 with a challenge."""
+    if credentials is None:
+        raise ProblemError(401, "missing bearer token", headers={"WWW-Authenticate": _CHALLENGE})
+    owner = owner_of(credentials.credentials, request.app.state.tokens)
+    if owner is None:
+        raise ProblemError(
+            401,
+            "unknown bearer token",
+            headers={"WWW-Authenticate": f'{_CHALLENGE}, error="invalid_token"'},
+        )
+    return owner

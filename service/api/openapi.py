@@ -1,0 +1,57 @@
+"""The OpenAPI document: FastAPI's, plus the schemas it cannot see (the problem, the job
+spec a submission is validated as, an inline scene) and problem+json for every 422."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import FastAPI
+from fastapi.openapi.utils import get_openapi
+from gaitforge.learner.job import Job
+from gaitforge.service.api.problems import PROBLEM_JSON, Problem, problem_responses
+from gaitforge.workers.scenes import Scene
+from pydantic import BaseModel
+
+_REF = "#/components/schemas/{model}"
+_FASTAPI_422 = ("HTTPValidationError", "ValidationError")
+
+
+def _add_model(schemas: dict[str, Any], model: type[BaseModel]) -> None:
+    """``model``'s schema and its definitions into ``schemas`` (existing names kept)."""
+    schema = model.model_json_schema(ref_template=_REF)
+    for name, definition in schema.pop("$defs", {}).items():
+        schemas.setdefault(name, definition)
+    schemas.setdefault(model.__name__, schema)
+
+
+def build_openapi(app: FastAPI) -> dict[str, Any]:
+    """``app``'s OpenAPI document (built once)."""
+    if app.openapi_schema:
+        return app.openapi_schema
+    doc = get_openapi(
+        title=app.title, version=app.version, description=app.description,
+        routes=app.routes, tags=app.openapi_tags,
+    )  # fmt: skip
+    schemas = doc.setdefault("components", {}).setdefault("schemas", {})
+    for model in (Problem, Job, Scene):
+        _add_model(schemas, model)
+    stage = schemas["Stage"]["properties"]
+    stage["scene"] = {
+        "anyOf": [
+            {"type": "string", "description": "a catalogue scene's name"},
+            {"$ref": "#/components/schemas/Scene"},
+        ],
+        "description": "a catalogue scene's name, or an inline scene (the scene file's "
+        "fields); never a path",
+    }
+    problem_422 = problem_responses(422)[422]
+    for operations in doc.get("paths", {}).values():
+        for operation in operations.values():
+            responses = operation.get("responses", {})
+            content = responses.get("422", {}).get("content", {})
+            if "application/json" in content and PROBLEM_JSON not in content:
+                responses["422"] = problem_422
+    for name in _FASTAPI_422:
+        schemas.pop(name, None)
+    app.openapi_schema = doc
+    return doc

@@ -1,0 +1,200 @@
+"""Errors as RFC 9457 problem details (``application/problem+json``), for every error the app
+answers: its own (:class:`ProblemError`), Starlette's 404/405, request validation (422, with
+``errors: [{field, message}]``) and anything unexpected (500, logged).
+"""
+
+from __future__ import annotations
+
+import logging
+from http import HTTPStatus
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel, ConfigDict, Field
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+logger = logging.getLogger(__name__)
+
+PROBLEM_JSON = "application/problem+json"
+_LOCATIONS = ("body", "query", "path", "header", "cookie")
+
+
+class FieldError(BaseModel):
+    """One bad field of a request: its dotted path and what is wrong with it."""
+
+    field: str = Field(description="dotted path of the field, e.g. stages.0.scene")
+    message: str = Field(description="what is wrong and what is allowed (one line)")
+
+
+class Problem(BaseModel):
+    """An error (RFC 9457 problem details)."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "type": "about:blank",
+                    "title": "Not Found",
+                    "status": 404,
+                    "detail": "no job j-0123456789ab",
+                    "instance": "/v1/jobs/j-0123456789ab",
+                }
+            ]
+        }
+    )
+
+    type: str = Field(default="about:blank", description="URI naming the kind of problem")
+    title: str = Field(description="short summary of the kind of problem")
+    status: int = Field(ge=100, le=599, description="the HTTP status code")
+    detail: str | None = Field(default=None, description="what went wrong, this time")
+    instance: str | None = Field(default=None, description="the request path")
+    errors: list[FieldError] | None = Field(
+        default=None, description="422 only: each bad field of the request"
+    )
+
+
+class ProblemError(Exception):
+    """Raised by handlers to answer with a problem (status, detail, optional field errors)."""
+
+    def __init__(
+        self,
+        status: int,
+        detail: str,
+        *,
+        type: str = "about:blank",
+        errors: list[FieldError] | None = None,
+        headers: dict[str, str] | None = None,
+    ) -> None:
+        super().__init__(detail)
+        self.status = status
+        self.detail = detail
+        self.type = type
+        self.errors = errors
+        self.headers = headers
+
+
+def problem_response(
+    request: Request,
+    status: int,
+    detail: str | None,
+    *,
+    type: str = "about:blank",
+    errors: list[FieldError] | None = None,
+    headers: dict[str, str] | None = None,
+) -> JSONResponse:
+    """The problem+json response for ``status`` (title: the status phrase)."""
+    problem = Problem(
+        type=type,
+        title=_phrase(status),
+        status=status,
+        detail=detail,
+        instance=request.url.path,
+        errors=errors,
+    )
+    return JSONResponse(
+        problem.model_dump(mode="json", exclude_none=True),
+        status_code=status,
+        media_type=PROBLEM_JSON,
+        headers=headers,
+    )
+
+
+def _phrase(status: int) -> str:
+    try:
+        return HTTPStatus(status).phrase
+    except ValueError:
+        return "Error"
+
+
+def validation_errors(raw: list[dict[str, Any]]) -> list[FieldError]:
+    """FastAPI's validation errors as ``{field, message}`` (``query.limit`` -> ``limit``)."""
+    out = []
+    for e in raw:
+        loc = [str(p) for p in e.get("loc", ())]
+        if loc and loc[0] in _LOCATIONS:
+            loc = loc[1:] or loc[:1]
+        message = str(e.get("msg", "invalid")).removeprefix("Value error, ")
+        out.append(FieldError(field=".".join(loc) or "request", message=message))
+    return out
+
+
+async def _on_problem(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, ProblemError)
+    return problem_response(
+        request, exc.status, exc.detail, type=exc.type, errors=exc.errors, headers=exc.headers
+    )
+
+
+async def _on_http(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, StarletteHTTPException)
+    detail = exc.detail if isinstance(exc.detail, str) else _phrase(exc.status_code)
+    return problem_response(request, exc.status_code, detail, headers=exc.headers)
+
+
+async def _on_validation(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RequestValidationError)
+    errors = validation_errors(list(exc.errors()))
+    detail = "; ".join(f"{e.field}: {e.message}" for e in errors)
+    return problem_response(request, 422, detail, errors=errors)
+
+
+async def _on_crash(request: Request, exc: Exception) -> JSONResponse:
+    logger.exception("%s %s failed", request.method, request.url.path, exc_info=exc)
+    return problem_response(request, 500, "internal error (logged by the service)")
+
+
+def install_problem_handlers(app: FastAPI) -> None:
+    """Answer every error of ``app`` as problem+json."""
+    app.add_exception_handler(ProblemError, _on_problem)
+    app.add_exception_handler(StarletteHTTPException, _on_http)
+    app.add_exception_handler(RequestValidationError, _on_validation)
+    app.add_exception_handler(Exception, _on_crash)
+
+
+def problem_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI ``responses`` entries for ``codes``, each a :class:`Problem` with an example."""
+    return {code: _problem_doc(code) for code in codes}
+
+
+_DESCRIPTIONS = {
+    400: "the request is malformed",
+    401: "no or an unknown bearer token",
+    404: "no such job (or another owner's), artifact or scene",
+    409: "the job is not in a state that allows this",
+    413: "the request body is larger than the service accepts",
+    422: "the request or job spec is invalid (each bad field named in errors)",
+    429: "the owner has as many queued and running jobs as allowed",
+}
+_EXAMPLES: dict[int, dict[str, Any]] = {
+    401: {"detail": "missing bearer token", "instance": "/v1/jobs"},
+    404: {"detail": "no job j-0123456789ab", "instance": "/v1/jobs/j-0123456789ab"},
+    409: {"detail": "job j-0123456789ab is running", "instance": "/v1/jobs/j-0123456789ab/resume"},
+    413: {"detail": "request body over 1000000 bytes", "instance": "/v1/jobs"},
+    422: {
+        "type": "urn:gaitforge:problem:invalid-job-spec",
+        "detail": "stages.0.scene: unknown scene 'walk-9d'",
+        "instance": "/v1/jobs",
+        "errors": [{"field": "stages.0.scene", "message": "unknown scene 'walk-9d'"}],
+    },
+    429: {
+        "type": "urn:gaitforge:problem:job-limit",
+        "detail": "owner alice has 8 queued or running jobs (the limit)",
+        "instance": "/v1/jobs",
+    },
+}
+
+
+def _problem_doc(code: int) -> dict[str, Any]:
+    example = {"type": "about:blank", "title": _phrase(code), "status": code}
+    example.update(_EXAMPLES.get(code, {"detail": _phrase(code), "instance": "/v1/jobs"}))
+    return {
+        "description": _DESCRIPTIONS.get(code, _phrase(code)),
+        "content": {
+            PROBLEM_JSON: {
+                "schema": {"$ref": "#/components/schemas/Problem"},
+                "example": example,
+            }
+        },
+    }

@@ -1,0 +1,160 @@
+"""``/v1/jobs``: submit (JSON or YAML), list, status, metrics, logs, cancel, resume.
+
+Handlers that touch the database or the disk are plain ``def`` (FastAPI runs them in its
+thread pool), so the event loop never waits on SQLite, Ray or files.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Query, Request, Response
+from fastapi.concurrency import run_in_threadpool
+from gaitforge.service.api.deps import Layout, OwnedJob, Owner, app_runner, app_store, missing_job
+from gaitforge.service.api.files import read_log, read_metrics
+from gaitforge.service.api.problems import ProblemError, problem_responses
+from gaitforge.service.api.schemas import JobList, JobStatus, LogChunk, MetricsSeries, job_status
+from gaitforge.service.api.submission import (
+    JSON_TYPES,
+    YAML_TYPES,
+    invalid_spec,
+    parse_body,
+)
+from gaitforge.service.jobs.runner import JobStateError, LimitError
+from gaitforge.service.ops import SpecError
+from gaitforge.service.store import TERMINAL, JobRecord, JobState
+
+router = APIRouter(prefix="/v1/jobs", tags=["jobs"], responses=problem_responses(401))
+JOB_ERRORS = problem_responses(404, 422)
+
+EXAMPLE_JOB = {
+    "name": "stand-2d-short",
+    "backend": "mujoco",
+    "ppo": {"batch_env_steps": 2048, "minibatch_size": 512},
+    "workers": {"num_workers": 1, "envs_per_worker": 4, "fragment_length": 128},
+    "checkpoint": {"every_iters": 1},
+    "stages": [{"scene": "stand-2d", "env_steps": 8192, "promote": "survival >= 0.95 over 50"}],
+}
+EXAMPLE_YAML = """name: stand-2d-short
+backend: mujoco
+workers: {num_workers: 1, envs_per_worker: 4}
+stages:
+  - scene: stand-2d
+    env_steps: 8192
+    promote: "survival >= 0.95 over 50"
+"""
+_SUBMIT_BODY = {
+    "required": True,
+    "description": "the job spec (the job file's schema): JSON, or the YAML of a job file. "
+    "A stage's scene is a catalogue name or an inline scene; no paths, no code.",
+    "content": {
+        **{t: {"schema": {"$ref": "#/components/schemas/Job"}, "example": EXAMPLE_JOB}
+           for t in JSON_TYPES},
+        **{t: {"schema": {"type": "string"}, "example": EXAMPLE_YAML} for t in YAML_TYPES[:2]},
+    },
+}  # fmt: skip
+
+
+@router.post(
+    "",
+    status_code=201,
+    response_model=JobStatus,
+    summary="Submit a job",
+    responses=problem_responses(413, 415, 422, 429),
+    openapi_extra={"requestBody": _SUBMIT_BODY},
+)
+async def submit_job(request: Request, response: Response, owner: Owner) -> JobStatus:
+    """Validate the job spec and queue it; 201 with its status (``Location``: its URL)."""
+    spec = parse_body(await request.body(), request.headers.get("content-type"))
+    runner = app_runner(request)
+    try:
+        record = await run_in_threadpool(runner.submit, owner, spec)
+    except SpecError as exc:
+        raise invalid_spec(exc) from None
+    except LimitError as exc:
+        raise ProblemError(429, str(exc), type="urn:gaitforge:problem:job-limit") from None
+    response.headers["Location"] = f"/v1/jobs/{record.id}"
+    return job_status(record)
+
+
+@router.get("", response_model=JobList, summary="List jobs", responses=problem_responses(422))
+def list_jobs(
+    request: Request,
+    owner: Owner,
+    state: Annotated[JobState | None, Query(description="only jobs in this state")] = None,
+    offset: Annotated[int, Query(ge=0, le=1_000_000_000, description="jobs to skip")] = 0,
+    limit: Annotated[int, Query(ge=1, le=200, description="jobs per page")] = 50,
+) -> JobList:
+    """The caller's jobs, newest first, a page at a time."""
+    records, total = app_store(request).list(owner, state=state, offset=offset, limit=limit)
+    return JobList(items=[job_status(r) for r in records], total=total, offset=offset, limit=limit)
+
+
+@router.get("/{job_id}", response_model=JobStatus, summary="Job status", responses=JOB_ERRORS)
+def get_job(job: OwnedJob) -> JobStatus:
+    """State, stage and promotion progress, env steps, steps/s, metrics, health, error."""
+    return job_status(job)
+
+
+@router.get(
+    "/{job_id}/metrics", response_model=MetricsSeries, summary="Metrics per iteration",
+    responses=JOB_ERRORS,
+)  # fmt: skip
+def get_metrics(
+    job: OwnedJob,
+    layout: Layout,
+    since: Annotated[
+        int | None, Query(ge=0, le=1_000_000_000, description="only iterations after this one")
+    ] = None,
+) -> MetricsSeries:
+    """The job's metrics, one point per PPO iteration (for plotting)."""
+    points = read_metrics(layout.metrics_file, since)
+    last = points[-1].get("iteration") if points else since
+    return MetricsSeries(job_id=job.id, since=since, points=points, last_iteration=last)
+
+
+@router.get("/{job_id}/logs", response_model=LogChunk, summary="Job log", responses=JOB_ERRORS)
+def get_logs(
+    job: OwnedJob,
+    layout: Layout,
+    offset: Annotated[int, Query(ge=0, le=1 << 50, description="byte to start at")] = 0,
+    limit: Annotated[int, Query(ge=1, le=1 << 20, description="bytes to read at most")] = 65536,
+) -> LogChunk:
+    """Bytes of the trainer's log from ``offset``; follow by asking again at ``next_offset``
+    until ``eof``."""
+    ended = job.state in TERMINAL  # looked at before reading: the log is whole then
+    text, next_offset, at_end = read_log(layout.log_file, offset, limit)
+    return LogChunk(offset=offset, next_offset=next_offset, text=text, eof=ended and at_end)
+
+
+@router.post(
+    "/{job_id}/cancel", response_model=JobStatus, summary="Cancel a job",
+    responses=problem_responses(404, 409, 422),
+)  # fmt: skip
+def cancel_job(job: OwnedJob, owner: Owner, request: Request) -> JobStatus:
+    """A queued job is cancelled at once; a running one stops cleanly after its iteration,
+    keeping a final checkpoint (state ``cancelled`` once it has)."""
+    return job_status(_act(request, "cancel", job.id, owner))
+
+
+@router.post(
+    "/{job_id}/resume", response_model=JobStatus, summary="Resume a job",
+    responses=problem_responses(404, 409, 422),
+)  # fmt: skip
+def resume_job(job: OwnedJob, owner: Owner, request: Request) -> JobStatus:
+    """A failed or cancelled job with a checkpoint is queued again, to go on from it."""
+    return job_status(_act(request, "resume", job.id, owner))
+
+
+def _act(request: Request, action: str, job_id: str, owner: str) -> JobRecord:
+    """``runner.cancel`` or ``runner.resume``: 409 when the job's state does not allow it."""
+    runner = app_runner(request)
+    try:
+        record = getattr(runner, action)(job_id, owner)
+    except LimitError as exc:
+        raise ProblemError(429, str(exc), type="urn:gaitforge:problem:job-limit") from None
+    except JobStateError as exc:
+        raise ProblemError(409, str(exc)) from None
+    if record is None:
+        raise missing_job(job_id)
+    return record
