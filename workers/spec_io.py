@@ -15,16 +15,21 @@ class SpecError(ValueError):
     """A user-supplied file is invalid. The message is one line: file, field, what is allowed."""
 
 
-def format_validation_error(source: str, err: ValidationError) -> str:
-    """One line per problem, each naming ``source`` and the dotted field path."""
-    lines = []
+def validation_problems(err: ValidationError) -> list[tuple[str, str]]:
+    """Each problem as (dotted field path, what is wrong and what was given)."""
+    problems = []
     for e in err.errors():
         field = ".".join(str(p) for p in e["loc"]) or "<root>"
         msg = e["msg"].removeprefix("Value error, ")
         got = e.get("input")
         got_text = "" if isinstance(got, dict | list) or got is None else f" (got {got!r})"
-        lines.append(f"{source}: {field}: {msg}{got_text}")
-    return "; ".join(lines)
+        problems.append((field, f"{msg}{got_text}"))
+    return problems
+
+
+def format_validation_error(source: str, err: ValidationError) -> str:
+    """One line per problem, each naming ``source`` and the dotted field path."""
+    return "; ".join(f"{source}: {field}: {msg}" for field, msg in validation_problems(err))
 
 
 def load_yaml_model(path: Path, model: type[ModelT]) -> ModelT:

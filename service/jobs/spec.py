@@ -1,0 +1,227 @@
+"""Submitted jobs: a REST body (a mapping, or YAML/JSON text) checked as a job file is, and
+as data only, then written into a job's folder for its trainer.
+
+Data only: a stage's ``scene`` is a catalogue name or an inline scene (a mapping validated as
+a ``Scene``); names that reach the file system (the scene, an inline scene's ``body`` and
+``task.imitate.motion``, ``warm_start.excitations``) must be plain names, never paths;
+``workers.ray_address`` is refused (the service decides where jobs run); anything not in the
+schema is refused. Then the job is written into a scratch folder and loaded exactly as its
+trainer will load it (``learner.job.load_job``: every scene compiled and resolved; the stages
+checked to fit one policy lineage), so that a job that cannot run fails here, with a 422,
+not minutes later.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+import re
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import yaml
+from gaitforge.learner.job import Job, load_job
+from gaitforge.service.jobs.layout import JobLayout
+from gaitforge.workers.scenes import Scene
+from gaitforge.workers.spec_io import SpecError, validation_problems
+from pydantic import ValidationError
+
+MAX_TEXT_BYTES = 1_000_000
+"""the largest job text accepted, bytes"""
+MAX_STAGES = 64
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,127}")
+_INLINE_FILE = re.compile(r"scenes/[a-z0-9-]+\.yaml: (?:(?P<field>[\w.<>]+): )?(?P<problem>.*)")
+_PLACEHOLDER = "stand-2d"
+"""stands in for an inline scene while the rest of the job is validated"""
+
+
+class SubmissionError(SpecError):
+    """A submitted job that is refused; ``errors`` lists each (field, problem), ``field``
+    is the first field. The message is one line: ``<source>: <field>: <problem>; ...``."""
+
+    def __init__(self, source: str, errors: list[tuple[str, str]]) -> None:
+        super().__init__("; ".join(f"{source}: {field}: {problem}" for field, problem in errors))
+        self.errors = errors
+        self.field = errors[0][0]
+
+
+class _DataLoader(yaml.SafeLoader):
+    """YAML without aliases (``*name``): a few bytes of them can expand without bound."""
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        if self.check_event(yaml.AliasEvent):
+            mark = self.peek_event().start_mark
+            raise yaml.YAMLError(f"aliases (*name) are not allowed (line {mark.line + 1})")
+        return super().compose_node(parent, index)
+
+
+def parse_spec(
+    spec: dict | str | bytes, source: str = "job", max_bytes: int = MAX_TEXT_BYTES
+) -> dict:
+    """A job mapping from a mapping, or YAML/JSON text (at most ``max_bytes``).
+
+    Raises:
+        SubmissionError: too large, not YAML/JSON, or not a mapping (field ``<root>``).
+    """
+    if isinstance(spec, dict):
+        return spec
+    if isinstance(spec, bytes | str):
+        size = len(spec if isinstance(spec, bytes) else spec.encode())
+        if size > max_bytes:
+            raise SubmissionError(source, [("<root>", f"{size} bytes; at most {max_bytes}")])
+        try:
+            spec = _load_text(spec)
+        except (yaml.YAMLError, RecursionError, UnicodeDecodeError) as exc:
+            first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise SubmissionError(
+                source, [("<root>", f"not valid YAML or JSON: {first}")]
+            ) from None
+    if not isinstance(spec, dict):
+        got = type(spec).__name__
+        raise SubmissionError(source, [("<root>", f"expected a mapping of fields, got {got}")])
+    return spec
+
+
+def _load_text(text: str | bytes) -> object:
+    """JSON if it parses as JSON (tabs and all), else YAML without aliases."""
+    if text.lstrip()[:1] in ("{", b"{"):
+        try:
+            return json.loads(text)
+        except json.JSONDecodeError:
+            pass  # YAML's flow style starts with '{' too
+    return yaml.load(text, Loader=_DataLoader)  # a SafeLoader
+
+
+def _name_problem(value: str, what: str) -> str | None:
+    """Why ``value`` is not a plain name (None: it is one)."""
+    if _NAME.fullmatch(value) and not value.lower().endswith((".yaml", ".yml")):
+        return None
+    return f"{value!r}: {what}; file paths are not accepted"
+
+
+def _inline_scene(raw: dict, field: str, errors: list[tuple[str, str]]) -> Scene | None:
+    try:
+        scene = Scene.model_validate(raw)
+    except ValidationError as err:
+        errors.extend((f"{field}.{f}", m) for f, m in validation_problems(err))
+        return None
+    names = [("body", scene.body, "a shipped body name")]
+    imitate = getattr(scene.task, "imitate", None)
+    if imitate is not None:
+        names.append(("task.imitate.motion", imitate.motion, "a motion shipped for the body"))
+    bad = [(f"{field}.{f}", p) for f, v, what in names if (p := _name_problem(v, what))]
+    errors.extend(bad)
+    return None if bad else scene
+
+
+def _check_data_only(raw: dict, errors: list[tuple[str, str]]) -> dict[int, Scene]:
+    """Refuse paths and ``workers.ray_address`` in ``raw`` (edited: inline scenes replaced by
+    their names, ``ray_address`` dropped); returns the inline scenes by stage index."""
+    workers = raw.get("workers")
+    if isinstance(workers, dict) and workers.pop("ray_address", None) is not None:
+        errors.append(("workers.ray_address", "not accepted: the service decides where jobs run"))
+    stages = raw.get("stages")
+    if not isinstance(stages, list):
+        return {}
+    if len(stages) > MAX_STAGES:
+        errors.append(("stages", f"{len(stages)} stages; at most {MAX_STAGES}"))
+        return {}
+    inline: dict[int, Scene] = {}
+    for i, stage in enumerate(stages):
+        if not isinstance(stage, dict):
+            continue  # the job's validation names it
+        scene = stage.get("scene")
+        if isinstance(scene, dict):
+            found = _inline_scene(scene, f"stages.{i}.scene", errors)
+            if found is not None:
+                inline[i] = found
+            stage["scene"] = found.name if found is not None else _PLACEHOLDER
+        elif isinstance(scene, str):
+            what = "a catalogue scene name or an inline scene (a mapping)"
+            if problem := _name_problem(scene, what):
+                errors.append((f"stages.{i}.scene", problem))
+        warm = stage.get("warm_start")
+        if isinstance(warm, dict) and isinstance(warm.get("excitations"), str):
+            what = "the name of a motion shipped for the body"
+            if problem := _name_problem(warm["excitations"], what):
+                errors.append((f"stages.{i}.warm_start.excitations", problem))
+    seen: dict[str, tuple[int, Scene]] = {}
+    for i, scene in inline.items():
+        first = seen.setdefault(scene.name, (i, scene))
+        if first[1] != scene:
+            errors.append((f"stages.{i}.scene.name", f"{scene.name!r}: stage {first[0]}'s "
+                           "inline scene has this name and other content; rename one"))  # fmt: skip
+    return inline
+
+
+def prepare_submission(
+    spec: dict | str | bytes, source: str = "job", max_bytes: int = MAX_TEXT_BYTES
+) -> dict[str, Any]:
+    """The submitted job, validated as a job file is and as data only (see the module),
+    normalised: every field spelled out, inline scenes kept as mappings (JSON-able).
+
+    Raises:
+        SubmissionError: each refused field (``errors``) and why, one line.
+    """
+    raw = copy.deepcopy(parse_spec(spec, source, max_bytes))
+    errors: list[tuple[str, str]] = []
+    inline = _check_data_only(raw, errors)
+    try:
+        job = Job.model_validate(raw)
+    except ValidationError as err:
+        errors.extend(validation_problems(err))
+    except RecursionError:
+        errors.append(("<root>", "nested too deeply"))
+    if errors:
+        raise SubmissionError(source, errors)
+    normalised = job.model_dump(mode="json")
+    for i, scene in inline.items():
+        normalised["stages"][i]["scene"] = scene.model_dump(mode="json")
+    _check_loads(normalised, source)
+    return normalised
+
+
+def _check_loads(spec: dict[str, Any], source: str) -> None:
+    """Write ``spec`` into a scratch job folder and load it as the trainer will."""
+    from gaitforge.learner.curriculum import StageIO, check_stages  # lazy: heavier imports
+
+    with tempfile.TemporaryDirectory(prefix="gaitforge-submit-") as tmp:
+        layout = JobLayout(Path(tmp), "check")
+        job_file = write_job_files(layout, spec)
+        try:
+            job, scenes = load_job(job_file)
+            io = [StageIO(scene, job.backend) for scene in scenes]
+            check_stages(io, [scene.name for scene in scenes], job.ppo.mirror)
+        except (SpecError, ValueError) as exc:
+            text = str(exc).replace(f"{job_file}: ", "").replace(f"{layout.dir}{os.sep}", "")
+            field, _, problem = text.partition(": ")
+            if not problem or " " in field:
+                field, problem = "stages", text
+            inner = _INLINE_FILE.fullmatch(problem)  # an inline scene's file: name its field
+            if inner and inner["field"] not in (None, "<root>"):
+                field, problem = f"{field}.{inner['field']}", inner["problem"]
+            raise SubmissionError(source, [(field, problem)]) from None
+
+
+def write_job_files(layout: JobLayout, spec: dict[str, Any]) -> Path:
+    """Write ``spec`` (:func:`prepare_submission`'s result) as ``layout.job_file``, each
+    inline scene as ``scenes/<name>.yaml`` referenced by that relative path; returns the job
+    file. ``learner.job.load_job(layout.job_file)`` loads it."""
+    data = copy.deepcopy(spec)
+    layout.dir.mkdir(parents=True, exist_ok=True)
+    for stage in data["stages"]:
+        if isinstance(stage["scene"], dict):
+            name = Scene.model_validate(stage["scene"]).name  # a plain name (its pattern)
+            layout.scenes_dir.mkdir(exist_ok=True)
+            _write_atomic(layout.scenes_dir / f"{name}.yaml", stage["scene"])
+            stage["scene"] = f"scenes/{name}.yaml"
+    _write_atomic(layout.job_file, data)
+    return layout.job_file
+
+
+def _write_atomic(path: Path, data: dict[str, Any]) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(yaml.safe_dump(data, sort_keys=False))
+    os.replace(tmp, path)
