@@ -268,7 +268,7 @@ def stop_local_ray(home: Path | ServiceSettings, grace_s: float = 3.0) -> bool:
     Returns:
         True if a recorded head was found (running or not).
     """
-    home = Path(getattr(home, "home", home))
+    home = Path(home) if isinstance(home, str | os.PathLike) else Path(home.home)
     head = read_head(home)
     if head is None:
         return False
@@ -307,10 +307,14 @@ def _group_alive(pgid: int) -> bool:
     return True
 
 
+def head_processes(head: LocalHead) -> list[int]:
+    """The live daemons of ``head``: processes of its group (and session) that name its
+    temp dir (so not a later group that reused the number)."""
+    return [pid for pid in _pids_naming(head.temp_dir) if _pgid(pid) == head.pgid]
+
+
 def _group_is_head(head: LocalHead) -> bool:
-    """Some live process of group ``head.pgid`` names the head's temp dir (the group is
-    that head's and not a later one that reused the number)."""
-    return any(_pgid(pid) == head.pgid for pid in _pids_naming(head.temp_dir))
+    return bool(head_processes(head))
 
 
 def _pgid(pid: int) -> int | None:
