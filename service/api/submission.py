@@ -63,6 +63,9 @@ def field_errors(exc: SpecError, source: str = "job") -> list[FieldError]:
     ``{field: stages.0.scene, message: unknown}``."""
     if isinstance(exc, InputError):
         return [FieldError(field=exc.field, message=exc.problem)]
+    listed = getattr(exc, "errors", None)  # SubmissionError: [(field, problem), ...]
+    if isinstance(listed, list) and listed:
+        return [FieldError(field=_field(f), message=str(m)) for f, m in listed]
     parts: list[str] = []
     for part in str(exc).split("; "):
         if part.startswith(f"{source}: ") or not parts:
@@ -74,8 +77,14 @@ def field_errors(exc: SpecError, source: str = "job") -> list[FieldError]:
         field, sep, message = part.partition(": ")
         if not sep or " " in field:
             field, message = "body", part
-        out.append(FieldError(field=field.replace("<root>", "body"), message=message))
+        out.append(FieldError(field=_field(field), message=message))
     return out
+
+
+def _field(field: object) -> str:
+    """A spec error's field as the API names it (the whole spec: ``body``)."""
+    text = str(field)
+    return "body" if text in ("<root>", "") else text
 
 
 def invalid_spec(exc: SpecError) -> ProblemError:
