@@ -86,7 +86,10 @@ def serve(
     from gaitforge.service.api import create_app
 
     settings.home.mkdir(parents=True, exist_ok=True)
-    app = create_app(settings)
+    try:
+        app = create_app(settings)
+    except ValueError as exc:
+        raise fail(str(exc)) from None
     where = f"http://{settings.host}:{settings.port}"
     err.print(f"gaitforge service on {where} (API docs {where}/docs), home {settings.home}",
               soft_wrap=True, highlight=False)  # fmt: skip

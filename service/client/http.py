@@ -37,7 +37,8 @@ class ServerUnreachable(ClientError):
 
 
 class ApiError(ClientError):
-    """The service answered with an error (``application/problem+json`` when it is ours).
+    """The service answered with an error (``application/problem+json`` when it is ours);
+    ``str``: ``404 Not Found: no job j-... (field: message; ...)``.
 
     Attributes:
         status: the HTTP status code.
@@ -50,6 +51,7 @@ class ApiError(ClientError):
         self.errors = errors or []
         fields = "; ".join(f"{e.get('field', '?')}: {e.get('message', '')}" for e in self.errors)
         text = f"{title}: {detail}" if detail and detail != title else title
+        text = text if text.startswith("HTTP ") else f"{status} {text}"
         super().__init__(f"{text} ({fields})" if fields and fields not in text else text)
 
     @classmethod

@@ -1,0 +1,179 @@
+"""The round trip through a real ``gaitforge serve`` (uvicorn on loopback, the session's Ray
+head, SQLite in a temporary home) driven by the CLI client: submit (a scene file sent
+inline), follow to success, list, status, logs, download with sha256 checks, load the
+checkpoint; errors as one line; a job that keeps running while the service is killed with
+SIGKILL and started again; no listening beyond loopback without tokens."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+import yaml
+from gaitforge.learner.checkpoint import load_checkpoint
+from gaitforge.service.cli import app
+from gaitforge.service.client.round_trip import free_port, start_service
+from gaitforge.workers.scenes import catalogue_file
+from typer.testing import CliRunner
+
+runner = CliRunner()
+CLI = [sys.executable, "-m", "gaitforge.service.cli"]
+
+
+class Service:
+    """A ``gaitforge serve`` process on ``home`` and a free loopback port."""
+
+    def __init__(self, home: Path) -> None:
+        self.home = home
+        self.server = f"http://127.0.0.1:{free_port()}"
+        self.env = {
+            **os.environ, "GAITFORGE_HOME": str(home), "GAITFORGE_SERVER": self.server,
+            "GAITFORGE_PORT": self.server.rsplit(":", 1)[1], "GAITFORGE_POLL_INTERVAL_S": "0.2",
+            "COLUMNS": "250",
+        }  # fmt: skip
+        for name in ("GAITFORGE_TOKEN", "GAITFORGE_TOKEN_FILE", "GAITFORGE_TOKENS"):
+            self.env.pop(name, None)
+        self.process: subprocess.Popen | None = None
+
+    def start(self) -> Service:
+        self.process = start_service(self.env, self.home / "serve.log")
+        return self
+
+    def kill(self) -> None:
+        """SIGKILL, as a crash would."""
+        if self.process is not None and self.process.poll() is None:
+            self.process.send_signal(signal.SIGKILL)
+            self.process.wait()
+
+    def cli(self, *args: str) -> tuple[int, str]:
+        """``gaitforge ARGS`` through typer's runner against this service."""
+        result = runner.invoke(app, list(args), env=self.env)
+        return result.exit_code, result.output
+
+    def status(self, job_id: str) -> dict:
+        code, output = self.cli("status", job_id, "--json")
+        assert code == 0, output
+        return json.loads(output)
+
+
+@pytest.fixture
+def service(service_home: Path) -> Iterator[Callable[[], Service]]:
+    """Start services on the test's home (re-attached to the session's Ray head, which the
+    session's fixture stops); each is killed at the end."""
+    started: list[Service] = []
+
+    def start() -> Service:
+        started.append(Service(service_home).start())
+        return started[-1]
+
+    yield start
+    for each in started:
+        each.kill()
+
+
+def test_submit_follow_download_and_load(
+    service: Callable[[], Service], tiny_job: Callable[..., dict], tmp_path: Path
+) -> None:
+    svc = service()
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "my-stand.yaml").write_text(
+        catalogue_file("stand-2d").read_text().replace("name: stand-2d", "name: my-stand")
+    )
+    spec = tiny_job(name="round-trip", env_steps=1024)
+    spec["stages"][0]["scene"] = "scenes/my-stand.yaml"
+    (tmp_path / "job.yaml").write_text(yaml.safe_dump(spec))
+    code, output = svc.cli("submit", str(tmp_path / "job.yaml"), "--follow", "--json")
+    assert code == 0, output
+    final = json.loads(output[output.index("{") :])
+    job_id = final["id"]
+    assert final["state"] == "succeeded" and final["stage"]["name"] == "my-stand", final
+    code, output = svc.cli("jobs", "--json")
+    assert code == 0 and job_id in [j["id"] for j in json.loads(output)["items"]], output
+    code, output = svc.cli("status", job_id)
+    assert code == 0 and "succeeded" in output and "my-stand" in output, output
+    code, output = svc.cli("logs", job_id, "--follow")
+    assert code == 0 and output.strip(), "the trainer's log reads to its end"
+    out = tmp_path / "download"
+    code, output = svc.cli(
+        "download", job_id, "--checkpoint", "latest", "--recording", "latest",
+        "--report", "latest", "--out", str(out), "--json",
+    )  # fmt: skip
+    assert code == 0, output
+    files = json.loads(output)["files"]
+    kinds = {f["kind"] for f in files}
+    assert kinds == {"checkpoints", "recordings", "reports"}, files
+    checkpoint = Path(next(f["path"] for f in files if f["kind"] == "checkpoints"))
+    assert checkpoint == out / final["latest_checkpoint"]
+    _, meta = load_checkpoint(checkpoint)
+    assert meta.env_steps >= 1024
+    assert {Path(f["name"]).suffix for f in files if f["kind"] == "recordings"} >= {".mcap"}
+    for item in files:
+        assert Path(item["path"]).exists() and len(item["sha256"]) == 64
+
+
+def test_errors_are_one_line(service: Callable[[], Service], tiny_job, tmp_path: Path) -> None:
+    svc = service()
+    bad = tiny_job()
+    bad["workers"]["ray_address"] = "auto"
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump(bad))
+    for args, expected in [
+        (("submit", str(tmp_path / "bad.yaml")), "workers.ray_address"),
+        (("jobs", "--token", "wrong"), "401"),
+        (("status", "j-000000000000"), "404"),
+    ]:
+        code, output = svc.cli(*args)
+        lines = output.strip().splitlines()
+        assert code == 1 and len(lines) == 1 and lines[0].startswith("error:"), output
+        assert expected in lines[0] or expected in output, output
+
+
+def test_a_job_keeps_running_across_a_killed_service(
+    service: Callable[[], Service], tiny_job: Callable[..., dict]
+) -> None:
+    first = service()
+    headers = {"Authorization": f"Bearer {(first.home / 'token').read_text().strip()}"}
+    spec = tiny_job(name="outlives", env_steps=256 * 60, every_iters=5)
+    job = httpx.post(f"{first.server}/v1/jobs", json=spec, headers=headers).raise_for_status()
+    job_id = job.json()["id"]
+    before = _wait(first, job_id, lambda s: (s.get("iteration") or 0) >= 2, 90)
+    first.kill()
+    second = service()  # the same home: the same database and Ray head
+    after = _wait(second, job_id, lambda s: (s.get("iteration") or 0) > before["iteration"], 60)
+    assert after["state"] in ("running", "succeeded"), after
+    code, output = second.cli("status", job_id, "--follow", "--json")
+    assert code == 0, output
+    final = json.loads(output[output.index("{") :])
+    assert final["state"] == "succeeded" and final["attempt"] == 1, final
+
+
+def test_serve_refuses_other_hosts_without_tokens(tmp_path: Path) -> None:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("GAITFORGE_")}
+    done = subprocess.run(
+        [*CLI, "serve", "--host", "0.0.0.0", "--home", str(tmp_path)], env=env, text=True,
+        capture_output=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--host 0.0.0.0" in lines[0] and "TOKENS" in lines[0], done.stderr
+    assert not (tmp_path / "gaitforge.db").exists(), "refused before anything started"
+
+
+def _wait(svc: Service, job_id: str, done: Callable[[dict], bool], timeout_s: float) -> dict:
+    """Poll the job's status through the CLI until ``done``; fail naming its last state."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        status = svc.status(job_id)
+        if done(status):
+            return status
+        assert status["state"] not in ("failed", "cancelled"), status
+        if time.monotonic() > deadline:
+            pytest.fail(f"{job_id}: {status['state']} at iteration {status.get('iteration')}")
+        time.sleep(0.2)
