@@ -30,7 +30,7 @@ import urllib.error
 import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 from urllib.parse import urlsplit
 
 from pydantic import BaseModel
@@ -46,6 +46,8 @@ TOKEN_FILE = "ray-token"
 START_TIMEOUT_S = 90.0
 """how long ``ray start`` and the dashboard may take to come up"""
 DEFAULT_DASHBOARD_PORT = 8265
+REQUEST_TIMEOUT_S = 30.0
+"""the longest one call to the jobs API may take"""
 
 
 class RayError(RuntimeError):
@@ -139,9 +141,17 @@ def jobs_client(dashboard_url: str, token: str | None) -> JobSubmissionClient:
     """
     from ray.job_submission import JobSubmissionClient  # lazy: imports much of Ray
 
+    class TimedClient(JobSubmissionClient):
+        """Ray's client with a timeout on every request (it sets none: a hung dashboard
+        would hang the runner)."""
+
+        def _do_request(self, method: str, endpoint: str, **kwargs: Any) -> Any:
+            kwargs.setdefault("timeout", REQUEST_TIMEOUT_S)
+            return super()._do_request(method, endpoint, **kwargs)
+
     headers = {"Authorization": f"Bearer {token}"} if token else None
     try:
-        return JobSubmissionClient(dashboard_url, headers=headers)
+        return TimedClient(dashboard_url, headers=headers)
     except Exception as exc:  # ConnectionError, AuthenticationError, RuntimeError, ...
         raise RayError(f"Ray jobs API at {dashboard_url}: {first_line(exc)}") from None
 
