@@ -37,6 +37,7 @@ from gaitforge.service.jobs.progress import (
     append_metrics,
     jsonable,
     now,
+    trim_metrics,
     write_progress,
 )
 from gaitforge.service.signals import SignalStop
@@ -173,6 +174,7 @@ def train(layout: JobLayout, reporter: Reporter, signals: SignalStop) -> bool:
 
     request = ops.TrainRequest(job_file=layout.job_file, run_dir=layout.run_dir, tensorboard=True)
     training = ops.prepare_training(request)
+    trim_metrics(layout.metrics_file, training.trainer.iteration)  # resumed at that iteration
     try:
         if training.start_ray():
             signals.install()  # Ray's driver put in its own handlers: take them back

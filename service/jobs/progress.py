@@ -134,3 +134,26 @@ def read_metrics(path: Path, start: int = 0, limit: int | None = None) -> list[d
     except FileNotFoundError:
         return []
     return rows
+
+
+def trim_metrics(path: Path, last_iteration: int) -> int:
+    """Drop the lines of iterations after ``last_iteration`` (a resumed run goes on from its
+    checkpoint's iteration: the lines a stopped attempt wrote after it would repeat), and a
+    torn last line; returns the lines kept. Rewritten atomically, only if something goes."""
+    try:
+        lines = path.read_text().splitlines(keepends=True)
+    except FileNotFoundError:
+        return 0
+    kept = []
+    for line in lines:
+        try:
+            row = json.loads(line) if line.endswith("\n") else None
+        except json.JSONDecodeError:
+            row = None
+        if isinstance(row, dict) and int(row.get("iteration", 0)) <= last_iteration:
+            kept.append(line)
+    if len(kept) != len(lines):
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        tmp.write_text("".join(kept))
+        os.replace(tmp, path)
+    return len(kept)

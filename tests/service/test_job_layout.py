@@ -19,6 +19,7 @@ from gaitforge.service.jobs.progress import (
     now,
     read_metrics,
     read_progress,
+    trim_metrics,
     write_progress,
 )
 
@@ -125,3 +126,16 @@ def test_metrics_lines_drop_non_finite_and_skip_a_torn_last_line(tmp_path: Path)
     assert rows[2] == {"iteration": 3, "return": 2.0, "kl": None, "health": {"nan_obs": 2}}
     assert [r["iteration"] for r in read_metrics(path, start=1, limit=1)] == [2]
     assert json.loads(json.dumps(jsonable({"x": (math.inf, -math.inf)}))) == {"x": [None, None]}
+
+
+def test_a_resumed_run_trims_the_iterations_after_its_checkpoint(tmp_path: Path) -> None:
+    path = tmp_path / "metrics.jsonl"
+    assert trim_metrics(path, 3) == 0 and not path.exists()
+    for i in range(1, 6):
+        append_metrics(path, {"iteration": i})
+    with path.open("a") as f:
+        f.write('{"iteration": 6, "ret')  # torn by a kill
+    assert trim_metrics(path, 3) == 3
+    assert [r["iteration"] for r in read_metrics(path)] == [1, 2, 3]
+    assert path.read_text().endswith("\n")
+    assert trim_metrics(path, 3) == 3
