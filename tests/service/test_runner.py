@@ -60,12 +60,15 @@ def test_the_local_head_is_reattached_and_lives_in_a_session_of_its_own(
     assert default_dashboard("auto") == "http://127.0.0.1:8265"
 
 
-def test_queue_runs_one_job_at_a_time_and_each_succeeds(
+def test_queue_runs_one_job_at_a_time_and_a_run_time_failure_ends_failed_with_its_error(
     service_settings, store, ray_connection, tiny_job, wait_job
 ) -> None:
     settings = service_settings.model_copy(update={"max_jobs_per_owner": 3})
     runner = _runner(settings, store, ray_connection)
     ids = [runner.submit("alice", tiny_job(f"q{i}", env_steps=512)).id for i in range(3)]
+    damaged = runner.layout(ids[1]).checkpoints_dir / "ckpt-000000000256"
+    damaged.mkdir(parents=True)
+    (damaged / "manifest.json").write_text("{ not json")  # q1's trainer resumes from it
     with pytest.raises(LimitError, match="alice has 3 queued or running"):
         runner.submit("alice", tiny_job("q3"))
     assert runner.submit("bob", tiny_job("other")).state == "queued"  # bob has his own
@@ -87,34 +90,20 @@ def test_queue_runs_one_job_at_a_time_and_each_succeeds(
         runner.stop()
         stop.set()
         watcher.join()
-    assert [r.state for r in done] == ["succeeded"] * 3, [r.error for r in done]
+    assert [r.state for r in done] == ["succeeded", "failed", "succeeded"], [r.error for r in done]
     assert most_running == 1
     for earlier, later in itertools.pairwise(done):
         assert later.started_at >= earlier.finished_at  # oldest first, one after another
     for record in done:
         assert record.attempt == 1 and record.ray_submission_id == submission_id(record.id, 1)
+    for record in done[::2]:
         assert _progress(record)["phase"] == "finished"
         assert runner.layout(record.id).checkpoint_names()
-    with pytest.raises(JobStateError):
-        runner.cancel(ids[0], "alice")
-
-
-def test_a_job_failing_at_run_time_ends_failed_with_its_error(
-    service_settings, store, ray_connection, tiny_job, wait_job
-) -> None:
-    runner = _runner(service_settings, store, ray_connection)
-    record = runner.submit("alice", tiny_job("broken"))
-    damaged = runner.layout(record.id).checkpoints_dir / "ckpt-000000000256"
-    damaged.mkdir(parents=True)
-    (damaged / "manifest.json").write_text("{ not json")  # the trainer resumes from it
-    runner.start()
-    try:
-        failed = wait_job(store, record.id, lambda r: r.state not in ("queued", "running"))
-    finally:
-        runner.stop()
-    assert failed.state == "failed"
+    failed = done[1]
     assert "manifest.json" in failed.error and "not valid JSON" in failed.error
     assert _progress(failed)["phase"] == "failed"
+    with pytest.raises(JobStateError):
+        runner.cancel(ids[0], "alice")
 
 
 def test_cancel_stops_a_running_job_with_a_checkpoint_and_a_queued_one_at_once(
