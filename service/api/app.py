@@ -10,10 +10,11 @@ from contextlib import asynccontextmanager
 from importlib import metadata
 from typing import TYPE_CHECKING
 
-from fastapi import FastAPI
+from fastapi import Depends, FastAPI
 from fastapi.concurrency import run_in_threadpool
 from gaitforge.service.api import events, routes_artifacts, routes_jobs, routes_scenes
 from gaitforge.service.api.auth import load_tokens
+from gaitforge.service.api.deps import known_query
 from gaitforge.service.api.limits import BodySizeLimit
 from gaitforge.service.api.openapi import build_openapi
 from gaitforge.service.api.problems import install_problem_handlers
@@ -101,7 +102,7 @@ def create_app(settings: ServiceSettings | None = None, runner: JobRunner | None
 
     app = FastAPI(
         title="gaitforge", version=_version(), description=DESCRIPTION,
-        openapi_tags=TAGS, lifespan=lifespan,
+        openapi_tags=TAGS, lifespan=lifespan, dependencies=[Depends(known_query)],
     )  # fmt: skip
     app.state.settings, app.state.tokens = settings, tokens
     if runner is not None:

@@ -3,11 +3,11 @@ directory, the runner and the store from the app's state."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 from fastapi import Depends, Path, Request
 from gaitforge.service.api.auth import require_owner
-from gaitforge.service.api.problems import ProblemError
+from gaitforge.service.api.problems import FieldError, ProblemError
 from gaitforge.service.jobs.layout import JobLayout
 from gaitforge.service.settings import ServiceSettings
 from gaitforge.service.store import JobRecord, JobStore
@@ -34,6 +34,28 @@ def app_store(request: Request) -> JobStore:
 def app_runner(request: Request) -> JobRunner:
     """The job runner."""
     return request.app.state.runner
+
+
+def known_query(request: Request) -> None:
+    """Dependency of every route: a query parameter the route does not take is a 422 (a
+    misspelt ``stat=queued`` would otherwise be ignored)."""
+    route = request.scope.get("route")
+    if route is None or not request.query_params:
+        return
+    allowed = _query_names(route.dependant)
+    unknown = sorted(set(request.query_params) - allowed)
+    if unknown:
+        message = f"unknown query parameter; allowed: {sorted(allowed) or 'none'}"
+        errors = [FieldError(field=name, message=message) for name in unknown]
+        raise ProblemError(422, f"{unknown[0]}: {message}", errors=errors)
+
+
+def _query_names(dependant: Any) -> set[str]:
+    """The query parameters ``dependant`` and its dependencies take."""
+    names = {p.alias for p in dependant.query_params}
+    for sub in dependant.dependencies:
+        names |= _query_names(sub)
+    return names
 
 
 def missing_job(job_id: str) -> ProblemError:

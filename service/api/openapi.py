@@ -9,7 +9,7 @@ from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
 from gaitforge.learner.job import Job
 from gaitforge.service.api.problems import PROBLEM_JSON, Problem, problem_responses
-from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes import Scene, catalogue
 from pydantic import BaseModel
 
 _REF = "#/components/schemas/{model}"
@@ -38,7 +38,7 @@ def build_openapi(app: FastAPI) -> dict[str, Any]:
     stage = schemas["Stage"]["properties"]
     stage["scene"] = {
         "anyOf": [
-            {"type": "string", "description": "a catalogue scene's name"},
+            {"type": "string", "enum": catalogue(), "description": "a catalogue scene's name"},
             {"$ref": "#/components/schemas/Scene"},
         ],
         "description": "a catalogue scene's name, or an inline scene (the scene file's "

@@ -76,6 +76,8 @@ def test_submit_json_and_yaml_then_the_limit(api: Api) -> None:
     assert page["total"] == 2 and len(page["items"]) == 1 and page["limit"] == 1
     assert api.client.get("/v1/jobs?state=running", headers=auth(BOB)).json()["total"] == 0
     _problem(api.client.get("/v1/jobs?state=bogus", headers=auth(BOB)), 422)
+    typo = _problem(api.client.get("/v1/jobs?stat=queued", headers=auth(BOB)), 422)
+    assert typo["errors"][0]["field"] == "stat" and "state" in typo["errors"][0]["message"]
     # a queued job cancels at once; it resumes (queued again), and only once
     cancelled = api.client.post(f"/v1/jobs/{job['id']}/cancel", headers=auth(BOB)).json()
     assert cancelled["state"] == "cancelled" and cancelled["actions"][0]["name"] == "resume"
