@@ -46,6 +46,9 @@ TOKEN_FILE = "ray-token"
 START_TIMEOUT_S = 90.0
 """how long ``ray start`` and the dashboard may take to come up"""
 DEFAULT_DASHBOARD_PORT = 8265
+JOB_STOP_WAIT_S = 60
+"""how long Ray's stop_job waits after SIGTERM before SIGKILL (Ray's default, 3 s, is shorter
+than an iteration: the trainer's checkpoint on the way out would be lost)"""
 REQUEST_TIMEOUT_S = 30.0
 """the longest one call to the jobs API may take"""
 
@@ -229,6 +232,7 @@ def start_local_ray(home: Path, num_cpus: int | None = None) -> LocalHead:
     ]  # fmt: skip
     env = {k: v for k, v in os.environ.items() if k not in ("RAY_ADDRESS", "RAY_AUTH_TOKEN_PATH")}
     env.update(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=token)
+    env.setdefault("RAY_JOB_STOP_WAIT_TIME_S", str(JOB_STOP_WAIT_S))
     logger.info("starting a local Ray head (%d CPUs, temp dir %s)", num_cpus, temp_dir)
     proc = subprocess.Popen(
         command, env=env, start_new_session=True, stdin=subprocess.DEVNULL,

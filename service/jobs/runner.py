@@ -109,8 +109,11 @@ class JobRunner:
             try:
                 self.reconcile()
             except Exception as exc:  # keep following: the next pass may go through
-                self.last_error = first_line(exc)
-                logger.warning("runner pass failed: %s", exc, exc_info=logger.isEnabledFor(10))
+                error = first_line(exc)
+                if error != self.last_error:  # once per new error, not every pass
+                    logger.warning("runner pass failed: %s", error,
+                                   exc_info=logger.isEnabledFor(logging.DEBUG))  # fmt: skip
+                self.last_error = error
             self._wake.wait(self.settings.poll_interval_s)
             self._wake.clear()
 

@@ -159,7 +159,8 @@ def test_a_new_runner_reattaches_marks_a_dead_trainer_failed_and_resume_finishes
         wait_job(store, kept, lambda r: _progress(r).get("iteration", 0) > seen)  # followed
         died = wait_job(store, dies, lambda r: r.state != "running")
         assert died.state == "failed" and died.error.startswith("trainer died: "), died.error
-        assert "stopped" in died.error
+        assert "stopped" in died.error and _progress(died)["phase"] == "stopped"
+        assert second.layout(dies).checkpoint_names()  # written on the way out
         with pytest.raises(JobStateError):
             second.resume(kept, "alice")
         assert second.resume(dies, "alice").state == "queued"
@@ -171,6 +172,7 @@ def test_a_new_runner_reattaches_marks_a_dead_trainer_failed_and_resume_finishes
     assert finished.state == "succeeded", finished.error
     assert finished.ray_submission_id == submission_id(dies, 2) and finished.error is None
     assert _progress(finished)["env_steps"] >= 4096
+    assert "resumed at iteration" in second.layout(dies).log_file.read_text()
 
 
 def test_a_running_job_ray_does_not_know_is_failed_at_once(
