@@ -186,3 +186,43 @@ def test_a_running_job_ray_does_not_know_is_failed_at_once(
     assert ghost.state == "failed" and ghost.finished_at is not None
     assert ghost.error.startswith("trainer died: Ray has no job gaitforge-gone-1")
     assert runner.last_error is None and runner.last_pass_at is not None
+
+
+def test_a_cancel_not_honoured_within_the_grace_is_stopped_by_ray(
+    service_settings, store, ray_connection, wait_job
+) -> None:
+    record = store.create("alice", "deaf", {"name": "deaf"})
+    sid = submission_id(record.id, 1)
+    ray_connection.client.submit_job(entrypoint="sleep 120", submission_id=sid)
+    store.update(record.id, state="running", attempt=1, ray_submission_id=sid)
+    runner = JobRunner(service_settings, store, ray_connection, cancel_grace_s=0.5)
+    runner.layout(record.id).dir.mkdir(parents=True)
+    runner.start()
+    try:
+        runner.cancel(record.id, "alice")
+        cancelled = wait_job(store, record.id, lambda r: r.state != "running", timeout_s=30)
+    finally:
+        runner.stop()
+    assert cancelled.state == "cancelled"
+    assert cancelled.error == "stopped by Ray after the cancel's grace"
+    assert str(ray_connection.client.get_job_status(sid).value) == "STOPPED"
+
+
+def test_while_ray_does_not_answer_nothing_is_marked(
+    service_settings, store, ray_connection, ray_home
+) -> None:
+    from gaitforge.service.jobs.ray_cluster import jobs_client, read_token
+
+    record = store.create("alice", "cut-off", {"name": "cut-off"})
+    store.update(record.id, state="running", attempt=1, ray_submission_id="gaitforge-x-1")
+    client = jobs_client(ray_connection.dashboard_url, read_token(ray_home))
+    client._address = "http://127.0.0.1:9"  # the discard port: connection refused
+    cut_off = RayConnection(ray_connection.address, client._address, client, False, True)
+    runner = JobRunner(service_settings, store, cut_off)
+    with pytest.raises(Exception, match=r"Connection refused|Max retries"):
+        runner.reconcile()
+    runner.start()
+    time.sleep(0.5)
+    runner.stop()
+    assert runner.last_error is not None
+    assert store.get(record.id).state == "running"
