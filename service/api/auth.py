@@ -71,8 +71,9 @@ def owner_of(token: str, tokens: dict[str, str]) -> str | None:
 Credentials = Annotated[HTTPAuthorizationCredentials | None, Security(bearer)]
 
 
-def require_owner(request: Request, credentials: Credentials) -> str:
-    """Dependency: the owner of the request's bearer token, else 401 with a challenge."""
+async def require_owner(request: Request, credentials: Credentials) -> str:
+    """Dependency: the owner of the request's bearer token, else 401 with a challenge
+    (async: it only compares strings, no thread-pool hop)."""
     if credentials is None:
         raise ProblemError(401, "missing bearer token", headers={"WWW-Authenticate": _CHALLENGE})
     owner = owner_of(credentials.credentials, request.app.state.tokens)

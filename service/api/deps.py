@@ -36,7 +36,7 @@ def app_runner(request: Request) -> JobRunner:
     return request.app.state.runner
 
 
-def known_query(request: Request) -> None:
+async def known_query(request: Request) -> None:
     """Dependency of every route: a query parameter the route does not take is a 422 (a
     misspelt ``stat=queued`` would otherwise be ignored)."""
     route = request.scope.get("route")

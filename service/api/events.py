@@ -21,7 +21,7 @@ from gaitforge.service.store import TERMINAL
 
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"], responses=problem_responses(401))
 HEARTBEAT_S = 15.0
-"""s of silence after which a ``: ping`` comment is sent"""
+"""s of silence after which a ``: ping`` comment is sent (``app.state.heartbeat_s`` if set)"""
 
 _EVENTS_DOC = {
     200: {
@@ -50,6 +50,7 @@ async def job_events(job: OwnedJob, request: Request) -> AsyncIterator[ServerSen
     """The job's status as server-sent events until it ends."""
     store = app_store(request)
     interval = app_settings(request).poll_interval_s
+    heartbeat = getattr(request.app.state, "heartbeat_s", HEARTBEAT_S)
     record, last, quiet = job, "", 0.0
     while True:
         status = job_status(record)
@@ -60,7 +61,7 @@ async def job_events(job: OwnedJob, request: Request) -> AsyncIterator[ServerSen
         if record.state in TERMINAL:
             yield ServerSentEvent(event="end", data=_dump(status))
             return
-        if quiet >= HEARTBEAT_S:
+        if quiet >= heartbeat:
             yield ServerSentEvent(comment="ping")
             quiet = 0.0
         if await request.is_disconnected():

@@ -20,7 +20,7 @@ from gaitforge.service.jobs.runner import JobRunner
 from gaitforge.service.settings import ServiceSettings
 from gaitforge.service.store import JobStore, open_store
 
-from tests.service.api_support import BOB, TOKENS, auth, seed_job
+from tests.service.api_support import BOB, TOKENS, auth, seed_job, serve
 from tests.service.conftest import make_tiny_job
 
 PROBLEM = "application/problem+json"
@@ -208,3 +208,24 @@ def test_openapi_documents_every_response(api: Api) -> None:
     assert {"413", "415", "422", "429"} <= set(post["responses"])
     assert set(post["requestBody"]["content"]) >= {"application/json", "application/yaml"}
     assert json.dumps(post["requestBody"]["content"]["application/json"]["example"])
+
+
+def test_events_progress_heartbeat_then_end(api: Api) -> None:
+    import httpx
+
+    job = api.store.create("alice", "followed", {"name": "followed", "stages": []})
+    api.client.app.state.heartbeat_s = 0.5
+    lines: list[str] = []
+    with serve(api.client.app) as port:
+        client = httpx.Client(base_url=f"http://127.0.0.1:{port}", headers=auth(), timeout=60)
+        with client, client.stream("GET", f"/v1/jobs/{job.id}/events") as stream:
+            assert stream.headers["content-type"].startswith("text/event-stream")
+            for line in stream.iter_lines():
+                lines.append(line)
+                if line.startswith(": ping") and not any("cancelled" in x for x in lines):
+                    assert client.post(f"/v1/jobs/{job.id}/cancel").status_code == 200
+    events = [line.removeprefix("event: ") for line in lines if line.startswith("event: ")]
+    assert events == ["progress", "progress", "end"], lines
+    data = [json.loads(line.removeprefix("data: ")) for line in lines if line.startswith("data:")]
+    assert [d["state"] for d in data] == ["queued", "cancelled", "cancelled"]
+    assert lines.index(": ping") < lines.index("event: end")
