@@ -1,76 +1,62 @@
-"""The Ray cluster the runner submits jobs to: a local head started for the service, or a
-cluster named by ``GAITFORGE_RAY_ADDRESS``.
+"""The Ray cluster the runner submits jobs to: a local head started for the service
+(:mod:`gaitforge.service.jobs.local_ray`), or a cluster named by ``GAITFORGE_RAY_ADDRESS``.
 
     connection = connect_ray(settings)      # starts or re-attaches to {home}'s local head
     connection.client.submit_job(...)       # Ray's jobs API, token-authenticated
     stop_local_ray(settings.home)           # `gaitforge serve --stop-ray`, tests
 
-The local head is ``ray start --head`` in a session of its own (so it outlives the service,
-even a ``kill -9`` of it), with its dashboard (the jobs API) on 127.0.0.1, free ports, a temp
-dir of its own (``/tmp/gf-ray-<8 hex>``: socket paths must stay short) and
-``RAY_AUTH_MODE=token`` with a token generated once and kept in ``{home}/ray-token`` (0600).
-``{home}/ray.json`` records it; a later start re-attaches if its dashboard answers. The jobs
-client sends the token as a bearer header, so the service process needs no Ray environment.
+The jobs client sends the Ray token as a bearer header, so the service process needs no Ray
+environment of its own; every request has a timeout.
 """
 
 from __future__ import annotations
 
-import contextlib
-import logging
 import os
-import secrets
-import shutil
-import signal
-import socket
-import subprocess
-import sys
-import tempfile
-import time
-import urllib.error
-import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 from urllib.parse import urlsplit
 
-from pydantic import BaseModel
+from gaitforge.service.jobs.local_ray import (
+    STATE_FILE,
+    TOKEN_FILE,
+    LocalHead,
+    RayError,
+    first_line,
+    head_processes,
+    read_head,
+    read_token,
+    running_head,
+    start_local_ray,
+    stop_local_ray,
+)
 
 if TYPE_CHECKING:
     from gaitforge.service.settings import ServiceSettings
     from ray.job_submission import JobSubmissionClient
 
-logger = logging.getLogger(__name__)
+__all__ = [
+    "STATE_FILE",
+    "TOKEN_FILE",
+    "LocalHead",
+    "RayConnection",
+    "RayError",
+    "connect_cluster",
+    "connect_ray",
+    "default_dashboard",
+    "first_line",
+    "head_processes",
+    "jobs_client",
+    "read_head",
+    "read_token",
+    "running_head",
+    "start_local_ray",
+    "stop_local_ray",
+]
 
-STATE_FILE = "ray.json"
-TOKEN_FILE = "ray-token"
-START_TIMEOUT_S = 90.0
-"""how long ``ray start`` and the dashboard may take to come up"""
 DEFAULT_DASHBOARD_PORT = 8265
-JOB_STOP_WAIT_S = 60
-"""how long Ray's stop_job waits after SIGTERM before SIGKILL (Ray's default, 3 s, is shorter
-than an iteration: the trainer's checkpoint on the way out would be lost)"""
 REQUEST_TIMEOUT_S = 30.0
 """the longest one call to the jobs API may take"""
-
-
-class RayError(RuntimeError):
-    """Ray could not be started or reached (one line saying what and where)."""
-
-
-class LocalHead(BaseModel):
-    """A local head started for the service, as kept in ``{home}/ray.json``."""
-
-    address: str
-    """GCS address (``host:port``) that drivers and ``ray.init`` join"""
-    dashboard_url: str
-    """the jobs API, ``http://127.0.0.1:<port>``"""
-    temp_dir: str
-    """the head's ``--temp-dir`` (sessions, logs, sockets)"""
-    pgid: int
-    """the process group (and session) of the head's daemons"""
-    num_cpus: int
-    started_at: float
-    """Unix time"""
 
 
 @dataclass
@@ -157,240 +143,3 @@ def jobs_client(dashboard_url: str, token: str | None) -> JobSubmissionClient:
         return TimedClient(dashboard_url, headers=headers)
     except Exception as exc:  # ConnectionError, AuthenticationError, RuntimeError, ...
         raise RayError(f"Ray jobs API at {dashboard_url}: {first_line(exc)}") from None
-
-
-def running_head(home: Path) -> LocalHead | None:
-    """The head recorded in ``{home}/ray.json`` if its dashboard answers, else None."""
-    head = read_head(home)
-    if head is None or not dashboard_answers(head.dashboard_url):
-        return None
-    return head
-
-
-def read_head(home: Path) -> LocalHead | None:
-    """The head recorded in ``{home}/ray.json`` (None: none, or unreadable)."""
-    try:
-        return LocalHead.model_validate_json((home / STATE_FILE).read_text())
-    except (OSError, ValueError):
-        return None
-
-
-def dashboard_answers(url: str, timeout_s: float = 2.0) -> bool:
-    """The dashboard at ``url`` answers ``/api/version`` (any HTTP status counts)."""
-    try:
-        with urllib.request.urlopen(f"{url}/api/version", timeout=timeout_s):
-            return True
-    except urllib.error.HTTPError:
-        return True
-    except (OSError, ValueError):
-        return False
-
-
-def read_token(home: Path) -> str:
-    """The local head's token from ``{home}/ray-token``, generated (0600) if missing."""
-    path = home / TOKEN_FILE
-    if not path.exists():
-        home.mkdir(parents=True, exist_ok=True)
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-        with os.fdopen(fd, "w") as file:
-            file.write(secrets.token_hex(32) + "\n")
-    return path.read_text().strip()
-
-
-def free_ports(n: int) -> list[int]:
-    """``n`` distinct TCP ports free on 127.0.0.1 now (held open together while chosen)."""
-    with contextlib.ExitStack() as stack:
-        ports = []
-        for _ in range(n):
-            sock = stack.enter_context(socket.socket(socket.AF_INET, socket.SOCK_STREAM))
-            sock.bind(("127.0.0.1", 0))
-            ports.append(sock.getsockname()[1])
-    return ports
-
-
-def start_local_ray(home: Path, num_cpus: int | None = None) -> LocalHead:
-    """Start a local head for ``home`` (``ray start --head``, about 7 s) and record it in
-    ``{home}/ray.json``; an earlier head of ``home`` that no longer answers is stopped first.
-
-    Raises:
-        RayError: ``ray start`` failed or the dashboard did not come up.
-    """
-    stop_local_ray(home)
-    token = read_token(home)
-    temp_dir = tempfile.mkdtemp(prefix="gf-ray-", dir="/tmp")
-    gcs, dashboard, client, agent, agent_grpc, metrics, env_agent = free_ports(7)
-    num_cpus = num_cpus or os.cpu_count() or 1
-    ray = shutil.which("ray", path=str(Path(sys.executable).parent)) or "ray"
-    command = [
-        ray, "start", "--head", "--node-ip-address", "127.0.0.1", "--port", str(gcs),
-        "--dashboard-host", "127.0.0.1", "--dashboard-port", str(dashboard),
-        "--include-dashboard", "true", "--disable-usage-stats", "--num-cpus", str(num_cpus),
-        "--temp-dir", temp_dir, "--ray-client-server-port", str(client),
-        "--dashboard-agent-listen-port", str(agent), "--dashboard-agent-grpc-port",
-        str(agent_grpc), "--metrics-export-port", str(metrics), "--runtime-env-agent-port",
-        str(env_agent),
-    ]  # fmt: skip
-    env = {k: v for k, v in os.environ.items() if k not in ("RAY_ADDRESS", "RAY_AUTH_TOKEN_PATH")}
-    env.update(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=token)
-    env.setdefault("RAY_JOB_STOP_WAIT_TIME_S", str(JOB_STOP_WAIT_S))
-    logger.info("starting a local Ray head (%d CPUs, temp dir %s)", num_cpus, temp_dir)
-    proc = subprocess.Popen(
-        command, env=env, start_new_session=True, stdin=subprocess.DEVNULL,
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-    )  # fmt: skip
-    head = LocalHead(
-        address=f"127.0.0.1:{gcs}", dashboard_url=f"http://127.0.0.1:{dashboard}",
-        temp_dir=temp_dir, pgid=proc.pid, num_cpus=num_cpus, started_at=time.time(),
-    )  # fmt: skip
-    home.mkdir(parents=True, exist_ok=True)
-    _write_head(home, head)  # first, so that stop_local_ray finds a head that half started
-    try:
-        output, _ = proc.communicate(timeout=START_TIMEOUT_S)
-    except subprocess.TimeoutExpired:
-        stop_local_ray(home)
-        raise RayError(f"ray start: no answer in {START_TIMEOUT_S:.0f} s") from None
-    if proc.returncode != 0:
-        stop_local_ray(home)
-        tail = " | ".join(output.strip().splitlines()[-5:])
-        raise RayError(f"ray start failed (exit {proc.returncode}): {tail}")
-    current = Path(temp_dir) / "ray_current_cluster"
-    if current.exists():  # Ray resolves 127.0.0.1 to the node's address for the GCS
-        head.address = current.read_text().strip() or head.address
-    deadline = time.monotonic() + START_TIMEOUT_S
-    while not dashboard_answers(head.dashboard_url):
-        if time.monotonic() > deadline:
-            stop_local_ray(home)
-            raise RayError(f"Ray dashboard at {head.dashboard_url}: no answer")
-        time.sleep(0.2)
-    _write_head(home, head)
-    logger.info("local Ray head up: %s, jobs API %s", head.address, head.dashboard_url)
-    return head
-
-
-def _write_head(home: Path, head: LocalHead) -> None:
-    tmp = home / f".{STATE_FILE}.tmp"
-    tmp.write_text(head.model_dump_json(indent=2))
-    tmp.replace(home / STATE_FILE)
-
-
-def stop_local_ray(home: Path | ServiceSettings, grace_s: float = 3.0) -> bool:
-    """Stop the local head of ``home`` (a directory, or settings: their ``home``): SIGTERM
-    to its process group, SIGKILL after ``grace_s``, then its workers if they linger;
-    ``ray.json`` is removed. Only processes of that head are touched (never ``ray stop``,
-    which stops every head on the machine).
-
-    Returns:
-        True if a recorded head was found (running or not).
-    """
-    home = Path(home) if isinstance(home, str | os.PathLike) else Path(home.home)
-    head = read_head(home)
-    if head is None:
-        return False
-    ours = set(_pids_naming(head.temp_dir))
-    ours |= _descendants(ours)  # workers (``ray::IDLE``...) have groups of their own
-    if _group_is_head(head):
-        _signal_group(head.pgid, signal.SIGTERM)
-        deadline = time.monotonic() + grace_s
-        while _group_alive(head.pgid) and time.monotonic() < deadline:
-            time.sleep(0.1)
-        _signal_group(head.pgid, signal.SIGKILL)
-    deadline = time.monotonic() + 10.0
-    while (left := _alive(ours)) and time.monotonic() < deadline:
-        time.sleep(0.2)  # workers end by themselves once their raylet is gone
-    for pid in left:
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.kill(pid, signal.SIGKILL)
-    (home / STATE_FILE).unlink(missing_ok=True)
-    shutil.rmtree(head.temp_dir, ignore_errors=True)
-    logger.info("local Ray head %s stopped", head.address)
-    return True
-
-
-def _signal_group(pgid: int, sig: signal.Signals) -> None:
-    with contextlib.suppress(ProcessLookupError, PermissionError):
-        os.killpg(pgid, sig)
-
-
-def _group_alive(pgid: int) -> bool:
-    try:
-        os.killpg(pgid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-def head_processes(head: LocalHead) -> list[int]:
-    """The live daemons of ``head``: processes of its group (and session) that name its
-    temp dir (so not a later group that reused the number)."""
-    return [pid for pid in _pids_naming(head.temp_dir) if _pgid(pid) == head.pgid]
-
-
-def _group_is_head(head: LocalHead) -> bool:
-    return bool(head_processes(head))
-
-
-def _pgid(pid: int) -> int | None:
-    try:
-        return os.getpgid(pid)
-    except ProcessLookupError:
-        return None
-
-
-def _alive(pids: set[int]) -> list[int]:
-    """The processes of ``pids`` that still run (not zombies)."""
-    return [pid for pid in pids if _proc_state(pid) not in (None, "Z")]
-
-
-def _proc_state(pid: int) -> str | None:
-    """The state letter of process ``pid`` (None: gone)."""
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except (OSError, IndexError):
-        return None
-
-
-def _descendants(pids: set[int]) -> set[int]:
-    """Every process below ``pids`` (children, their children, ...)."""
-    children: dict[int, list[int]] = {}
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            except (OSError, IndexError, ValueError):
-                continue
-            children.setdefault(ppid, []).append(int(entry.name))
-    found: set[int] = set()
-    todo = list(pids)
-    while todo:
-        for child in children.get(todo.pop(), []):
-            if child not in found and child not in pids:
-                found.add(child)
-                todo.append(child)
-    return found
-
-
-def _pids_naming(text: str) -> list[int]:
-    """Live processes (not zombies) whose command line contains ``text``."""
-    found = []
-    needle = text.encode()
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit() or int(entry.name) == os.getpid():
-            continue
-        try:
-            named = needle in (entry / "cmdline").read_bytes()
-        except OSError:
-            continue
-        if named and _proc_state(int(entry.name)) not in (None, "Z"):
-            found.append(int(entry.name))
-    return found
-
-
-def first_line(what: BaseException | str) -> str:
-    """The first non-empty line of a text or an exception's message (an exception without
-    one: its type's name)."""
-    lines = [line.strip() for line in str(what).splitlines() if line.strip()]
-    if lines:
-        return lines[0]
-    return type(what).__name__ if isinstance(what, BaseException) else ""

@@ -16,7 +16,6 @@ trainer died as failed ("trainer died: ..."), to be resumed from their newest ch
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import shlex
 import sys
@@ -26,7 +25,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from gaitforge.service.jobs.layout import JobLayout
-from gaitforge.service.jobs.progress import JobProgress, read_progress
+from gaitforge.service.jobs.outcome import died_reason, log_tail, outcome
+from gaitforge.service.jobs.progress import read_progress
 from gaitforge.service.jobs.ray_cluster import first_line
 from gaitforge.service.store import JobRecord, JobStore, utcnow
 
@@ -38,8 +38,6 @@ logger = logging.getLogger(__name__)
 
 CANCEL_GRACE_S = 120.0
 """how long a cancelled job may take to end its iteration before Ray stops it, s"""
-LOG_TAIL_LINES = 5
-"""log lines quoted in the error of a trainer that died"""
 
 
 class LimitError(Exception):
@@ -246,7 +244,7 @@ class JobRunner:
             if record.cancel_requested:
                 self._stop_after_grace(layout, sid)
             return True
-        fields = self._outcome(record, layout, sid, info, progress)
+        fields = outcome(record, info, progress, lambda: self._died(layout, sid, info))
         if progress is not None:
             fields["progress_json"] = progress.model_dump_json()
         self.store.update_if(record.id, ["running"], finished_at=utcnow(), **fields)
@@ -264,45 +262,12 @@ class JobRunner:
             logger.warning("%s: no clean stop %.0f s after the cancel; Ray stops it", sid, waited)
             self.connection.client.stop_job(sid)
 
-    def _outcome(
-        self, record: JobRecord, layout: JobLayout, sid: str, info: Any | None,
-        progress: JobProgress | None,
-    ) -> dict[str, Any]:  # fmt: skip
-        """The state (and error) of a job whose Ray job ended (``info``: None if gone)."""
-        phase = progress.phase if progress is not None else None
-        if phase == "finished" and info is not None and str(info.status.value) == "SUCCEEDED":
-            return {"state": "succeeded", "error": None}
-        if phase == "failed":
-            return {"state": "failed", "error": progress.error or self._died(layout, sid, info)}
-        if record.cancel_requested:
-            forced = None if phase == "stopped" else "stopped by Ray after the cancel's grace"
-            return {"state": "cancelled", "error": forced}
-        return {"state": "failed", "error": f"trainer died: {self._died(layout, sid, info)}"}
-
     def _died(self, layout: JobLayout, sid: str, info: Any | None) -> str:
-        """Ray's word on how submission ``sid`` ended, and the last lines of its log."""
-        if info is None:
-            reason = f"Ray has no job {sid} (its cluster was restarted?)"
-        else:
-            message = first_line(info.message or "").split(", last available")[0]
-            code = info.driver_exit_code
-            reason = f"Ray job {str(info.status.value).lower()}" + (
-                f" (exit code {code})" if code is not None else "") + (
-                f": {message}" if message else "")  # fmt: skip
-        tail = self._log_tail(layout, sid if info is not None else None)
-        return f"{reason}; log: {tail}" if tail else reason
+        def ray_logs() -> str:
+            return self.connection.client.get_job_logs(sid)
 
-    def _log_tail(self, layout: JobLayout, sid: str | None) -> str:
-        """The last log lines of the job (``log.txt``; else Ray's log of ``sid``), joined."""
-        text = ""
-        with contextlib.suppress(OSError), layout.log_file.open("rb") as f:
-            f.seek(max(0, layout.log_file.stat().st_size - 8192))
-            text = f.read().decode(errors="replace")
-        if not text.strip() and sid is not None:
-            with contextlib.suppress(Exception):
-                text = self.connection.client.get_job_logs(sid)[-8192:]
-        lines = [line.strip() for line in text.splitlines() if line.strip()]
-        return " | ".join(lines[-LOG_TAIL_LINES:])
+        tail = log_tail(layout.log_file, ray_logs if info is not None else None)
+        return died_reason(sid, info, tail)
 
     def _start(self, record: JobRecord) -> None:
         """Submit the queued job's next attempt as a Ray job and mark it running."""

@@ -1,7 +1,9 @@
 """The job runner on a real local Ray head, with real entry processes and SQLite: the queue
-runs M jobs at a time, a run-time failure ends ``failed`` with its error, a cancel stops a
-running job with a checkpoint that loads, a new runner re-attaches to running jobs and marks
-one whose trainer died as failed, and a resume brings that one to success."""
+runs M jobs at a time (and one failing at run time ends ``failed`` with its error), a cancel
+stops a running job with a checkpoint that loads (and Ray stops one that does not end within
+the grace), a new runner re-attaches to running jobs and marks one whose trainer died as
+failed, a resume brings that one to success, and nothing is marked while Ray does not
+answer."""
 
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ import time
 from pathlib import Path
 
 import pytest
+from gaitforge.service.jobs.outcome import FORCED_STOP
 from gaitforge.service.jobs.ray_cluster import (
     RayConnection,
     connect_ray,
@@ -204,7 +207,7 @@ def test_a_cancel_not_honoured_within_the_grace_is_stopped_by_ray(
     finally:
         runner.stop()
     assert cancelled.state == "cancelled"
-    assert cancelled.error == "stopped by Ray after the cancel's grace"
+    assert cancelled.error == FORCED_STOP
     assert str(ray_connection.client.get_job_status(sid).value) == "STOPPED"
 
 
