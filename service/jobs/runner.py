@@ -17,6 +17,7 @@ trainer died as failed ("trainer died: ..."), to be resumed from their newest ch
 from __future__ import annotations
 
 import logging
+import os
 import shlex
 import sys
 import threading
@@ -288,8 +289,11 @@ class JobRunner:
         logger.info("job %s started (attempt %d, Ray job %s)", record.id, attempt, sid)
 
     def entrypoint(self, layout: JobLayout) -> str:
-        """The fixed command a job runs: the entry module on the job's directory."""
-        python = sys.executable if self.connection.local else "python"
+        """The fixed command a job runs: the entry module on the job's directory, with
+        ``GAITFORGE_JOB_PYTHON`` (default: this interpreter on a local head, ``python`` on a
+        cluster, as found on the PATH of its head node)."""
+        default = sys.executable if self.connection.local else "python"
+        python = os.environ.get("GAITFORGE_JOB_PYTHON") or default
         command = [python, "-m", "gaitforge.service.jobs.entry", "--job-dir", str(layout.dir)]
         if self.evaluate_episodes is not None:
             command += ["--evaluate-episodes", str(self.evaluate_episodes)]

@@ -229,3 +229,21 @@ def test_while_ray_does_not_answer_nothing_is_marked(
     runner.stop()
     assert runner.last_error is not None
     assert store.get(record.id).state == "running"
+
+
+def test_a_cluster_address_connects_to_its_jobs_api_with_the_token_from_the_environment(
+    service_settings, store, ray_connection, ray_home, monkeypatch
+) -> None:
+    from gaitforge.service.jobs.ray_cluster import read_token
+
+    monkeypatch.setenv("GAITFORGE_RAY_DASHBOARD", ray_connection.dashboard_url)
+    monkeypatch.setenv("RAY_AUTH_TOKEN", read_token(ray_home))
+    settings = service_settings.model_copy(update={"ray_address": ray_connection.address})
+    cluster = connect_ray(settings)
+    assert (cluster.local, cluster.started) == (False, False)
+    assert cluster.address == ray_connection.address
+    cluster.client.list_jobs()  # authenticated
+    runner = JobRunner(settings, store, cluster)
+    assert runner.entrypoint(runner.layout("j-0")).startswith("python -m gaitforge.service.")
+    monkeypatch.setenv("GAITFORGE_JOB_PYTHON", "/opt/venv/bin/python")
+    assert runner.entrypoint(runner.layout("j-0")).startswith("/opt/venv/bin/python -m ")
