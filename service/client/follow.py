@@ -19,7 +19,12 @@ def status_line(status: dict) -> str:
     """One line for a job's status: state, stage, env steps, speed and the latest episode
     metrics, e.g. ``j-0123456789ab running  stage 2/4 walk-2d 12,288/20,000  40,960 env steps
     1,234 steps/s  return 12.3  speed 0.52 m/s  falls 30 %``."""
-    parts = [f"{status.get('id', '?')} {status.get('state', '?')}"]
+    state, phase = status.get("state", "?"), status.get("phase")
+    if state == "running" and status.get("cancel_requested"):
+        phase = "cancel requested"
+    busy = state == "running" and phase not in (None, "training")
+    shown = f"{state} ({phase})" if busy else state
+    parts = [f"{status.get('id', '?')} {shown}"]
     stage = status.get("stage") or {}
     if stage:
         count = stage.get("count")

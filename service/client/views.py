@@ -6,6 +6,9 @@ from __future__ import annotations
 from gaitforge.service.console import table
 from rich.table import Table
 
+SHOWN = frozenset({"iteration", "env_steps", "stage", "stage_env_steps", "steps_per_s", "epochs"})
+"""metrics the status table shows elsewhere (or that say little)"""
+
 
 def jobs_table(page: dict) -> Table:
     """``GET /v1/jobs``'s page: one row per job, and the page's place in the total."""
@@ -51,7 +54,7 @@ def status_table(job: dict) -> Table:
     if job.get("latest_checkpoint"):
         rows.add_row("checkpoint", str(job["latest_checkpoint"]))
     metrics = job.get("metrics") or {}
-    scalars = {k: v for k, v in metrics.items() if isinstance(v, int | float)}
+    scalars = {k: v for k, v in metrics.items() if isinstance(v, int | float) and k not in SHOWN}
     if scalars:
         rows.add_row("metrics", "   ".join(f"{k} {v:.4g}" for k, v in scalars.items()))
     terms = metrics.get("reward_terms") or {}
