@@ -8,6 +8,7 @@ from typing import Any
 from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
 from gaitforge.learner.job import Job
+from gaitforge.service.api.examples import schema_examples
 from gaitforge.service.api.problems import PROBLEM_JSON, Problem, problem_responses
 from gaitforge.workers.scenes import Scene, catalogue
 from pydantic import BaseModel
@@ -44,6 +45,16 @@ def build_openapi(app: FastAPI) -> dict[str, Any]:
         "description": "a catalogue scene's name, or an inline scene (the scene file's "
         "fields); never a path",
     }
+    rule = {
+        "anyOf": [
+            {"type": "string", "description": "'<metric> >=|<= <value> [over <episodes>]'"},
+            {"$ref": "#/components/schemas/PromotionRule"},
+        ]
+    }
+    stage["promote"] = {
+        "anyOf": [rule, {"type": "array", "items": rule}],
+        "description": "rules that must all pass to promote early; one rule may be given alone",
+    }
     problem_422 = problem_responses(422)[422]
     for operations in doc.get("paths", {}).values():
         for operation in operations.values():
@@ -53,5 +64,8 @@ def build_openapi(app: FastAPI) -> dict[str, Any]:
                 responses["422"] = problem_422
     for name in _FASTAPI_422:
         schemas.pop(name, None)
+    for name, example in schema_examples(schemas).items():
+        if name in schemas and not schemas[name].get("examples"):
+            schemas[name]["examples"] = [example]
     app.openapi_schema = doc
     return doc

@@ -22,19 +22,21 @@ router = APIRouter(
 
 
 @lru_cache(maxsize=1)
-def _summaries() -> tuple[ops.SceneSummary, ...]:
+def summaries() -> tuple[ops.SceneSummary, ...]:
+    """The catalogue's scenes (listed once per process: the catalogue ships with the code)."""
     return tuple(ops.list_scenes())
 
 
 @lru_cache(maxsize=64)
-def _report(name: str, backend: str | None) -> ops.SceneReport:
+def report(name: str, backend: str | None) -> ops.SceneReport:
+    """Scene ``name``'s compile report for ``backend`` (compiled once per process)."""
     return ops.show_scene(name, backend)
 
 
 @router.get("", response_model=list[ops.SceneSummary], summary="The scene catalogue")
 def list_scenes() -> list[ops.SceneSummary]:
     """Every shipped scene: body, backends, task, control rate, episode length."""
-    return list(_summaries())
+    return list(summaries())
 
 
 @router.get(
@@ -54,7 +56,7 @@ def show_scene(
     if name not in catalogue():
         raise ProblemError(404, f"no scene {name!r} in the catalogue")
     try:
-        return _report(name, backend)
+        return report(name, backend)
     except InputError as exc:  # the scene does not run on that backend
         errors = [FieldError(field=exc.field, message=exc.problem)]
         raise ProblemError(422, str(exc), errors=errors) from None
