@@ -2,7 +2,7 @@
 own (so it outlives the service, even a ``kill -9`` of it), found again through
 ``{home}/ray.json``, stopped by its own processes.
 
-    head = running_head(home) or start_local_ray(home)   # about 7 s to start
+    head, started = local_head(home)     # the running one, or a new one (about 7 s)
     stop_local_ray(home)                                  # `gaitforge serve --stop-ray`
 
 The head binds its dashboard (the jobs API) to 127.0.0.1 on a free port, every other port it
@@ -14,6 +14,7 @@ is its own (``/tmp/gf-ray-<8 chars>``: socket paths must stay short), and it run
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import logging
 import os
 import secrets
@@ -26,9 +27,18 @@ import tempfile
 import time
 import urllib.error
 import urllib.request
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from gaitforge.service.jobs.procs import (
+    alive,
+    descendants,
+    group_alive,
+    pgid_of,
+    pids_naming,
+    signal_group,
+)
 from pydantic import BaseModel
 
 if TYPE_CHECKING:
@@ -38,6 +48,7 @@ logger = logging.getLogger(__name__)
 
 STATE_FILE = "ray.json"
 TOKEN_FILE = "ray-token"
+LOCK_FILE = "ray.lock"
 START_TIMEOUT_S = 90.0
 """how long ``ray start`` and the dashboard may take to come up"""
 JOB_STOP_WAIT_S = 60
@@ -114,14 +125,44 @@ def free_ports(n: int) -> list[int]:
     return ports
 
 
-def start_local_ray(home: Path, num_cpus: int | None = None) -> LocalHead:
-    """Start a local head for ``home`` (``ray start --head``, about 7 s) and record it in
-    ``{home}/ray.json``; an earlier head of ``home`` that no longer answers is stopped first.
+def local_head(home: Path) -> tuple[LocalHead, bool]:
+    """``home``'s local head: the running one, else a new one (:func:`start_local_ray`);
+    and whether it was started now.
 
     Raises:
         RayError: ``ray start`` failed or the dashboard did not come up.
     """
-    stop_local_ray(home)
+    with _locked(home):
+        head = running_head(home)
+        return (head, False) if head is not None else (_start(home), True)
+
+
+def start_local_ray(home: Path, num_cpus: int | None = None) -> LocalHead:
+    """Start a local head for ``home`` (``ray start --head``, about 7 s) and record it in
+    ``{home}/ray.json``; an earlier head of ``home`` is stopped first. Starting and stopping
+    take ``{home}/ray.lock`` (a stop waits for a start under way, then stops that head).
+
+    Raises:
+        RayError: ``ray start`` failed or the dashboard did not come up.
+    """
+    with _locked(home):
+        return _start(home, num_cpus)
+
+
+@contextlib.contextmanager
+def _locked(home: Path) -> Iterator[None]:
+    """Hold ``{home}/ray.lock`` (an exclusive ``flock``; not re-entrant)."""
+    home.mkdir(parents=True, exist_ok=True)
+    with (home / LOCK_FILE).open("a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+def _start(home: Path, num_cpus: int | None = None) -> LocalHead:
+    _stop(home)
     token = read_token(home)
     temp_dir = tempfile.mkdtemp(prefix="gf-ray-", dir="/tmp")
     gcs, dashboard, client, agent, agent_grpc, metrics, env_agent = free_ports(7)
@@ -153,10 +194,10 @@ def start_local_ray(home: Path, num_cpus: int | None = None) -> LocalHead:
     try:
         output, _ = proc.communicate(timeout=START_TIMEOUT_S)
     except subprocess.TimeoutExpired:
-        stop_local_ray(home)
+        _stop(home)
         raise RayError(f"ray start: no answer in {START_TIMEOUT_S:.0f} s") from None
     if proc.returncode != 0:
-        stop_local_ray(home)
+        _stop(home)
         tail = " | ".join(output.strip().splitlines()[-5:])
         raise RayError(f"ray start failed (exit {proc.returncode}): {tail}")
     current = Path(temp_dir) / "ray_current_cluster"
@@ -165,7 +206,7 @@ def start_local_ray(home: Path, num_cpus: int | None = None) -> LocalHead:
     deadline = time.monotonic() + START_TIMEOUT_S
     while not dashboard_answers(head.dashboard_url):
         if time.monotonic() > deadline:
-            stop_local_ray(home)
+            _stop(home)
             raise RayError(f"Ray dashboard at {head.dashboard_url}: no answer")
         time.sleep(0.2)
     _write_head(home, head)
@@ -189,19 +230,26 @@ def stop_local_ray(home: Path | ServiceSettings, grace_s: float = 3.0) -> bool:
         True if a recorded head was found (running or not).
     """
     home = Path(home) if isinstance(home, str | os.PathLike) else Path(home.home)
+    if not home.is_dir():
+        return False
+    with _locked(home):
+        return _stop(home, grace_s)
+
+
+def _stop(home: Path, grace_s: float = 3.0) -> bool:
     head = read_head(home)
     if head is None:
         return False
-    ours = set(_pids_naming(head.temp_dir))
-    ours |= _descendants(ours)  # workers (``ray::IDLE``...) have groups of their own
+    ours = set(pids_naming(head.temp_dir))
+    ours |= descendants(ours)  # workers (``ray::IDLE``...) have groups of their own
     if _group_is_head(head):
-        _signal_group(head.pgid, signal.SIGTERM)
+        signal_group(head.pgid, signal.SIGTERM)
         deadline = time.monotonic() + grace_s
-        while _group_alive(head.pgid) and time.monotonic() < deadline:
+        while group_alive(head.pgid) and time.monotonic() < deadline:
             time.sleep(0.1)
-        _signal_group(head.pgid, signal.SIGKILL)
+        signal_group(head.pgid, signal.SIGKILL)
     deadline = time.monotonic() + 10.0
-    while (left := _alive(ours)) and time.monotonic() < deadline:
+    while (left := alive(ours)) and time.monotonic() < deadline:
         time.sleep(0.2)  # workers end by themselves once their raylet is gone
     for pid in left:
         with contextlib.suppress(ProcessLookupError, PermissionError):
@@ -212,85 +260,14 @@ def stop_local_ray(home: Path | ServiceSettings, grace_s: float = 3.0) -> bool:
     return True
 
 
-def _signal_group(pgid: int, sig: signal.Signals) -> None:
-    with contextlib.suppress(ProcessLookupError, PermissionError):
-        os.killpg(pgid, sig)
-
-
-def _group_alive(pgid: int) -> bool:
-    try:
-        os.killpg(pgid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
 def head_processes(head: LocalHead) -> list[int]:
     """The live daemons of ``head``: processes of its group (and session) that name its
     temp dir (so not a later group that reused the number)."""
-    return [pid for pid in _pids_naming(head.temp_dir) if _pgid(pid) == head.pgid]
+    return [pid for pid in pids_naming(head.temp_dir) if pgid_of(pid) == head.pgid]
 
 
 def _group_is_head(head: LocalHead) -> bool:
     return bool(head_processes(head))
-
-
-def _pgid(pid: int) -> int | None:
-    try:
-        return os.getpgid(pid)
-    except ProcessLookupError:
-        return None
-
-
-def _alive(pids: set[int]) -> list[int]:
-    """The processes of ``pids`` that still run (not zombies)."""
-    return [pid for pid in pids if _proc_state(pid) not in (None, "Z")]
-
-
-def _proc_state(pid: int) -> str | None:
-    """The state letter of process ``pid`` (None: gone)."""
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except (OSError, IndexError):
-        return None
-
-
-def _descendants(pids: set[int]) -> set[int]:
-    """Every process below ``pids`` (children, their children, ...)."""
-    children: dict[int, list[int]] = {}
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            except (OSError, IndexError, ValueError):
-                continue
-            children.setdefault(ppid, []).append(int(entry.name))
-    found: set[int] = set()
-    todo = list(pids)
-    while todo:
-        for child in children.get(todo.pop(), []):
-            if child not in found and child not in pids:
-                found.add(child)
-                todo.append(child)
-    return found
-
-
-def _pids_naming(text: str) -> list[int]:
-    """Live processes (not zombies) whose command line contains ``text``."""
-    found = []
-    needle = text.encode()
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit() or int(entry.name) == os.getpid():
-            continue
-        try:
-            named = needle in (entry / "cmdline").read_bytes()
-        except OSError:
-            continue
-        if named and _proc_state(int(entry.name)) not in (None, "Z"):
-            found.append(int(entry.name))
-    return found
 
 
 def first_line(what: BaseException | str) -> str:

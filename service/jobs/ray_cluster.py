@@ -24,6 +24,7 @@ from gaitforge.service.jobs.local_ray import (
     RayError,
     first_line,
     head_processes,
+    local_head,
     read_head,
     read_token,
     running_head,
@@ -47,6 +48,7 @@ __all__ = [
     "first_line",
     "head_processes",
     "jobs_client",
+    "local_head",
     "read_head",
     "read_token",
     "running_head",
@@ -82,10 +84,7 @@ def connect_ray(settings: ServiceSettings) -> RayConnection:
     if settings.ray_address:
         return connect_cluster(settings.ray_address)
     home = Path(settings.home)
-    head = running_head(home)
-    started = head is None
-    if head is None:
-        head = start_local_ray(home)
+    head, started = local_head(home)
     token = read_token(home)
     client = jobs_client(head.dashboard_url, token)
     return RayConnection(head.address, head.dashboard_url, client, started=started, local=True)
