@@ -99,6 +99,7 @@ def create_app(settings: ServiceSettings | None = None, runner: JobRunner | None
             yield
         finally:
             await run_in_threadpool(started.stop)
+            started.store.close()
 
     app = FastAPI(
         title="gaitforge", version=_version(), description=DESCRIPTION,

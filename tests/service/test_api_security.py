@@ -211,3 +211,19 @@ def test_no_tokens_generates_a_local_one(tmp_path) -> None:
     assert create_app(settings).state.tokens == {token: "local"}  # kept across restarts
     with pytest.raises(ValueError, match="host"):
         create_app(ServiceSettings(home=tmp_path / "h2", host="0.0.0.0"))
+
+
+def test_lifespan_opens_store_connects_ray_and_runs_the_runner(service_settings) -> None:
+    import time
+
+    settings = service_settings.model_copy(update={"tokens": TOKENS})
+    app = create_app(settings)  # no runner given: the lifespan makes one
+    with TestClient(app) as client:
+        runner = app.state.runner
+        assert isinstance(runner, JobRunner) and app.state.store is runner.store
+        deadline = time.monotonic() + 30
+        while runner.last_pass_at is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert runner.last_pass_at is not None, runner.last_error
+        assert client.get("/v1/jobs", headers=auth()).json()["total"] == 0
+        assert client.get("/healthz").json()["status"] == "ok"
