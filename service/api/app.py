@@ -28,8 +28,9 @@ logger = logging.getLogger(__name__)
 
 DESCRIPTION = """Submit training jobs (validated specs: catalogue scenes or inline scenes,
 never code or paths), follow them live, download checkpoints, recordings and evaluation
-reports. Every endpoint but `/healthz` needs `Authorization: Bearer <token>`; a job is its
-token owner's only (another owner's job answers 404). Errors are `application/problem+json`."""
+reports. Every endpoint but `/healthz` and the documentation (`/openapi.json`, `/docs`) needs
+`Authorization: Bearer <token>`; a job is its token owner's only (another owner's job answers
+404). Errors are `application/problem+json`."""
 TAGS = [
     {"name": "jobs", "description": "submit, list, follow, cancel and resume training jobs"},
     {"name": "artifacts", "description": "a job's checkpoints, recordings and reports"},
@@ -104,6 +105,7 @@ def create_app(settings: ServiceSettings | None = None, runner: JobRunner | None
     app = FastAPI(
         title="gaitforge", version=_version(), description=DESCRIPTION,
         openapi_tags=TAGS, lifespan=lifespan, dependencies=[Depends(known_query)],
+        redoc_url=None, swagger_ui_oauth2_redirect_url=None,
     )  # fmt: skip
     app.state.settings, app.state.tokens = settings, tokens
     if runner is not None:

@@ -65,7 +65,8 @@ _SUBMIT_BODY = {
 )
 async def submit_job(request: Request, response: Response, owner: Owner) -> JobStatus:
     """Validate the job spec and queue it; 201 with its status (``Location``: its URL)."""
-    spec = parse_body(await request.body(), request.headers.get("content-type"))
+    body = await request.body()  # the size limit applies as it arrives
+    spec = await run_in_threadpool(parse_body, body, request.headers.get("content-type"))
     runner = app_runner(request)
     try:
         record = await run_in_threadpool(runner.submit, owner, spec)
