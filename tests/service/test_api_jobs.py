@@ -237,3 +237,15 @@ def test_events_progress_heartbeat_then_end(api: Api) -> None:
     data = [json.loads(line.removeprefix("data: ")) for line in lines if line.startswith("data:")]
     assert [d["state"] for d in data] == ["queued", "cancelled", "cancelled"]
     assert lines.index(": ping") < lines.index("event: end")
+
+
+def test_a_failed_job_shows_its_error_and_resume(api: Api) -> None:
+    job = api.store.create("alice", "failing", {"name": "failing", "stages": []})
+    api.store.update(job.id, state="failed", attempt=1, error="trainer died: exit code 1")
+    status = api.client.get(f"/v1/jobs/{job.id}", headers=auth()).json()
+    assert status["state"] == "failed" and status["error"] == "trainer died: exit code 1"
+    assert status["actions"] == [
+        {"name": "resume", "method": "POST", "href": f"/v1/jobs/{job.id}/resume"}
+    ]
+    failed = api.client.get("/v1/jobs?state=failed", headers=auth()).json()["items"]
+    assert job.id in [j["id"] for j in failed]
