@@ -26,6 +26,8 @@ DEFAULT_SERVER = "http://127.0.0.1:8765"
 ARTIFACT_KINDS = ("checkpoints", "recordings", "reports")
 SHA_HEADER = "X-Content-SHA256"
 CHUNK_BYTES = 1 << 20
+SSE_READ_S = 60.0
+"""s without a byte on an event stream (the service pings every 15 s) before reconnecting"""
 
 
 class ClientError(Exception):
@@ -190,7 +192,7 @@ class GaitforgeClient:
         JSON where it is), until the stream ends."""
         try:
             with self.http.stream(
-                "GET", f"/v1/jobs/{job_id}/events", timeout=httpx.Timeout(30.0, read=None)
+                "GET", f"/v1/jobs/{job_id}/events", timeout=httpx.Timeout(30.0, read=SSE_READ_S)
             ) as response:
                 if response.is_error:
                     response.read()

@@ -31,9 +31,9 @@ CLI = [sys.executable, "-m", "gaitforge.service.cli"]
 class Service:
     """A ``gaitforge serve`` process on ``home`` and a free loopback port."""
 
-    def __init__(self, home: Path) -> None:
+    def __init__(self, home: Path, port: int | None = None) -> None:
         self.home = home
-        self.server = f"http://127.0.0.1:{free_port()}"
+        self.server = f"http://127.0.0.1:{port or free_port()}"
         self.env = {
             **os.environ, "GAITFORGE_HOME": str(home), "GAITFORGE_SERVER": self.server,
             "GAITFORGE_PORT": self.server.rsplit(":", 1)[1], "GAITFORGE_POLL_INTERVAL_S": "0.2",
@@ -65,13 +65,13 @@ class Service:
 
 
 @pytest.fixture
-def service(service_home: Path) -> Iterator[Callable[[], Service]]:
+def service(service_home: Path) -> Iterator[Callable[..., Service]]:
     """Start services on the test's home (re-attached to the session's Ray head, which the
     session's fixture stops); each is killed at the end."""
     started: list[Service] = []
 
-    def start() -> Service:
-        started.append(Service(service_home).start())
+    def start(port: int | None = None) -> Service:
+        started.append(Service(service_home, port).start())
         return started[-1]
 
     yield start
@@ -139,22 +139,30 @@ def _errors_are_one_line(svc: Service, tiny_job: Callable[..., dict], tmp_path: 
 
 
 def test_a_job_keeps_running_across_a_killed_service(
-    service: Callable[[], Service], tiny_job: Callable[..., dict]
+    service: Callable[..., Service], tiny_job: Callable[..., dict]
 ) -> None:
     first = service()
     headers = {"Authorization": f"Bearer {(first.home / 'token').read_text().strip()}"}
     spec = tiny_job(name="outlives", env_steps=256 * 32, every_iters=4)
     job = httpx.post(f"{first.server}/v1/jobs", json=spec, headers=headers).raise_for_status()
     job_id = job.json()["id"]
-    before = _wait(first, job_id, lambda s: (s.get("iteration") or 0) >= 1, 90)
-    first.kill()
-    second = service()  # the same home: the same database and Ray head
-    after = _wait(second, job_id, lambda s: (s.get("iteration") or 0) > before["iteration"], 60)
-    assert after["state"] in ("running", "succeeded"), after
-    code, output = second.cli("status", job_id, "--follow", "--json")
-    assert code == 0, output
-    final = json.loads(output[output.index("{") :])
+    follower = subprocess.Popen(
+        [*CLI, "status", job_id, "--follow", "--json"], env=first.env, text=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )  # fmt: skip
+    try:
+        before = _wait(first, job_id, lambda s: (s.get("iteration") or 0) >= 1, 90)
+        first.kill()
+        second = service(int(first.server.rsplit(":", 1)[1]))  # same home, port, Ray head
+        after = _wait(second, job_id, lambda s: (s.get("iteration") or 0) > before["iteration"], 60)
+        assert after["state"] in ("running", "succeeded"), after
+        output, errors = follower.communicate(timeout=120)
+    finally:
+        follower.kill()
+    assert follower.returncode == 0, errors
+    final = json.loads(output)
     assert final["state"] == "succeeded" and final["attempt"] == 1, final
+    assert "unreachable; retrying" in errors, "the follower lived through the restart"
 
 
 def test_serve_refuses_other_hosts_without_tokens(tmp_path: Path) -> None:
