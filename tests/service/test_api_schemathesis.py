@@ -33,7 +33,8 @@ from tests.service.api_support import ALICE, TOKENS, seed_job
 
 MAX_EXAMPLES = int(os.environ.get("GAITFORGE_SCHEMATHESIS_EXAMPLES", "6"))
 """examples per operation and mode (more for a deeper search, by hand)"""
-_DOC = create_app(ServiceSettings(home=Path("unused"), tokens=TOKENS)).openapi()
+# the document only: this app is never started (its home is never touched)
+_DOC = create_app(ServiceSettings(home=Path("/nonexistent/doc-only"), tokens=TOKENS)).openapi()
 CASES = [
     pytest.param(method.upper(), path, mode, id=f"{method.upper()} {path} {mode.value}")
     for path, operations in _DOC["paths"].items()
