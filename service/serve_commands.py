@@ -85,6 +85,10 @@ def serve(
     import uvicorn
     from gaitforge.service.api import create_app
 
+    service_logger = logging.getLogger("gaitforge.service")
+    if service_logger.getEffectiveLevel() > logging.INFO:  # job starts, ends, re-attaches
+        service_logger.setLevel(logging.INFO)
+
     settings.home.mkdir(parents=True, exist_ok=True)
     try:
         app = create_app(settings)

@@ -104,7 +104,12 @@ def jobs(
     """List your jobs, newest first."""
     with connected(server, token, token_file) as client:
         page = client.jobs(state.value if state else None, offset, limit)
-    print_json(page) if json_out else out.print(jobs_table(page))
+    if json_out:
+        print_json(page)
+    elif not page.get("items"):
+        out.print(f"no jobs{f' {state.value}' if state else ''} (total {page.get('total', 0)})")
+    else:
+        out.print(jobs_table(page))
 
 
 def status(
