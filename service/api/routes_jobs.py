@@ -60,7 +60,13 @@ _SUBMIT_BODY = {
     status_code=201,
     response_model=JobStatus,
     summary="Submit a job",
-    responses=problem_responses(413, 415, 422, 429),
+    responses={
+        201: {
+            "description": "queued; its status",
+            "headers": {"Location": {"description": "the job's URL", "schema": {"type": "string"}}},
+        },
+        **problem_responses(413, 415, 422, 429),
+    },
     openapi_extra={"requestBody": _SUBMIT_BODY},
 )
 async def submit_job(request: Request, response: Response, owner: Owner) -> JobStatus:
