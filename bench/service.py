@@ -12,8 +12,9 @@ each has shown an iteration. Then, one after the other:
 * freshness: for ``--seconds``, every job's status is read every 50 ms by one client; the
   first answer showing a new iteration carries ``progress_age_s``, the time since the
   trainer wrote that iteration's progress.json (server clock, same machine): that is the
-  iteration-to-API latency (it overstates by at most the 50 ms between reads). The runner
-  copies progress into the database every ``--poll-interval`` s, the main term.
+  iteration-to-API latency (it overstates by at most one round of reads: 50 ms of sleep
+  and the four requests). The runner copies progress into the database every
+  ``--poll-interval`` s, the main term.
 * throughput: for each count in ``--clients``, that many threads (one keep-alive
   connection each) read the four jobs' statuses in turn for ``--seconds`` or ``--requests``
   answers in all, whichever comes first; requests/s and latency percentiles.
