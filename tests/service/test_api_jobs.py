@@ -6,6 +6,7 @@ paging and the state filter, logs by offset, metrics since an iteration, cancel 
 from __future__ import annotations
 
 import json
+import sqlite3
 from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import timedelta
@@ -249,3 +250,14 @@ def test_a_failed_job_shows_its_error_and_resume(api: Api) -> None:
     ]
     failed = api.client.get("/v1/jobs?state=failed", headers=auth()).json()["items"]
     assert job.id in [j["id"] for j in failed]
+
+
+def test_an_unexpected_error_is_a_problem_without_details(api: Api) -> None:
+    job = api.store.create("alice", "odd", {"name": "odd", "stages": []})
+    with sqlite3.connect(api.settings.db_url.removeprefix("sqlite:///")) as db:  # as if a
+        db.execute("UPDATE jobs SET state = 'paused' WHERE id = ?", (job.id,))  # newer service
+    client = TestClient(api.client.app, raise_server_exceptions=False)
+    body = _problem(client.get(f"/v1/jobs/{job.id}", headers=auth()), 500)
+    assert body["detail"] == "internal error (logged by the service)"
+    assert "Traceback" not in json.dumps(body) and "paused" not in json.dumps(body)
+    api.store.update(job.id, state="cancelled")
