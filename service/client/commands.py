@@ -221,7 +221,10 @@ def _follow(client: GaitforgeClient, job_id: str, log_every: float) -> dict:
     if err.is_terminal:
         line = Text("waiting for the first status ...")
         with Live(line, console=err, refresh_per_second=4, transient=True) as live:
-            return follow_events(client, job_id, lambda s: live.update(Text(status_line(s))))
+            return follow_events(
+                client, job_id,
+                lambda s: live.update(Text(status_line(s), no_wrap=True, overflow="ellipsis")),
+            )  # fmt: skip
     if logger.getEffectiveLevel() > logging.INFO:
         logger.setLevel(logging.INFO)
     last = [0.0, ""]
