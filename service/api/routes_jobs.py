@@ -113,9 +113,11 @@ def get_metrics(
     since: Annotated[
         int | None, Query(ge=0, le=1_000_000_000, description="only iterations after this one")
     ] = None,
+    limit: Annotated[int, Query(ge=1, le=100_000, description="points at most")] = 10_000,
 ) -> MetricsSeries:
-    """The job's metrics, one point per PPO iteration (for plotting)."""
-    points = read_metrics(layout.metrics_file, since)
+    """The job's metrics, one point per PPO iteration (for plotting); page on with
+    ``since=last_iteration``."""
+    points = read_metrics(layout.metrics_file, since)[:limit]
     last = points[-1].get("iteration") if points else since
     return MetricsSeries(job_id=job.id, since=since, points=points, last_iteration=last)
 

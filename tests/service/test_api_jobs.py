@@ -143,6 +143,8 @@ def test_status_logs_and_metrics_from_the_job_files(api: Api) -> None:
     assert [p["iteration"] for p in metrics["points"]] == [1, 2]  # the half line skipped
     newer = api.client.get(f"{base}/metrics?since=1", headers=auth()).json()
     assert [p["iteration"] for p in newer["points"]] == [2] and newer["last_iteration"] == 2
+    first = api.client.get(f"{base}/metrics?limit=1", headers=auth()).json()
+    assert [p["iteration"] for p in first["points"]] == [1] and first["last_iteration"] == 1
 
     whole = "starting\nitération 1\n"  # "é" is 2 bytes: a limit of 12 splits it
     chunk = api.client.get(f"{base}/logs?offset=0&limit=12", headers=auth()).json()
