@@ -71,7 +71,8 @@ def test_a_problem_is_one_line_with_its_field_errors() -> None:
     )
     error = ApiError.from_response(response)
     assert str(error) == (
-        "422 Unprocessable Content: the job spec is invalid (stages.0.scene: paths are not accepted)"
+        "422 Unprocessable Content: the job spec is invalid "
+        "(stages.0.scene: paths are not accepted)"
     )
     assert str(ApiError.from_response(httpx.Response(502, text="<html>bad\n gateway</html>"))) == (
         "HTTP 502: <html>bad gateway</html>"
