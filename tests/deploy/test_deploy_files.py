@@ -155,7 +155,10 @@ def test_dockerfile_builds_a_non_root_cpu_image_with_a_health_check() -> None:
     kinds = [kind for kind, _ in steps]
     assert kinds[0] in ("ARG", "FROM") and "FROM" in kinds
     users = [args.split()[0] for kind, args in steps if kind == "USER"]
-    assert users and users[-1] not in ("root", "0", "0:0"), "the image runs as root"
+    assert users and users[-1].split(":")[0].isdigit(), "USER numeric (runAsNonRoot checks it)"
+    assert int(users[-1].split(":")[0]) != 0, "the image runs as root"
+    env = " ".join(args for kind, args in steps if kind == "ENV")
+    assert re.search(r"\bHOME=/home/", env), "HOME in the image's env (ray up places files there)"
     assert kinds.index("USER") < kinds.index("CMD")
     (health,) = [args for kind, args in steps if kind == "HEALTHCHECK"]
     assert "gaitforge-healthcheck" in health and not health.upper().startswith("NONE")

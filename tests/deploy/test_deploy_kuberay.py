@@ -163,8 +163,10 @@ def test_api_probes_healthz_and_runs_non_root(objects: list[dict[str, Any]]) -> 
     for probe in ("livenessProbe", "readinessProbe"):
         get = container[probe]["httpGet"]
         assert get["path"] == "/healthz" and get["port"] in (port["name"], API_PORT), probe
+    (user,) = [a for k, a in dockerfile_instructions(DEPLOY / "Dockerfile") if k == "USER"]
     for where, spec in pod_specs(objects):
         assert spec["securityContext"]["runAsNonRoot"] is True, where
+        assert str(spec["securityContext"]["runAsUser"]) == user.split(":")[0], where
     (service,) = by_kind(objects, "Service")
     (service_port,) = service["spec"]["ports"]
     assert service_port["targetPort"] in (port["name"], API_PORT)
