@@ -4,8 +4,9 @@ as data only, then written into a job's folder for its trainer.
 Data only: a stage's ``scene`` is a catalogue name or an inline scene (a mapping validated as
 a ``Scene``); names that reach the file system (the scene, an inline scene's ``body`` and
 ``task.imitate.motion``, ``warm_start.excitations``) must be plain names, never paths;
-``workers.ray_address`` is refused (the service decides where jobs run); anything not in the
-schema is refused. Then the job is written into a scratch folder and loaded exactly as its
+``workers.ray_address`` is refused (the service decides where jobs run), as is an inline scene's
+``fault`` (fault injection, which hangs or poisons simulators, is for tests); anything not in
+the schema is refused. Then the job is written into a scratch folder and loaded exactly as its
 trainer will load it (``learner.job.load_job``: every scene compiled and resolved; the stages
 checked to fit one policy lineage), so that a job that cannot run fails here, with a 422,
 not minutes later.
@@ -112,6 +113,8 @@ def _inline_scene(raw: dict, field: str, errors: list[tuple[str, str]]) -> Scene
     if imitate is not None:
         names.append(("task.imitate.motion", imitate.motion, "a motion shipped for the body"))
     bad = [(f"{field}.{f}", p) for f, v, what in names if (p := _name_problem(v, what))]
+    if scene.fault is not None:
+        bad.append((f"{field}.fault", "not accepted: fault injection is for tests, not jobs"))
     errors.extend(bad)
     return None if bad else scene
 
