@@ -20,6 +20,7 @@ Under a Ray job (``RAY_ADDRESS`` set by Ray) its rollout actors join that cluste
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 import os
 import socket
@@ -43,6 +44,7 @@ from gaitforge.service.jobs.progress import (
 from gaitforge.service.signals import SignalStop
 
 if TYPE_CHECKING:
+    from gaitforge.learner.evaluate_results import EvaluationReport
     from gaitforge.service.ops.train import Training
 
 logger = logging.getLogger("gaitforge.service.jobs.entry")
@@ -133,6 +135,21 @@ class IterationReport:
         )  # fmt: skip
 
 
+def within_job(report: EvaluationReport, job_dir: Path) -> EvaluationReport:
+    """``report`` with its file names (checkpoint, recording, video) relative to the job's
+    folder: a served report does not show the server's directories."""
+
+    def relative(name: str | None) -> str | None:
+        if name is None or not Path(name).is_relative_to(job_dir):
+            return name
+        return str(Path(name).relative_to(job_dir))
+
+    return dataclasses.replace(
+        report, checkpoint=relative(report.checkpoint), recording=relative(report.recording),
+        video=relative(report.video),
+    )  # fmt: skip
+
+
 def evaluate_final(layout: JobLayout, reporter: Reporter, episodes: int, video: bool) -> None:
     """Evaluate the newest checkpoint deterministically: report JSON, MCAP and (if ``video``
     and rendering works here) MP4 of the first episode. A failing video is logged and the
@@ -164,7 +181,7 @@ def evaluate_final(layout: JobLayout, reporter: Reporter, episodes: int, video: 
         movie.unlink(missing_ok=True)
         report = ops.evaluate(request(None))
     path = layout.reports_dir / f"evaluate-{checkpoint.name}.json"
-    ops.write_report(report, path)
+    ops.write_report(within_job(report, layout.dir), path)
     logger.info("evaluation report: %s", path)
 
 

@@ -119,6 +119,9 @@ def test_a_job_trains_reports_and_is_evaluated(finished: Finished) -> None:
 
     report = json.loads((layout.reports_dir / "evaluate-ckpt-000000001024.json").read_text())
     assert len(report["results"]["deterministic"]["episodes"]) == 1
+    # file names relative to the job's folder: a served report shows no server directories
+    assert report["checkpoint"] == "run/checkpoints/ckpt-000000001024"
+    assert report["recording"] == "evaluation/ckpt-000000001024.mcap"
     names = [p.name for p in layout.recording_files()]
     assert "ckpt-000000001024.mcap" in names
     assert ("ckpt-000000001024.mp4" in names) == _video_works()
