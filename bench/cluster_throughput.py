@@ -120,7 +120,8 @@ def table_rows(results: dict) -> tuple[list[tuple[str, ...]], str]:
         f"{results['seconds']:g} s per row, {results['envs_per_worker']} envs per actor, "
         f"{results['fragment_length']}-step fragments; raw = mean of "
         f"{results['raw_first']:.1f} (first) and {results['raw_last']:.1f} (last); "
-        "one worker node (--num-cpus 1) per actor, a head with no CPUs"
+        "one worker node (--num-cpus 1) per actor, a head with no CPUs; load average "
+        f"{results['load_1min']['before']:.2f} before, {results['load_1min']['after']:.2f} after"
     )
     if max(r["actors"] for r in results["rows"]) + 1 > cores:
         caption += (
@@ -181,6 +182,7 @@ def main() -> None:
                   f"{platform.python_version()}, ray {ray.__version__}, mujoco "
                   f"{mujoco.__version__}\nplatform: {platform.platform()}")  # fmt: skip
     act_dim = MuscleEnv(args.scene, args.backend).action_space.shape[0]
+    load_before = os.getloadavg()[0]
     columns = (TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True) as progress:
         raws = [single.raw_rate(args.scene, args.backend, args.seconds, progress)]
@@ -192,6 +194,7 @@ def main() -> None:
         "seconds": args.seconds, "envs_per_worker": args.envs_per_worker,
         "fragment_length": args.fragment_length, "raw_first": raws[0], "raw_last": raws[1],
         "raw_steps_per_s": sum(raws) / 2, "rows": rows,
+        "load_1min": {"before": load_before, "after": os.getloadavg()[0]},
         "measured_at": datetime.now(UTC).isoformat(timespec="seconds"),
         "machine": platform.machine(), "platform": platform.platform(),
         "versions": {"ray": ray.__version__, "mujoco": mujoco.__version__},
