@@ -154,7 +154,9 @@ def test_a_job_keeps_running_across_a_killed_service(
         before = _wait(first, job_id, lambda s: (s.get("iteration") or 0) >= 1, 90)
         first.kill()
         second = service(int(first.server.rsplit(":", 1)[1]))  # same home, port, Ray head
-        after = _wait(second, job_id, lambda s: (s.get("iteration") or 0) > before["iteration"], 120)
+        after = _wait(
+            second, job_id, lambda s: (s.get("iteration") or 0) > before["iteration"], 120
+        )
         assert after["state"] in ("running", "succeeded"), after
         output, errors = follower.communicate(timeout=120)
     finally:
