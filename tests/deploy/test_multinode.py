@@ -46,7 +46,8 @@ class ClusterService:
     cluster: LocalCluster
     workers: dict[str, RayNode]
     client: GaitforgeClient
-    home: Path
+    node_profiles: Path
+    """the worker nodes' saved profiles directory (empty)"""
 
 
 def _job() -> dict:
@@ -94,7 +95,7 @@ def cluster_service(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator
         home.mkdir()
         process = start_service(env, home / "serve.log")
         with GaitforgeClient(env["GAITFORGE_SERVER"], token=API_TOKEN) as client:
-            yield ClusterService(cluster, workers, client, home)
+            yield ClusterService(cluster, workers, client, node_dir)
     finally:
         if process is not None:
             stop_service(process)
@@ -137,6 +138,10 @@ def test_a_job_spans_two_worker_nodes_and_survives_losing_one(
             pytest.fail(f"actors by node {dict(by_node)}; job {status['state']}: "
                         f"{status.get('error')}")  # fmt: skip
         time.sleep(0.3)
+    for actor in actors:  # they see the worker nodes' empty profiles directory
+        environ = Path(f"/proc/{actor.pid}/environ").read_bytes().split(b"\0")
+        assert f"{ENV_DIR}={cluster_service.node_profiles}".encode() in environ
+    assert not any(cluster_service.node_profiles.iterdir())
     at_kill = client.status(job_id)
     assert at_kill["state"] == "running" and at_kill["phase"] in ("starting", "training"), at_kill
     logger.info("actors up on both nodes after %.1f s, env steps %s", time.monotonic() - t0,
