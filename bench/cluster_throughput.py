@@ -23,7 +23,6 @@ the table's caption says so. Results: a JSON and a Markdown table in --out.
 from __future__ import annotations
 
 import argparse
-import functools
 import json
 import logging
 import os
@@ -42,9 +41,6 @@ import ray
 import throughput as single  # bench/throughput.py (this script's folder is on sys.path)
 from gaitforge.service.jobs.local_cluster import LocalCluster
 from gaitforge.workers.env import MuscleEnv
-from gaitforge.workers.policy_api import UniformExcitationPolicy
-from gaitforge.workers.pool import WorkerPool
-from gaitforge.workers.scenes import load_scene
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
@@ -67,28 +63,11 @@ def pool_row(
     args: argparse.Namespace, actors: int, act_dim: int, progress: Progress
 ) -> tuple[float, int]:
     """Env steps/s of a pool of ``actors`` actors, and on how many nodes they ran."""
-    pool = WorkerPool(
-        load_scene(args.scene).resolved(),
-        functools.partial(UniformExcitationPolicy, act_dim),
-        backend=args.backend,
-        num_workers=actors,
-        envs_per_worker=args.envs_per_worker,
-        fragment_length=args.fragment_length,
+    node_ids: set[str] = set()
+    rate = single.pool_rate(
+        args, actors, act_dim, progress, inspect=lambda pool: node_ids.update(pool.node_ids())
     )
-
-    def poll(timeout: float) -> list[tuple[int, int]]:
-        try:
-            fragment, _ = pool.next_fragment(timeout_s=timeout)
-        except TimeoutError:
-            return []
-        return [(fragment.worker, fragment.steps)]
-
-    try:
-        nodes = len(set(pool.node_ids()))
-        rate = single.measure(f"pool {actors} actors", actors, poll, args.seconds, progress)
-        return rate, nodes
-    finally:
-        pool.close()
+    return rate, len(node_ids)
 
 
 def run_cluster(args: argparse.Namespace, act_dim: int, progress: Progress) -> list[dict]:

@@ -123,7 +123,15 @@ def raw_rate(scene_name: str, backend: str, seconds: float, progress: Progress) 
     return steps / (time.perf_counter() - start)
 
 
-def pool_rate(args: argparse.Namespace, actors: int, act_dim: int, progress: Progress) -> float:
+def pool_rate(
+    args: argparse.Namespace,
+    actors: int,
+    act_dim: int,
+    progress: Progress,
+    inspect: Callable[[WorkerPool], None] | None = None,
+) -> float:
+    """Env steps/s of a pool of ``actors`` actors; ``inspect`` sees the pool after the
+    measurement, before it closes (e.g. which nodes its actors ran on)."""
     pool = WorkerPool(
         load_scene(args.scene).resolved(),
         functools.partial(UniformExcitationPolicy, act_dim),
@@ -141,7 +149,10 @@ def pool_rate(args: argparse.Namespace, actors: int, act_dim: int, progress: Pro
         return [(fragment.worker, fragment.steps)]
 
     try:
-        return measure(f"pool {actors} actors", actors, poll, args.seconds, progress)
+        rate = measure(f"pool {actors} actors", actors, poll, args.seconds, progress)
+        if inspect is not None:
+            inspect(pool)
+        return rate
     finally:
         pool.close()
 
