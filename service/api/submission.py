@@ -8,21 +8,12 @@ from typing import Any
 
 import yaml
 from gaitforge.service.api.problems import FieldError, ProblemError
+from gaitforge.service.jobs.spec import NoAliasLoader
 from gaitforge.service.ops import InputError, SpecError
 
 JSON_TYPES = ("application/json",)
 YAML_TYPES = ("application/yaml", "text/yaml", "application/x-yaml", "text/x-yaml")
 INVALID_SPEC = "urn:gaitforge:problem:invalid-job-spec"
-
-
-class _NoAliasLoader(yaml.SafeLoader):
-    """Safe YAML without anchors and aliases (an alias bomb expands exponentially later)."""
-
-    def compose_node(self, parent: Any, index: Any) -> Any:
-        if self.check_event(yaml.AliasEvent):
-            mark = self.peek_event().start_mark
-            raise yaml.YAMLError(f"aliases are not allowed (line {mark.line + 1})")
-        return super().compose_node(parent, index)
 
 
 def spec_problem(field: str, message: str) -> ProblemError:
@@ -46,7 +37,7 @@ def parse_body(body: bytes, content_type: str | None) -> dict[str, Any]:
     except UnicodeDecodeError as exc:
         raise spec_problem("body", f"not UTF-8 text (byte {exc.start})") from None
     try:
-        raw = json.loads(text) if media in JSON_TYPES else yaml.load(text, _NoAliasLoader)
+        raw = json.loads(text) if media in JSON_TYPES else yaml.load(text, NoAliasLoader)
     except json.JSONDecodeError as exc:
         raise spec_problem("body", f"not valid JSON: {exc.msg} (line {exc.lineno})") from None
     except yaml.YAMLError as exc:

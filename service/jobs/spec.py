@@ -48,7 +48,7 @@ class SubmissionError(SpecError):
         self.field = errors[0][0]
 
 
-class _DataLoader(yaml.SafeLoader):
+class NoAliasLoader(yaml.SafeLoader):
     """YAML without aliases (``*name``): a few bytes of them can expand without bound."""
 
     def compose_node(self, parent: Any, index: Any) -> Any:
@@ -92,7 +92,7 @@ def _load_text(text: str | bytes) -> object:
             return json.loads(text)
         except json.JSONDecodeError:
             pass  # YAML's flow style starts with '{' too
-    return yaml.load(text, Loader=_DataLoader)  # a SafeLoader
+    return yaml.load(text, Loader=NoAliasLoader)  # a SafeLoader
 
 
 def _name_problem(value: str, what: str) -> str | None:
