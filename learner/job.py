@@ -30,6 +30,7 @@ from typing import Annotated, Literal
 
 from gaitforge.learner.ppo import PPOSettings
 from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.scenes.action import ActionSpec
 from gaitforge.workers.scenes.profiles import Fidelity
 from gaitforge.workers.spec_io import SpecError, format_validation_error, load_yaml_model
 from pydantic import (
@@ -133,6 +134,9 @@ class Stage(_Strict):
     control_hz: Annotated[float, Field(gt=0, le=1000)] | None = None
     """overrides the scene's control rate: a lower rate repeats each action over more
     simulator steps (the 2017 entrants' frame skip), which shortens the credit horizon"""
+    action: ActionSpec | None = None
+    """overrides the scene's action space (``workers.scenes.action``): joint targets through
+    a reflex layer instead of excitations"""
     env_steps: Annotated[int, Field(ge=1)]
     """the stage's budget; it ends at the budget even if the rule never passed"""
     promote: list[PromotionRule] = Field(default_factory=list)
@@ -231,7 +235,7 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
                 f"{source}: stages.{i}.scene: {scene.name!r} runs on {scene.backends}, "
                 f"not on the job's backend {job.backend!r}"
             )
-        overrides = {k: v for k in ("fidelity", "control_hz") if (v := getattr(stage, k))}
+        overrides = {k: v for k in ("fidelity", "control_hz", "action") if (v := getattr(stage, k))}
         if overrides:  # checked on the job's backend only
             raw = {**scene.model_dump(), **overrides, "backends": [job.backend]}
             try:
@@ -262,6 +266,11 @@ def check_warm_start(scene: Scene, spec: WarmStartSpec, where: str) -> None:
         raise SpecError(
             f"{where}: scene {scene.name!r} imitates no motion (task.imitate); a warm start "
             "from recorded excitations needs an imitation scene (e.g. imitate-walk-2d)"
+        )
+    if scene.action.targets:
+        raise SpecError(
+            f"{where}: scene {scene.name!r} acts by joint targets (action.kind joint_targets); "
+            "a warm start from recorded excitations needs action.kind excitations"
         )
     if spec.excitations != imitate.motion:
         raise SpecError(

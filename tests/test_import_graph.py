@@ -69,6 +69,7 @@ TOP_LEVEL_RANKS = {
     "policy_api": 0,
     "rewards": 4,
     "imitation": 4,
+    "reflex": 4,
     "env": 4,
     "probe": 5,
     "episode": 5,

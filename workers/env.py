@@ -9,7 +9,10 @@ Observation (float32, names in ``env.obs_names``), in this order:
     ahead: forward distance, height, radius (m; 0, 0, 0 when none is left); imitating a
     motion (``task.imitate``): the gait phase as ``phase_sin``, ``phase_cos``, and
     ``phase_mirror`` (+1 in a mirrored episode, -1 otherwise).
-Action: excitations [n_muscles] in [0, 1].
+Action (``env.act_names``): excitations [n_muscles] in [0, 1]; or, with ``action.kind:
+joint_targets``, targets [n_dofs] in [0, 1] around a base pose that the reflex layer
+(``workers.reflex``) turns into excitations (``prev_exc`` then holds the step's mean
+excitations, and the effort terms use them).
 
 Imitation scenes (``workers.imitation``) start each episode in the motion, add the tracking
 terms to the reward, end the episode when the pose error passes the scene's bound, and
@@ -25,8 +28,10 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
+from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.imitation import Imitation
 from gaitforge.workers.motions import MotionState
+from gaitforge.workers.reflex import ReflexLayer
 from gaitforge.workers.rewards import StepContext, reward_terms, term_names, weighted
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.scenes.io_names import observation_layout
@@ -65,7 +70,16 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         self.observation_space = gym.spaces.Box(
             -np.inf, np.inf, (len(self.obs_names),), dtype=np.float32
         )
-        self.action_space = gym.spaces.Box(0.0, 1.0, (n_mus,), dtype=np.float32)
+        targets = self.scene.action.targets
+        self.reflex = ReflexLayer(self.scene.action, self.sim) if targets else None
+        self.act_names = (
+            [f"target:{d}" for d in self.sim.dof_names]
+            if self.reflex is not None
+            else list(self.sim.muscle_names)
+        )
+        self.action_space = gym.spaces.Box(0.0, 1.0, (len(self.act_names),), dtype=np.float32)
+        defaults = topology_for(self.scene.body).dof_defaults
+        self._default_pose = np.array([defaults.get(d, 0.0) for d in self.sim.dof_names])
         self._prev_excitation = np.zeros(n_mus)
         self._state: SimState | None = None
         self._obs = np.zeros(len(self.obs_names), dtype=np.float32)
@@ -103,10 +117,13 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         if self._state is None:
             raise RuntimeError("call reset() before step()")
-        excitation = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64)), 0.0, 1.0)
         self._steps += 1
         truncated = self._steps >= self.scene.steps_per_episode
-        health = self.sim.step(excitation, self.dt)
+        if self.reflex is None:
+            excitation = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64)), 0.0, 1.0)
+            health = self.sim.step(excitation, self.dt)
+        else:
+            excitation, health = self._step_reflex(action)
         state = self.sim.state() if health.ok else None
         if state is not None and not state.is_finite():
             health, state = Health("nan_state"), None
@@ -154,6 +171,21 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             info["lost_track"] = not kept
             ended = fell or not kept
         return self._obs.copy(), float(sum(terms.values())), ended, truncated and not ended, info
+
+    def _step_reflex(self, action: np.ndarray) -> tuple[np.ndarray, Health]:
+        """One control step through the reflex layer: the targets' base is the motion's pose
+        at the step's end (imitation) or the default pose; returns the step's mean
+        excitations [n_muscles] and its health."""
+        assert self.reflex is not None
+        base, speeds = self._default_pose, np.zeros_like(self._default_pose)
+        if self.imitation is not None:
+            ref = self.imitation.reference(self._steps)
+            base = np.array(
+                [ref.joints.get(d, b) for d, b in zip(self.sim.dof_names, base, strict=True)]
+            )
+            speeds = np.array([ref.joint_speeds.get(d, 0.0) for d in self.sim.dof_names])
+        self.reflex.set_targets(action, base, speeds)
+        return self.sim.step_reflex(self.reflex, self.dt, self.scene.reflex_chunks)
 
     def reference_state(self) -> MotionState | None:
         """The motion's reference at the current phase (mirrored if this episode is), for

@@ -214,8 +214,9 @@ class EpisodeRunner:
 
     @property
     def act_names(self) -> list[str]:
-        """Names of the action's entries [n_muscles]: the kept muscles."""
-        return list(self.env.sim.muscle_names)
+        """Names of the action's entries: the kept muscles [n_muscles], or ``target:<dof>``
+        [n_dofs] for a scene whose action is joint targets."""
+        return list(self.env.act_names)
 
     def run(
         self,

@@ -72,8 +72,12 @@ def kept_plan(scene: Scene, backend: str, planar_muscles: Sequence[str] | None =
 def action_names(
     scene: Scene, backend: str = "mujoco", planar_muscles: Sequence[str] | None = None
 ) -> list[str]:
-    """The action's entry names [n_muscles]: the kept muscles, in the body's order."""
-    return list(kept_plan(scene, backend, planar_muscles).kept_muscles)
+    """The action's entry names: the kept muscles [n_muscles], in the body's order; with
+    ``action.kind: joint_targets``, ``target:<dof>`` for each kept dof [n_dofs]."""
+    plan = kept_plan(scene, backend, planar_muscles)
+    if scene.action.targets:
+        return [f"target:{d}" for d in plan.kept_dofs]
+    return list(plan.kept_muscles)
 
 
 def observation_names(

@@ -8,6 +8,7 @@ from typing import Annotated, Literal
 import numpy as np
 from gaitforge.workers.bodies.topology import MJCF_BODIES
 from gaitforge.workers.scenes import saved_profiles
+from gaitforge.workers.scenes.action import ActionSpec
 from gaitforge.workers.scenes.imitate import Imitate
 from gaitforge.workers.scenes.profiles import (
     BACKENDS,
@@ -146,6 +147,10 @@ class Scene(_Strict):
     obstacles: Obstacles | None = None
     task: Task
     control_hz: Annotated[float, Field(gt=0, le=1000)] = 100.0
+    action: ActionSpec = Field(
+        default_factory=ActionSpec,
+        description="the policy's action: excitations, or joint targets for a reflex layer",
+    )
     episode_s: Annotated[float, Field(gt=0, le=600)] = 10.0
     fidelity: Fidelity = "default"
     fidelity_tolerance: Annotated[float, Field(gt=0)] | None = Field(
@@ -182,7 +187,35 @@ class Scene(_Strict):
                     f"fidelity.timestep {profile.timestep} s does not divide the control "
                     f"period 1/{self.control_hz} s"
                 )
+        if self.action.targets:
+            self._check_reflex()
         return self
+
+    def _check_reflex(self) -> None:
+        if self.backends != ["mujoco"]:
+            raise ValueError(
+                f"action: kind joint_targets runs on mujoco only (the reflex layer needs "
+                f"moment arms every step); backends is {self.backends}"
+            )
+        chunks = self.action.reflex_hz / self.control_hz
+        if chunks < 1 or abs(chunks - round(chunks)) > 1e-6:
+            raise ValueError(
+                f"action.reflex_hz {self.action.reflex_hz} must be a whole multiple of "
+                f"control_hz {self.control_hz}"
+            )
+        substeps = 1.0 / (self.action.reflex_hz * self.profile("mujoco").timestep)
+        if abs(substeps - round(substeps)) > 1e-6:
+            raise ValueError(
+                f"action.reflex_hz {self.action.reflex_hz}: its period must be a whole number "
+                f"of fidelity.timestep {self.profile('mujoco').timestep} s"
+            )
+
+    @property
+    def reflex_chunks(self) -> int:
+        """Reflex updates per control step (1 unless ``action.kind`` is joint_targets)."""
+        if not self.action.targets:
+            return 1
+        return round(self.action.reflex_hz / self.control_hz)
 
     @property
     def steps_per_episode(self) -> int:

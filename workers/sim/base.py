@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from typing import NamedTuple, Protocol
 
@@ -154,7 +154,22 @@ class Simulator(Protocol):
     def step(self, excitations: np.ndarray, duration: float) -> Health:
         """Hold ``excitations`` ([n_muscles] in [0, 1]) for ``duration`` seconds."""
 
+    def step_reflex(
+        self,
+        reflex: Callable[[np.ndarray, np.ndarray], np.ndarray],
+        duration: float,
+        updates: int,
+    ) -> tuple[np.ndarray, Health]:
+        """Step ``duration`` seconds, setting the excitations ``updates`` times, evenly, to
+        ``reflex(q, qd)`` of the kept dofs' angles and speeds then ([n_dofs] each ->
+        [n_muscles] in [0, 1]; ``workers.reflex``). Returns the mean excitations [n_muscles] and the
+        health. MuJoCo only (scenes with joint targets are refused on OpenSim)."""
+
     def state(self) -> SimState: ...
+
+    def moment_arms(self) -> np.ndarray:
+        """[n_muscles, n_dofs]: each muscle's moment arm about each kept dof now (m; the
+        joint torque per newton of tension, signed as the dof's axis)."""
 
     def set_pose(self, pose: Pose) -> None:
         """Put the body in ``pose`` (kept dofs, pelvis height and orientation, speeds) where

@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import os
 import time
+from collections.abc import Callable
 
 import numpy as np
 from gaitforge.workers.scenes.spec import FaultInjection
@@ -19,7 +20,7 @@ logger = logging.getLogger(__name__)
 
 
 class FaultySimulator:
-    """Wraps a simulator; everything but ``step`` passes through."""
+    """Wraps a simulator; everything but ``step`` and ``step_reflex`` passes through."""
 
     def __init__(self, sim: Simulator, fault: FaultInjection) -> None:
         self._sim = sim
@@ -35,6 +36,20 @@ class FaultySimulator:
         self._sim.reset(seed)
 
     def step(self, excitations: np.ndarray, duration: float) -> Health:
+        self._inject()
+        return self._sim.step(excitations, duration)
+
+    def step_reflex(
+        self,
+        reflex: Callable[[np.ndarray, np.ndarray], np.ndarray],
+        duration: float,
+        updates: int,
+    ) -> tuple[np.ndarray, Health]:
+        self._inject()
+        return self._sim.step_reflex(reflex, duration, updates)
+
+    def _inject(self) -> None:
+        """This control step's faults, drawn from the episode's generator."""
         draw = self._rng.uniform(size=3)
         if draw[0] < self._fault.abort_prob:
             logger.warning("fault injection: aborting process %d", os.getpid())
@@ -44,7 +59,6 @@ class FaultySimulator:
             time.sleep(self._fault.hang_s)
         if draw[2] < self._fault.nan_prob:
             self._sim.poison()
-        return self._sim.step(excitations, duration)
 
     def __getstate__(self) -> dict:
         return {"sim": self._sim, "fault": self._fault}

@@ -10,6 +10,7 @@ CONTACTFULL) besides checking the state for non-finite values.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -125,12 +126,40 @@ class MujocoSimulator:
 
     def step(self, excitations: np.ndarray, duration: float) -> Health:
         m, d = self.model, self.data
+        t0 = self._start_step()
         d.ctrl[:] = np.clip(np.nan_to_num(excitations, nan=0.0), 0.0, 1.0)
+        mujoco.mj_step(m, d, nstep=max(1, round(duration / m.opt.timestep)))
+        return self._health(t0)
+
+    def step_reflex(
+        self,
+        reflex: Callable[[np.ndarray, np.ndarray], np.ndarray],
+        duration: float,
+        updates: int,
+    ) -> tuple[np.ndarray, Health]:
+        m, d = self.model, self.data
+        t0 = self._start_step()
+        substeps = max(1, round(duration / m.opt.timestep / updates))
+        total = np.zeros(m.nu)
+        done = 0
+        qpos, qvel = d.qpos, d.qvel
+        for done in range(1, updates + 1):  # noqa: B007 (the count is read after the loop)
+            excitation = reflex(qpos[self._qadr], qvel[self._vadr])  # finite while the state is
+            total += excitation
+            d.ctrl[:] = excitation
+            mujoco.mj_step(m, d, nstep=substeps)
+            if not np.isfinite(qvel).all():
+                break
+        return total / done, self._health(t0)
+
+    def _start_step(self) -> float:
         for warning in WATCHED_WARNINGS.values():
-            d.warning[warning].number = 0
-        n_sub = max(1, round(duration / m.opt.timestep))
-        t0 = d.time
-        mujoco.mj_step(m, d, nstep=n_sub)
+            self.data.warning[warning].number = 0
+        return float(self.data.time)
+
+    def _health(self, t0: float) -> Health:
+        """The health of the step that began at simulated time ``t0``."""
+        d = self.data
         for cause, warning in WATCHED_WARNINGS.items():
             if d.warning[warning].number > 0:
                 return Health(cause)
@@ -166,6 +195,15 @@ class MujocoSimulator:
             activations=d.act.copy() if m.na else np.zeros(m.nu),
             foot_forces=self._foot_forces(),
         )
+
+    def moment_arms(self) -> np.ndarray:
+        m, d = self.model, self.data
+        dense = np.zeros((m.nu, m.nv))
+        mujoco.mju_sparse2dense(
+            dense, d.actuator_moment, d.moment_rownnz, d.moment_rowadr, d.moment_colind
+        )
+        # MuJoCo's muscle force is negative in tension: torque = moment * force
+        return -dense[:, self._vadr]
 
     def set_pose(self, pose: Pose) -> None:
         """See ``Simulator.set_pose`` and ``workers.sim.mujoco_pose``."""
