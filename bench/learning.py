@@ -5,8 +5,8 @@ Usage: python bench/learning.py [--tasks elbow-reach stand-2d walk-2d] [--minute
                                 [--workers W] [--out DIR]
        python bench/learning.py --merge A/learning.json B/learning.json --out DIR
 
-A task is an example job (``examples/<task>.yaml``); its target is its stage's promotion
-rule(s): elbow-reach ``return >= -12 over 50``; stand-2d ``survival >= 0.95 over 100``
+A task is an example job (``examples/<task>.yaml``); its target is its last stage's
+promotion rule(s) (a curriculum's earlier stages are the way there, their wall clock counts): elbow-reach ``return >= -12 over 50``; stand-2d ``survival >= 0.95 over 100``
 (the whole 5 s episode without a fall); walk-2d ``speed >= 1.0`` and ``fall_rate <= 0.1``
 over 100 10-s episodes. Each framework gets the same wall-clock budget per task
 (``--minutes``, default 3, 5 and 30) on the same scene (with the job's overrides, e.g.
@@ -63,17 +63,21 @@ def run_gaitforge(
 ) -> dict:
     curve: list[dict] = []
     start = time.monotonic()
-    rules = job.stages[0].promote
+    last = len(job.stages) - 1
+    rules = job.stages[last].promote
 
     def record(m: dict) -> None:
         means = {r.metric: m[r.metric] for r in rules}
         curve.append({"wall_s": time.monotonic() - start, "env_steps": m["env_steps"],
-                      "return": m["return"], **means})  # fmt: skip
+                      "stage": m["stage"], "return": m["return"], **means})  # fmt: skip
         console.log(f"gaitforge {job.name}: {curve[-1]}")
 
     trainer = Trainer(job, out, scenes, on_iteration=record, tensorboard=False)
     history = trainer.run(max_seconds=minutes * 60)
-    reached = next((h for h in history if (h["verdict"] or "").startswith("promoted")), None)
+    reached = next(
+        (h for h in history if h["stage"] == last and (h["verdict"] or "").startswith("promoted")),
+        None,
+    )
     summary = _summary(curve, reached is not None)
     if eval_episodes:
         summary["evaluation"] = evaluate_run(out, eval_episodes)
@@ -289,7 +293,7 @@ def main() -> None:
     results: dict = {}
     for task, budget in zip(args.tasks, minutes, strict=True):
         job, scenes = load_job(EXAMPLES / f"{task}.yaml")
-        rules = job.stages[0].promote
+        rules = job.stages[-1].promote
         runs = {}
         for seed in args.seeds:
             raw = job.model_dump()

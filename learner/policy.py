@@ -198,3 +198,23 @@ def widen_inputs(
             state[key] = value
     wider.load_state_dict(state)
     return wider
+
+
+CONSTANT_VAR = 1e-6
+"""An input whose running variance is below this was constant in every batch so far."""
+
+
+@torch.no_grad()
+def release_constant_inputs(policy: GaussianPolicy) -> list[int]:
+    """Make ``policy`` ready for inputs that were constant so far and may not be from now on
+    (a stage with another target speed): their first-layer weights are zeroed and their
+    variance set to 1. Normalised, such an input was always 0, so its weights never moved
+    from their random start and never changed an action; with a new value (clipped to +-10)
+    they would. After this the actions are unchanged for any value of those inputs until
+    training uses them. Returns their indices (in place; the policy is changed)."""
+    constant = torch.nonzero(policy.norm.var < CONSTANT_VAR).flatten()
+    if len(constant):
+        policy.actor[0].weight[:, constant] = 0.0
+        policy.critic[0].weight[:, constant] = 0.0
+        policy.norm.var[constant] = 1.0
+    return constant.tolist()

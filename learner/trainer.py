@@ -49,6 +49,7 @@ from gaitforge.learner.policy import (
     BlendedPolicy,
     GaussianPolicy,
     build_policy,
+    release_constant_inputs,
     widen_inputs,
 )
 from gaitforge.learner.ppo import batch_from_fragments, ppo_update
@@ -299,8 +300,18 @@ class Trainer:
             self.curriculum.entered = True
             return
         if stage.transition == "continue":
-            if io.obs_names != self.obs_names:
+            widen = io.obs_names != self.obs_names
+            if widen:
                 self.policy = widen_inputs(collapsed(self.policy), self.obs_names, io.obs_names)
+            released = (
+                release_constant_inputs(self.policy)
+                if isinstance(self.policy, GaussianPolicy)
+                else []
+            )
+            if released:
+                logger.info("stage %d: inputs constant so far, released: %s", index,
+                            [io.obs_names[i] for i in released])  # fmt: skip
+            if widen or released:
                 self._switch_policy(sampler, io)
         elif stage.transition == "scratch":
             self.policy = fresh_network(io, net)

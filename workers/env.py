@@ -99,7 +99,9 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         self._steps = 0
         info: dict = {"health": HEALTHY}
         if self.imitation is not None:
-            self.sim.set_pose(self.imitation.start(self.np_random))
+            pose = self.imitation.start(self.np_random)
+            if pose is not None:  # else the reset's standing pose
+                self.sim.set_pose(pose)
         self._state = self.sim.state()
         if self.imitation is not None:
             ref = self.imitation.reference(0)

@@ -86,11 +86,14 @@ class Imitation:
 
     # ---- reference state initialisation ----------------------------------------------
 
-    def start(self, rng: np.random.Generator) -> Pose:
-        """Draw this episode's phase and mirroring; the pose to start it from."""
+    def start(self, rng: np.random.Generator) -> Pose | None:
+        """Draw this episode's phase and mirroring; the pose to start it from (None with
+        ``init.start: standing``: the simulator's reset pose)."""
         init = self.spec.init
         self.phase0 = float(rng.uniform()) if init.random_phase else 0.0
         self.mirrored = bool(rng.uniform() < 0.5) if init.mirror else False
+        if init.start == "standing":
+            return None
         noise = rng.uniform(-init.noise, init.noise, len(self.joints))
         return self.pose_of(self.reference(0), noise)
 

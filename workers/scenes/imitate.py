@@ -48,8 +48,15 @@ class ImitationScales(_Strict):
 
 
 class ImitationInit(_Strict):
-    """Reference state initialisation: where each episode starts in the motion."""
+    """Reference state initialisation: where each episode starts in the motion; or, with
+    ``start: standing``, from the body's standing reset with the gait phase at 0 (or random)
+    (with all weights 0 the motion is then only a phase clock and, with joint-target actions,
+    the targets' base pose: a scene that learns a task from standing with no imitation
+    reward)."""
 
+    start: Literal["motion", "standing"] = Field(
+        default="motion", description="motion: in the reference state; standing: the reset pose"
+    )
     random_phase: bool = Field(default=True, description="a uniform random phase; else 0")
     mirror: bool = Field(default=True, description="left and right swapped at random (p=0.5)")
     noise: NonNegative = Field(default=0.02, description="rad, uniform on the joint angles")
