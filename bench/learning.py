@@ -6,7 +6,8 @@ Usage: python bench/learning.py [--tasks elbow-reach stand-2d walk-2d] [--minute
        python bench/learning.py --merge A/learning.json B/learning.json --out DIR
 
 A task is an example job (``examples/<task>.yaml``); its target is its last stage's
-promotion rule(s) (a curriculum's earlier stages are the way there, their wall clock counts): elbow-reach ``return >= -12 over 50``; stand-2d ``survival >= 0.95 over 100``
+promotion rule(s) (a curriculum's earlier stages are the way there; their wall clock
+counts): elbow-reach ``return >= -12 over 50``; stand-2d ``survival >= 0.95 over 100``
 (the whole 5 s episode without a fall); walk-2d ``speed >= 1.0`` and ``fall_rate <= 0.1``
 over 100 10-s episodes. Each framework gets the same wall-clock budget per task
 (``--minutes``, default 3, 5 and 30) on the same scene (with the job's overrides, e.g.
