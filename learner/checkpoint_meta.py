@@ -75,12 +75,15 @@ class LineageEntry(_Model):
 
     stage: int = Field(ge=0)
     """the stage that built it"""
-    transition: Literal["initial", "continue", "blend", "distil", "scratch"]
-    """how: ``initial`` for the first network, else the stage's transition"""
+    transition: Literal["initial", "init_from", "continue", "blend", "distil", "scratch"]
+    """how: ``initial`` for a fresh first network, ``init_from`` for one loaded from the
+    job's ``init_from`` checkpoint, else the stage's transition"""
     network: dict[str, Any]
     """its description (``policy.describe()``)"""
     env_steps: int = Field(ge=0)
     """the run's env steps when it was built"""
+    source: str | None = None
+    """``init_from``: the checkpoint it was loaded from"""
 
 
 class CheckpointMeta(_Model):

@@ -197,6 +197,11 @@ class Job(_Strict):
     """PPO settings and schedules (``learner.ppo.PPOSettings``)"""
     workers: WorkersSpec = WorkersSpec()
     checkpoint: CheckpointSpec = CheckpointSpec()
+    init_from: str | None = None
+    """a checkpoint directory (relative to the job file) whose network and observation
+    statistics start the first stage, for fine-tuning a trained policy on another scene or
+    backend (the optimizer, curriculum and env-step count start afresh); e.g.
+    ``examples/policies/walk-2d``"""
     stages: list[Stage] = Field(min_length=1)
 
     @model_validator(mode="after")
@@ -214,6 +219,14 @@ def load_job(path: Path) -> tuple[Job, list[Scene]]:
         SpecError: one line naming the file, the field and what is allowed.
     """
     job = load_yaml_model(path, Job)
+    if job.init_from is not None:
+        start = (path.parent / job.init_from).resolve()
+        if not (start / "meta.json").is_file():
+            raise SpecError(
+                f"{path}: init_from: {job.init_from!r}: no checkpoint there (a directory with "
+                "meta.json and policy.safetensors, as the trainer writes them)"
+            )
+        job = job.model_copy(update={"init_from": str(start)})
     return job, resolve_scenes(job, base=path.parent, source=str(path))
 
 

@@ -125,6 +125,9 @@ def _check_data_only(raw: dict, errors: list[tuple[str, str]]) -> dict[int, Scen
     workers = raw.get("workers")
     if isinstance(workers, dict) and workers.pop("ray_address", None) is not None:
         errors.append(("workers.ray_address", "not accepted: the service decides where jobs run"))
+    if raw.pop("init_from", None) is not None:
+        errors.append(("init_from", "not accepted: a checkpoint path on the server's disk "
+                       "(file paths are not accepted); start from scratch"))  # fmt: skip
     stages = raw.get("stages")
     if not isinstance(stages, list):
         return {}
