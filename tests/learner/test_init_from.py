@@ -12,6 +12,7 @@ from gaitforge.learner.job import Job, load_job
 from gaitforge.learner.trainer import Trainer
 from gaitforge.service.jobs.spec import SubmissionError, prepare_submission
 from gaitforge.workers.spec_io import SpecError
+
 from tests.learner.test_trainer import elbow_job
 
 
