@@ -19,11 +19,13 @@ the file and the reason.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import logging
 import os
 import shutil
+import subprocess
 import tempfile
 from collections.abc import Mapping
 from importlib import metadata
@@ -68,6 +70,21 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+@functools.cache
+def source_commit() -> str:
+    """The git commit of the gaitforge source tree running now ("unknown" outside a git
+    checkout), with ``-dirty`` if it has uncommitted changes."""
+    here = Path(__file__).resolve().parent
+    try:
+        found = subprocess.run(
+            ["git", "describe", "--always", "--dirty", "--abbrev=40"],
+            cwd=here, capture_output=True, text=True, timeout=10, check=True,
+        )  # fmt: skip
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return found.stdout.strip() or "unknown"
+
+
 def _versions() -> dict[str, str]:
     out = {}
     for package in PACKAGES:
@@ -75,6 +92,7 @@ def _versions() -> dict[str, str]:
             out[package] = metadata.version(package)
         except metadata.PackageNotFoundError:
             out[package] = "not installed"
+    out["gaitforge_commit"] = source_commit()
     return out
 
 

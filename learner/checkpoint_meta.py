@@ -120,6 +120,9 @@ class CheckpointMeta(_Model):
     set only in the checkpoint written at a stage's end)"""
     optimizer_param_groups: list[dict[str, Any]] | None = None
     """the optimizer's param groups when ``optimizer.safetensors`` holds its state"""
+    provenance: dict[str, Any] | None = None
+    """a shipped policy (``learner.ship``): the command, seed and commit that made it, the
+    checkpoint it was copied from and, if given, its evaluation's headline figures"""
 
     @property
     def backend(self) -> str:

@@ -1,6 +1,6 @@
-"""The ``gaitforge`` command line: ``scenes``, ``train``, ``evaluate`` and ``fidelity``; the
-REST service (``serve``) and its client (``submit``, ``jobs``, ``status``, ``logs``,
-``cancel``, ``resume``, ``download``).
+"""The ``gaitforge`` command line: ``scenes``, ``train``, ``evaluate``, ``ship`` and
+``fidelity``; the REST service (``serve``) and its client (``submit``, ``jobs``,
+``status``, ``logs``, ``cancel``, ``resume``, ``download``).
 
 Commands parse their arguments, call :mod:`gaitforge.service.ops` and print: results to
 stdout (``--json`` on list, show and evaluate commands for programs), errors, progress and
@@ -16,6 +16,7 @@ from gaitforge.service.evaluate_commands import evaluate
 from gaitforge.service.fidelity_commands import fidelity_app
 from gaitforge.service.scene_commands import scenes_app
 from gaitforge.service.serve_commands import serve
+from gaitforge.service.ship_commands import ship
 from gaitforge.service.train_commands import train
 
 app = typer.Typer(
@@ -28,6 +29,7 @@ app.add_typer(fidelity_app, name="fidelity")
 app.command("evaluate")(evaluate)
 app.command("train")(train)
 app.command("serve")(serve)
+app.command("ship")(ship)
 register_client(app)
 
 
