@@ -198,6 +198,11 @@ class MujocoSimulator:
 
     def moment_arms(self) -> np.ndarray:
         m, d = self.model, self.data
+        # at the present pose (after mj_step, actuator_moment is the pre-step pose's)
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        mujoco.mj_tendon(m, d)
+        mujoco.mj_transmission(m, d)
         dense = np.zeros((m.nu, m.nv))
         mujoco.mju_sparse2dense(
             dense, d.actuator_moment, d.moment_rownnz, d.moment_rowadr, d.moment_colind

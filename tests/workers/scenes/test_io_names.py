@@ -28,7 +28,9 @@ def test_names_equal_the_built_envs(name: str, backend: str) -> None:
     env = MuscleEnv(scene, backend)
     try:
         assert observation_names(scene, backend, planar) == env.obs_names
-        assert action_names(scene, backend, planar) == env.sim.muscle_names
+        assert action_names(scene, backend, planar) == env.act_names
+        if not scene.action.targets:
+            assert env.act_names == env.sim.muscle_names
         assert world_axes(scene.body) == (env.sim.up_axis, env.sim.forward_axis)
         assert lateral_axis(scene.body) == 3 - env.sim.up_axis - env.sim.forward_axis
     finally:
