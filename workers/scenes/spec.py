@@ -192,17 +192,14 @@ class Scene(_Strict):
         return self
 
     def _check_reflex(self) -> None:
-        if self.backends != ["mujoco"]:
-            raise ValueError(
-                f"action: kind joint_targets runs on mujoco only (the reflex layer needs "
-                f"moment arms every step); backends is {self.backends}"
-            )
         chunks = self.action.reflex_hz / self.control_hz
         if chunks < 1 or abs(chunks - round(chunks)) > 1e-6:
             raise ValueError(
                 f"action.reflex_hz {self.action.reflex_hz} must be a whole multiple of "
                 f"control_hz {self.control_hz}"
             )
+        if "mujoco" not in self.backends:
+            return
         substeps = 1.0 / (self.action.reflex_hz * self.profile("mujoco").timestep)
         if abs(substeps - round(substeps)) > 1e-6:
             raise ValueError(

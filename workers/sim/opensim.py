@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 
 import numpy as np
 import opensim
@@ -205,6 +206,32 @@ class OpenSimSimulator:
         if np.abs(self.osim_state.getU().to_numpy()).max(initial=0.0) > MAX_SPEED:
             return Health("diverged_speed")
         return Health(HEALTHY)
+
+    def step_reflex(
+        self,
+        reflex: Callable[[np.ndarray, np.ndarray], np.ndarray],
+        duration: float,
+        updates: int,
+    ) -> tuple[np.ndarray, Health]:
+        total = np.zeros(len(self._muscles))
+        health, done = Health(HEALTHY), 0
+        for done in range(1, updates + 1):  # noqa: B007 (the count is read after the loop)
+            state = self.osim_state
+            q = np.array([c.getValue(state) for c in self._kept])
+            qd = np.array([c.getSpeedValue(state) for c in self._kept])
+            excitation = reflex(q, qd)
+            total += excitation
+            health = self.step(excitation, duration / updates)
+            if not health.ok:
+                break
+        return total / done, health
+
+    def moment_arms(self) -> np.ndarray:
+        state = self.osim_state
+        self.model.realizePosition(state)
+        return np.array(
+            [[m.computeMomentArm(state, c) for c in self._kept] for m in self._muscles]
+        )
 
     def state(self) -> SimState:
         state = self.osim_state
