@@ -229,9 +229,7 @@ class OpenSimSimulator:
     def moment_arms(self) -> np.ndarray:
         state = self.osim_state
         self.model.realizePosition(state)
-        return np.array(
-            [[m.computeMomentArm(state, c) for c in self._kept] for m in self._muscles]
-        )
+        return np.array([[m.computeMomentArm(state, c) for c in self._kept] for m in self._muscles])
 
     def state(self) -> SimState:
         state = self.osim_state
