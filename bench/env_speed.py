@@ -1,6 +1,7 @@
 """Env steps/s on one core for every catalogue scene and backend, and what pruning saves.
 
 Usage: python bench/env_speed.py [--seconds S] [--repeats R] [--no-opensim]
+                                 [--only env|actions|pruning]
 
 Table 1: each scene on MuJoCo at its profile and, for scenes that name OpenSim, on OpenSim
 at the ``default`` profile and at the 2017 challenge's setting (Runge-Kutta-Merson,
@@ -8,7 +9,12 @@ accuracy 5e-5): random excitations for S wall-clock seconds, R repeats interleav
 reported, resets included. The ratio column is the row's speed over the same scene on
 MuJoCo, measured in the same run.
 
-Table 2: the raw ``mj_step`` rate of the pruned ``walk-3d`` and ``walk-3d-planar`` models
+Table 2: joint-target actions (``action.kind: joint_targets``, the reflex layer) against
+excitations on the same scenes at the same control rate, random actions, R repeats
+interleaved (the ratio is the one to read: the layer updates the excitations 500 times a
+second, each update a separate simulator call).
+
+Table 3: the raw ``mj_step`` rate of the pruned ``walk-3d`` and ``walk-3d-planar`` models
 against MyoLeg as shipped (nothing removed), alternated in one run so that machine noise
 hits all alike; each restarts standing whenever it falls, as training episodes do.
 """
@@ -82,6 +88,33 @@ def env_table(seconds: float, repeats: int, opensim: bool) -> Table:
     return table
 
 
+ACTION_SCENES = ("walk-2d", "imitate-walk-2d")
+
+
+def action_table(seconds: float, repeats: int, opensim: bool) -> Table:
+    table = Table("scene", "backend", "control Hz", "action", "entries", "env steps/s",
+                  "vs excitations", title="Joint targets against excitations, one core "
+                  "(median)")  # fmt: skip
+    for name in ACTION_SCENES:
+        scene = load_scene(name).model_copy(update={"control_hz": 25.0})
+        targets = Scene.model_validate(
+            {**scene.model_dump(), "action": {"kind": "joint_targets"}}
+        )
+        for backend in ("mujoco", "opensim") if opensim else ("mujoco",):
+            envs = {"excitations": MuscleEnv(scene, backend),
+                    "joint targets": MuscleEnv(targets, backend)}  # fmt: skip
+            rates: dict[str, list[float]] = {k: [] for k in envs}
+            for r in range(repeats):
+                for kind, env in envs.items():
+                    rates[kind].append(random_excitations(env, seconds, seed=r).steps_per_s)
+            base = statistics.median(rates["excitations"])
+            for kind, env in envs.items():
+                rate = statistics.median(rates[kind])
+                table.add_row(name, backend, "25", kind, str(env.action_space.shape[0]),
+                              f"{rate:.1f}", f"{rate / base:.2f}")  # fmt: skip
+    return table
+
+
 def _with_profile(scene: Scene, profile: str) -> Scene:
     return scene.model_copy(update={"fidelity": {"mujoco": "default", "opensim": profile}})
 
@@ -118,13 +151,16 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-opensim", action="store_true")
-    parser.add_argument("--only", choices=["env", "pruning"], help="print one table only")
+    parser.add_argument("--only", choices=["env", "actions", "pruning"],
+                        help="print one table only")  # fmt: skip
     args = parser.parse_args()
     console.print(f"machine: {platform.machine()}, {os.cpu_count()} cores, "
                   f"mujoco {mujoco.__version__}")  # fmt: skip
-    if args.only != "pruning":
+    if args.only in (None, "env"):
         console.print(env_table(args.seconds, args.repeats, not args.no_opensim))
-    if args.only != "env":
+    if args.only in (None, "actions"):
+        console.print(action_table(args.seconds, args.repeats, not args.no_opensim))
+    if args.only in (None, "pruning"):
         console.print(pruning_table(args.seconds, args.repeats))
 
 
