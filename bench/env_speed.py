@@ -97,9 +97,7 @@ def action_table(seconds: float, repeats: int, opensim: bool) -> Table:
                   "(median)")  # fmt: skip
     for name in ACTION_SCENES:
         scene = load_scene(name).model_copy(update={"control_hz": 25.0})
-        targets = Scene.model_validate(
-            {**scene.model_dump(), "action": {"kind": "joint_targets"}}
-        )
+        targets = Scene.model_validate({**scene.model_dump(), "action": {"kind": "joint_targets"}})
         for backend in ("mujoco", "opensim") if opensim else ("mujoco",):
             envs = {"excitations": MuscleEnv(scene, backend),
                     "joint targets": MuscleEnv(targets, backend)}  # fmt: skip
