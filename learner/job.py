@@ -129,6 +129,9 @@ class Stage(_Strict):
     """catalogue name or scene YAML path (relative to the job file)"""
     name: str | None = None
     """defaults to the scene's name"""
+    backend: Literal["mujoco", "opensim"] | None = None
+    """the stage's simulator (default: the job's ``backend``): train fast on MuJoCo, then
+    finish on OpenSim in a later stage"""
     fidelity: Fidelity | None = None
     """overrides the scene's fidelity profile (a fidelity curriculum changes only this)"""
     control_hz: Annotated[float, Field(gt=0, le=1000)] | None = None
@@ -189,6 +192,8 @@ class CheckpointSpec(_Strict):
 
 
 class Job(_Strict):
+    """A training job: the first network, PPO, workers, checkpoints and the stages."""
+
     name: str = Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
     backend: Literal["mujoco", "opensim"] = "mujoco"
     seed: int = 0
@@ -203,6 +208,10 @@ class Job(_Strict):
     backend (the optimizer, curriculum and env-step count start afresh); e.g.
     ``examples/policies/walk-2d``"""
     stages: list[Stage] = Field(min_length=1)
+
+    def stage_backend(self, index: int) -> str:
+        """The simulator of stage ``index``: its own ``backend``, else the job's."""
+        return self.stages[index].backend or self.backend
 
     @model_validator(mode="after")
     def _first_stage(self) -> Job:
@@ -243,14 +252,16 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
             scene = load_scene(ref)
         except SpecError as exc:
             raise SpecError(f"{source}: stages.{i}.scene: {exc}") from None
-        if job.backend not in scene.backends:
+        backend = stage.backend or job.backend
+        if backend not in scene.backends:
+            whose = f"stages.{i}.backend" if stage.backend else "the job's backend"
             raise SpecError(
                 f"{source}: stages.{i}.scene: {scene.name!r} runs on {scene.backends}, "
-                f"not on the job's backend {job.backend!r}"
+                f"not on {whose} {backend!r}"
             )
         overrides = {k: v for k in ("fidelity", "control_hz", "action") if (v := getattr(stage, k))}
-        if overrides:  # checked on the job's backend only
-            raw = {**scene.model_dump(), **overrides, "backends": [job.backend]}
+        if overrides or stage.backend:  # checked on the stage's backend only
+            raw = {**scene.model_dump(), **overrides, "backends": [backend]}
             try:
                 scene = Scene.model_validate(raw)
             except ValidationError as err:

@@ -18,7 +18,7 @@ from gaitforge.workers.scenes import Scene
 class Sampler(Protocol):
     def set_weights(self, weights: dict[str, torch.Tensor]) -> int: ...
 
-    def set_scene(self, scene: Scene) -> None: ...
+    def set_scene(self, scene: Scene, backend: str | None = None) -> None: ...
 
     def set_policy(
         self, policy_factory: PolicyFactory, weights: dict[str, torch.Tensor]
@@ -42,8 +42,8 @@ class LocalSampler:
         self._weights = {k: v.detach().clone() for k, v in weights.items()}
         return self.version
 
-    def set_scene(self, scene: Scene) -> None:
-        self.worker.set_scene(scene)
+    def set_scene(self, scene: Scene, backend: str | None = None) -> None:
+        self.worker.set_scene(scene, backend)
 
     def set_policy(self, policy_factory: PolicyFactory, weights: dict[str, torch.Tensor]) -> int:
         self.worker.set_policy(policy_factory)

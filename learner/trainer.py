@@ -98,7 +98,7 @@ class Trainer:
         # resolved here, on the driver: actors and checkpoints get concrete fidelity profiles
         self.scenes = [s.resolved() for s in scenes] if scenes is not None else resolve_scenes(job)
         self.on_iteration = on_iteration
-        self.io = [StageIO(scene, job.backend) for scene in self.scenes]
+        self.io = [StageIO(scene, job.stage_backend(i)) for i, scene in enumerate(self.scenes)]
         self.mirrors = check_stages(self.io, [scene.name for scene in self.scenes], job.ppo.mirror)
         torch.manual_seed(job.seed)
         first = self.io[0]
@@ -138,6 +138,11 @@ class Trainer:
     @property
     def scene(self) -> Scene:
         return self.scenes[min(self.curriculum.stage, len(self.scenes) - 1)]
+
+    @property
+    def backend(self) -> str:
+        """The current stage's simulator."""
+        return self.job.stage_backend(min(self.curriculum.stage, len(self.job.stages) - 1))
 
     @property
     def done(self) -> bool:
@@ -212,7 +217,7 @@ class Trainer:
     def _make_sampler(self) -> Sampler:
         workers = self.job.workers
         kwargs = {
-            "backend": self.job.backend,
+            "backend": self.backend,
             "fragment_length": workers.fragment_length,
             "seed": self.job.seed * 1000 + self.iteration,
         }
@@ -313,13 +318,13 @@ class Trainer:
             checkpoint = self._checkpoint(metrics)
             if record:  # a recording names the checkpoint it shows
                 path = self.run_dir / "recordings" / f"{checkpoint.name}-{self.scene.name}.mcap"
-                record_policy(self.policy, self.scene, self.job.backend, checkpoint, path,
+                record_policy(self.policy, self.scene, self.backend, checkpoint, path,
                               self.job.seed)  # fmt: skip
         if verdict is not None:
             logger.info("stage %d (%s) ends: %s", self.curriculum.stage, self.scene.name, verdict)
             self.curriculum.advance()
             if not self.done:
-                sampler.set_scene(self.scene)
+                sampler.set_scene(self.scene, self.backend)
                 self._min_version = sampler.set_weights(self.policy.state_dict())
 
     # ---- stage transitions (the networks: learner/transitions.py) ----------------------
@@ -416,7 +421,7 @@ class Trainer:
         meta = CheckpointMeta.model_validate({
             "iteration": self.iteration,
             "job": self.job.model_dump(mode="json"),
-            "config": {"backend": self.job.backend},
+            "config": {"backend": self.backend},
             "scene": self.scene.model_dump(mode="json"),
             "stage": {
                 "index": self.curriculum.stage,

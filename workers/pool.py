@@ -127,12 +127,15 @@ class WorkerPool:
         self._weights = ray.put(weights)
         return self.version
 
-    def set_scene(self, scene: Scene) -> None:
-        """Push a new scene (curriculum stage) to the live actors without restarting them:
-        each switches after its in-flight fragment. Replacements start on it."""
+    def set_scene(self, scene: Scene, backend: str | None = None) -> None:
+        """Push a new scene (curriculum stage), on ``backend`` if given, to the live actors
+        without restarting them: each switches after its in-flight fragment. Replacements
+        start on it."""
         self.scene = scene.require_resolved("WorkerPool.set_scene")
+        if backend is not None:
+            self.backend = self._actor_kwargs["backend"] = backend
         for slot in self._slots:
-            slot.actor.set_scene.remote(scene)
+            slot.actor.set_scene.remote(scene, backend)
 
     def set_policy(self, policy_factory: PolicyFactory, weights: dict) -> int:
         """Give every actor a new policy structure and its weights; returns the version from

@@ -72,8 +72,10 @@ class RolloutWorker:
 
     # ---- remote API ---------------------------------------------------------------------
 
-    def set_scene(self, scene: Scene) -> None:
-        """Switch every env to ``scene`` (a curriculum stage); episodes restart."""
+    def set_scene(self, scene: Scene, backend: str | None = None) -> None:
+        """Switch every env to ``scene`` (a curriculum stage), on ``backend`` if given (a
+        stage on another simulator); episodes restart."""
+        self.backend = backend or self.backend
         self._build_envs(scene, len(self.envs))
 
     def set_policy(self, policy_factory: PolicyFactory) -> None:

@@ -198,7 +198,7 @@ def _check_loads(spec: dict[str, Any], source: str) -> None:
         job_file = write_job_files(layout, spec)
         try:
             job, scenes = load_job(job_file)
-            io = [StageIO(scene, job.backend) for scene in scenes]
+            io = [StageIO(scene, job.stage_backend(i)) for i, scene in enumerate(scenes)]
             check_stages(io, [scene.name for scene in scenes], job.ppo.mirror)
         except (SpecError, ValueError) as exc:
             text = str(exc).replace(f"{job_file}: ", "").replace(f"{layout.dir}{os.sep}", "")

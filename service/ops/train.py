@@ -220,8 +220,9 @@ def start_line(training: Training) -> str:
     workers = job.workers.num_workers
     where = "in-process" if workers == 0 else f"on {workers or 'all CPUs but one as'} Ray actor(s)"
     resumed = f"; resumed at iteration {trainer.iteration}" if trainer.iteration else ""
+    backends = dict.fromkeys(job.stage_backend(i) for i in range(len(job.stages)))
     return (
-        f"training {job.name}: {len(job.stages)} stage(s) on {job.backend}, rollouts "
+        f"training {job.name}: {len(job.stages)} stage(s) on {', '.join(backends)}, rollouts "
         f"{where}, run directory {training.run_dir}{resumed}"
     )
 
