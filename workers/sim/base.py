@@ -137,6 +137,11 @@ class CompileReport:
         return {k: self.size_full.get(k, 0) - v for k, v in self.size.items()}
 
 
+Reflex = Callable[[np.ndarray, np.ndarray], np.ndarray]
+"""Joint angles and speeds of the kept dofs ([n_dofs] each) -> excitations [n_muscles] in
+[0, 1] (``workers.reflex.ReflexLayer``)."""
+
+
 class Simulator(Protocol):
     """One simulated scene. Implementations never raise for a numerical failure: they
     report it in :class:`Health` and leave the state for ``reset`` to repair."""
@@ -155,10 +160,7 @@ class Simulator(Protocol):
         """Hold ``excitations`` ([n_muscles] in [0, 1]) for ``duration`` seconds."""
 
     def step_reflex(
-        self,
-        reflex: Callable[[np.ndarray, np.ndarray], np.ndarray],
-        duration: float,
-        updates: int,
+        self, reflex: Reflex, duration: float, updates: int
     ) -> tuple[np.ndarray, Health]:
         """Step ``duration`` seconds, setting the excitations ``updates`` times, evenly, to
         ``reflex(q, qd)`` of the kept dofs' angles and speeds then ([n_dofs] each ->

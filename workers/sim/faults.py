@@ -10,11 +10,10 @@ from __future__ import annotations
 import logging
 import os
 import time
-from collections.abc import Callable
 
 import numpy as np
 from gaitforge.workers.scenes.spec import FaultInjection
-from gaitforge.workers.sim.base import Health, Simulator
+from gaitforge.workers.sim.base import Health, Reflex, Simulator
 
 logger = logging.getLogger(__name__)
 
@@ -40,10 +39,7 @@ class FaultySimulator:
         return self._sim.step(excitations, duration)
 
     def step_reflex(
-        self,
-        reflex: Callable[[np.ndarray, np.ndarray], np.ndarray],
-        duration: float,
-        updates: int,
+        self, reflex: Reflex, duration: float, updates: int
     ) -> tuple[np.ndarray, Health]:
         self._inject()
         return self._sim.step_reflex(reflex, duration, updates)

@@ -10,7 +10,6 @@ CONTACTFULL) besides checking the state for non-finite values.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -21,6 +20,7 @@ from gaitforge.workers.sim.base import (
     BodyPose,
     Health,
     Pose,
+    Reflex,
     SimState,
     check_pose_names,
 )
@@ -132,10 +132,7 @@ class MujocoSimulator:
         return self._health(t0)
 
     def step_reflex(
-        self,
-        reflex: Callable[[np.ndarray, np.ndarray], np.ndarray],
-        duration: float,
-        updates: int,
+        self, reflex: Reflex, duration: float, updates: int
     ) -> tuple[np.ndarray, Health]:
         m, d = self.model, self.data
         t0 = self._start_step()

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
 
 import numpy as np
 import opensim
@@ -34,6 +33,7 @@ from gaitforge.workers.sim.base import (
     CompileReport,
     Health,
     Pose,
+    Reflex,
     SimState,
     check_pose_names,
 )
@@ -208,10 +208,7 @@ class OpenSimSimulator:
         return Health(HEALTHY)
 
     def step_reflex(
-        self,
-        reflex: Callable[[np.ndarray, np.ndarray], np.ndarray],
-        duration: float,
-        updates: int,
+        self, reflex: Reflex, duration: float, updates: int
     ) -> tuple[np.ndarray, Health]:
         total = np.zeros(len(self._muscles))
         health, done = Health(HEALTHY), 0
