@@ -1,7 +1,7 @@
 """Learning curves and wall-clock to target, gaitforge's PPO beside RLlib's on the same env.
 
 Usage: python bench/learning.py [--tasks elbow-reach stand-2d walk-2d] [--minutes M ...]
-                                [--seeds S ...] [--eval-episodes N] [--no-rllib]
+                                [--seeds S ...] [--eval-episodes N] [--no-rllib | --no-gaitforge]
                                 [--workers W] [--out DIR]
        python bench/learning.py --merge A/learning.json B/learning.json --out DIR
 
@@ -269,6 +269,8 @@ def main() -> None:
         help="deterministic episodes per run at the end (0: none)",
     )
     parser.add_argument("--no-rllib", action="store_true")
+    parser.add_argument("--no-gaitforge", action="store_true",
+                        help="RLlib only")  # fmt: skip
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--out", type=Path, default=Path("bench/results/learning"))
     parser.add_argument(
@@ -296,7 +298,7 @@ def main() -> None:
         job, scenes = load_job(EXAMPLES / f"{task}.yaml")
         rules = job.stages[-1].promote
         runs = {}
-        for seed in args.seeds:
+        for seed in [] if args.no_gaitforge else args.seeds:
             raw = job.model_dump()
             raw["workers"]["num_workers"] = workers
             raw["seed"] = seed
