@@ -252,7 +252,7 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
             scene = load_scene(ref)
         except SpecError as exc:
             raise SpecError(f"{source}: stages.{i}.scene: {exc}") from None
-        backend = stage.backend or job.backend
+        backend = job.stage_backend(i)
         if backend not in scene.backends:
             whose = f"stages.{i}.backend" if stage.backend else "the job's backend"
             raise SpecError(

@@ -39,7 +39,6 @@ from gaitforge.learner.checkpoint import (
     latest_checkpoint,
     load_checkpoint,
     load_optimizer_state,
-    load_policy,
     save_checkpoint,
 )
 from gaitforge.learner.checkpoint_meta import CheckpointMeta
@@ -62,6 +61,7 @@ from gaitforge.learner.transitions import (
     collapsed,
     excitation_warm_start,
     fresh_network,
+    network_from_checkpoint,
     ramp_alpha,
     warm_start,
 )
@@ -155,36 +155,12 @@ class Trainer:
         return functools.partial(build_policy, self.policy.describe())
 
     def _init_from(self, path: Path) -> None:
-        """The first network from checkpoint ``path`` (``job.init_from``): its weights and
-        observation statistics, widened if the first stage observes more.
-
-        Raises:
-            ValueError: the checkpoint acts on other entries, or observes what the first
-                stage does not.
-        """
-        loaded, meta = load_policy(path)
-        policy = collapsed(loaded)
-        first = self.io[0]
-        if policy.act_dim != len(first.act_names):
-            raise ValueError(
-                f"init_from: {path} acts on {policy.act_dim} entries; stage 0's scene "
-                f"{self.scenes[0].name!r} on {len(first.act_names)} ({first.act_names[:3]}...)"
-            )
-        names = meta.obs_names or []
-        if names != first.obs_names:
-            missing = [n for n in names if n not in first.obs_names]
-            if missing or len(names) != policy.obs_dim:
-                raise ValueError(
-                    f"init_from: {path} observes {missing[:5]} that stage 0's scene "
-                    f"{self.scenes[0].name!r} does not"
-                )
-            policy = widen_inputs(policy, names, first.obs_names)
-        release_constant_inputs(policy)
-        policy.train()
-        self.policy = policy
+        """The first network from checkpoint ``path`` (``job.init_from``; see
+        :func:`network_from_checkpoint`), with a fresh optimizer and the lineage naming it."""
+        self.policy, meta = network_from_checkpoint(path, self.io[0], self.scenes[0].name)
         self.optimizer = self._new_optimizer()
         self.lineage = [
-            {"stage": 0, "transition": "init_from", "network": policy.describe(),
+            {"stage": 0, "transition": "init_from", "network": self.policy.describe(),
              "env_steps": 0, "source": str(path)}
         ]  # fmt: skip
         logger.info("stage 0 starts from %s (job %s, %d env steps)", path, meta.job,

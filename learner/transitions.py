@@ -4,6 +4,7 @@ stage is entered):
 - ``continue``: the same network, widened with zero weights if the observation grew
   (``learner.policy.widen_inputs`` on :func:`collapsed`);
 - ``scratch``: a fresh network (:func:`fresh_network`);
+- a job's ``init_from``: the first network from a checkpoint (:func:`network_from_checkpoint`);
 - ``blend`` and ``distil``: :func:`warm_start` rolls pi_old out on the new stage (as a blend
   at alpha 0), fits pi_new's critic (and for ``distil`` its actor) to that data, and returns
   the blend (``blend``: alpha then ramps 0 -> 1, :func:`ramp_alpha`) or pi_new (``distil``).
@@ -16,13 +17,22 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
+from pathlib import Path
 
 import torch
+from gaitforge.learner.checkpoint import load_policy
+from gaitforge.learner.checkpoint_meta import CheckpointMeta
 from gaitforge.learner.clone_excitations import SideGuess, clone_excitations, excitation_table
 from gaitforge.learner.curriculum import StageIO
 from gaitforge.learner.distil import fit_student
 from gaitforge.learner.job import NetworkSpec, Stage
-from gaitforge.learner.policy import ActorCritic, BlendedPolicy, GaussianPolicy
+from gaitforge.learner.policy import (
+    ActorCritic,
+    BlendedPolicy,
+    GaussianPolicy,
+    release_constant_inputs,
+    widen_inputs,
+)
 from gaitforge.learner.ppo import PPOSettings, batch_from_fragments
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
@@ -45,6 +55,38 @@ def collapsed(policy: ActorCritic) -> GaussianPolicy:
 def fresh_network(io: StageIO, net: NetworkSpec) -> GaussianPolicy:
     """A new network for the stage's observations and muscles."""
     return GaussianPolicy(len(io.obs_names), len(io.act_names), tuple(net.hidden), net.init_std)
+
+
+def network_from_checkpoint(
+    path: Path, io: StageIO, scene_name: str
+) -> tuple[GaussianPolicy, CheckpointMeta]:
+    """A job's ``init_from``: checkpoint ``path``'s network (collapsed to one) with its
+    observation statistics, widened if the first stage (``io``, scene ``scene_name``)
+    observes more, its constant inputs released; in training mode. Returns it and the
+    checkpoint's metadata.
+
+    Raises:
+        ValueError: the checkpoint acts on other entries, or observes what the stage does not.
+    """
+    loaded, meta = load_policy(path)
+    policy = collapsed(loaded)
+    if policy.act_dim != len(io.act_names):
+        raise ValueError(
+            f"init_from: {path} acts on {policy.act_dim} entries; stage 0's scene "
+            f"{scene_name!r} on {len(io.act_names)} ({io.act_names[:3]}...)"
+        )
+    names = meta.obs_names or []
+    if names != io.obs_names:
+        missing = [n for n in names if n not in io.obs_names]
+        if missing or len(names) != policy.obs_dim:
+            raise ValueError(
+                f"init_from: {path} observes {missing[:5]} that stage 0's scene "
+                f"{scene_name!r} does not"
+            )
+        policy = widen_inputs(policy, names, io.obs_names)
+    release_constant_inputs(policy)
+    policy.train()
+    return policy, meta
 
 
 def warm_start(

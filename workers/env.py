@@ -34,7 +34,7 @@ from gaitforge.workers.motions import MotionState
 from gaitforge.workers.reflex import ReflexLayer
 from gaitforge.workers.rewards import StepContext, reward_terms, term_names, weighted
 from gaitforge.workers.scenes import Scene, load_scene
-from gaitforge.workers.scenes.io_names import observation_layout
+from gaitforge.workers.scenes.io_names import action_layout, observation_layout
 from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.base import HEALTHY, Health, SimState
 
@@ -72,11 +72,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         )
         targets = self.scene.action.targets
         self.reflex = ReflexLayer(self.scene.action, self.sim) if targets else None
-        self.act_names = (
-            [f"target:{d}" for d in self.sim.dof_names]
-            if self.reflex is not None
-            else list(self.sim.muscle_names)
-        )
+        self.act_names = action_layout(self.scene, self.sim.dof_names, self.sim.muscle_names)
         self.action_space = gym.spaces.Box(0.0, 1.0, (len(self.act_names),), dtype=np.float32)
         defaults = topology_for(self.scene.body).dof_defaults
         self._default_pose = np.array([defaults.get(d, 0.0) for d in self.sim.dof_names])

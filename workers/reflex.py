@@ -33,10 +33,10 @@ class ReflexLayer:
     def __init__(self, spec: ActionSpec, sim: Simulator) -> None:
         self.spec = spec
         self.sim = sim
-        self.dof_names = list(sim.dof_names)
-        self._targets = np.zeros(len(self.dof_names))
-        self._target_speeds = np.zeros(len(self.dof_names))
-        self._gain = np.zeros((len(sim.muscle_names), len(self.dof_names)))
+        n_dofs = len(sim.dof_names)
+        self._targets = np.zeros(n_dofs)
+        self._target_speeds = np.zeros(n_dofs)
+        self._gain = np.zeros((len(sim.muscle_names), n_dofs))
 
     def set_targets(self, action: np.ndarray, base: np.ndarray, base_speeds: np.ndarray) -> None:
         """Targets for the coming control period from ``action`` [n_dofs] in [0, 1], around

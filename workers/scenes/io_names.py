@@ -48,6 +48,12 @@ def observation_layout(
     return names
 
 
+def action_layout(scene: Scene, dofs: Sequence[str], muscles: Sequence[str]) -> list[str]:
+    """The action's entry names, in order, for ``scene`` and the given kept dofs and muscles:
+    the muscles [n_muscles]; with ``action.kind: joint_targets``, ``target:<dof>`` [n_dofs]."""
+    return [f"target:{d}" for d in dofs] if scene.action.targets else list(muscles)
+
+
 def needs_planar_muscles(scene: Scene, backend: str) -> bool:
     """Whether :func:`observation_names` and :func:`action_names` need the measured planar
     muscles for ``scene`` on ``backend`` (``keep.planar`` on MuJoCo)."""
@@ -72,12 +78,10 @@ def kept_plan(scene: Scene, backend: str, planar_muscles: Sequence[str] | None =
 def action_names(
     scene: Scene, backend: str = "mujoco", planar_muscles: Sequence[str] | None = None
 ) -> list[str]:
-    """The action's entry names: the kept muscles [n_muscles], in the body's order; with
-    ``action.kind: joint_targets``, ``target:<dof>`` for each kept dof [n_dofs]."""
+    """The action's entry names (see :func:`action_layout`), equal to the built env's
+    ``act_names``."""
     plan = kept_plan(scene, backend, planar_muscles)
-    if scene.action.targets:
-        return [f"target:{d}" for d in plan.kept_dofs]
-    return list(plan.kept_muscles)
+    return action_layout(scene, plan.kept_dofs, plan.kept_muscles)
 
 
 def observation_names(
