@@ -101,7 +101,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         self._state = self.sim.state()
         if self.imitation is not None:
             ref = self.imitation.reference(0)
-            error = self.imitation.pose_error(self._state, ref)
+            error = self.imitation.pose_error(self._state, ref, self.imitation.ramp(0))
             info["imitation"] = self._imitation_info = {
                 "phase": self.imitation.phase(0),
                 "pose_error_rad": float(np.sqrt(np.mean(error**2))),
@@ -172,16 +172,19 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def _step_reflex(self, action: np.ndarray) -> tuple[np.ndarray, Health]:
         """One control step through the reflex layer: the targets' base is the motion's pose
-        at the step's end (imitation) or the default pose; returns the step's mean
-        excitations [n_muscles] and its health."""
+        at the step's end (imitation; blended from the default pose while a standing start
+        ramps into the motion) or the default pose; returns the step's mean excitations
+        [n_muscles] and its health."""
         assert self.reflex is not None
         base, speeds = self._default_pose, np.zeros_like(self._default_pose)
         if self.imitation is not None:
             ref = self.imitation.reference(self._steps)
-            base = np.array(
+            motion = np.array(
                 [ref.joints.get(d, b) for d, b in zip(self.sim.dof_names, base, strict=True)]
             )
-            speeds = np.array([ref.joint_speeds.get(d, 0.0) for d in self.sim.dof_names])
+            blend = self.imitation.ramp(self._steps)
+            base = base + blend * (motion - base)
+            speeds = blend * np.array([ref.joint_speeds.get(d, 0.0) for d in self.sim.dof_names])
         self.reflex.set_targets(action, base, speeds)
         return self.sim.step_reflex(self.reflex, self.dt, self.scene.reflex_chunks)
 

@@ -1,10 +1,15 @@
 """Imitation of a recorded gait in an env (a scene's ``task.imitate``), DeepMimic-style.
 
-The gait phase runs with the env's time: ``phase = phase0 + t / period (mod 1)``, ``t`` the
-control steps taken times the control period. Each reset draws ``phase0`` (uniform, or 0) and
+The gait phase runs with the env's time: ``phase = phase0 + t * tempo / period (mod 1)``,
+``t`` the control steps taken times the control period; ``imitate.tempo`` plays the motion
+faster or slower (its speeds scale with it). Each reset draws ``phase0`` (uniform, or 0) and
 whether the episode is mirrored (left and right legs swapped, p = 0.5), and starts the body in
 the reference state there (joint angles plus uniform noise, their speeds, pelvis height,
-pitch, list, rotation and their rates, forward and vertical speed; ``Simulator.set_pose``).
+pitch, list, rotation and their rates, forward and vertical speed; ``Simulator.set_pose``);
+or, with ``init.start: standing`` or in a fraction ``init.standing_fraction`` of episodes, in
+the body's standing reset pose, and then :meth:`Imitation.ramp` says how far (0..1) the
+joint-target base, and the pose the pose term and ``max_pose_error_rad`` compare with, have
+blended from standing into the motion (over ``init.ramp_s``).
 
 Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imitate.weights``:
 
@@ -24,7 +29,7 @@ The tracked joints are the motion's joints that the scene keeps. The episode end
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from gaitforge.workers.bodies.topology import topology_for
@@ -60,6 +65,8 @@ class Imitation:
             imitate, scene.body, scene.keep.joints, topology_for(scene.body)
         )
         self._index = np.array([sim.dof_names.index(j) for j in self.joints], dtype=int)
+        defaults = topology_for(scene.body).dof_defaults
+        self._standing = np.array([defaults[j] for j in self.joints])
         self._feet = [f for f in sim.foot_names if f in self.motion.feet]
         self.dt = dt
         self.up, self.forward = sim.up_axis, sim.forward_axis
@@ -67,17 +74,30 @@ class Imitation:
         self._turns = self.motion.body != "gait2d"  # 3-D: heading may differ
         self.phase0 = 0.0
         self.mirrored = False
+        self.standing_start = False
 
     # ---- phase and reference ----------------------------------------------------------
 
     def phase(self, steps: int) -> float:
         """Phase in [0, 1) after ``steps`` control steps of this episode."""
-        return (self.phase0 + steps * self.dt / self.motion.period_s) % 1.0
+        return (self.phase0 + steps * self.dt * self.spec.tempo / self.motion.period_s) % 1.0
 
     def reference(self, steps: int) -> MotionState:
-        """The reference after ``steps`` control steps (mirrored if the episode is)."""
+        """The reference after ``steps`` control steps (mirrored if the episode is; speeds
+        times ``tempo``)."""
         state = self.motion.at(self.phase(steps))
+        if self.spec.tempo != 1.0:
+            state = _faster(state, self.spec.tempo)
         return self.motion.mirrored_state(state) if self.mirrored else state
+
+    def ramp(self, steps: int) -> float:
+        """How far (0..1) the joint targets' base has blended from the standing pose into the
+        motion's after ``steps`` control steps: 1 unless this episode started standing and
+        ``init.ramp_s`` has not yet passed."""
+        ramp_s = self.spec.init.ramp_s
+        if not self.standing_start or ramp_s <= 0.0:
+            return 1.0
+        return min(1.0, steps * self.dt / ramp_s)
 
     def observe(self, steps: int) -> list[float]:
         """``PHASE_OBS`` after ``steps`` steps."""
@@ -87,12 +107,17 @@ class Imitation:
     # ---- reference state initialisation ----------------------------------------------
 
     def start(self, rng: np.random.Generator) -> Pose | None:
-        """Draw this episode's phase and mirroring; the pose to start it from (None with
-        ``init.start: standing``: the simulator's reset pose)."""
+        """Draw this episode's phase, mirroring and start; the pose to start it from (None
+        for a standing start: the simulator's reset pose)."""
         init = self.spec.init
         self.phase0 = float(rng.uniform()) if init.random_phase else 0.0
         self.mirrored = bool(rng.uniform() < 0.5) if init.mirror else False
-        if init.start == "standing":
+        fraction = init.standing_fraction
+        mixed_standing = fraction > 0.0 and bool(rng.uniform() < fraction)
+        self.standing_start = init.start == "standing" or mixed_standing
+        if mixed_standing:
+            self.phase0 = 0.0
+        if self.standing_start:
             return None
         noise = rng.uniform(-init.noise, init.noise, len(self.joints))
         return self.pose_of(self.reference(0), noise)
@@ -117,15 +142,17 @@ class Imitation:
 
     # ---- tracking -----------------------------------------------------------------------
 
-    def pose_error(self, state: SimState, ref: MotionState) -> np.ndarray:
-        """[n_tracked] angle minus reference, rad."""
-        return state.dof_pos[self._index] - np.array([ref.joints[j] for j in self.joints])
+    def pose_error(self, state: SimState, ref: MotionState, ramp: float = 1.0) -> np.ndarray:
+        """[n_tracked] angle minus reference, rad; the reference blended from the standing
+        pose by ``ramp`` (0..1, :meth:`ramp`)."""
+        angles = np.array([ref.joints[j] for j in self.joints])
+        return state.dof_pos[self._index] - (self._standing + ramp * (angles - self._standing))
 
     def track(self, state: SimState, previous: SimState, sim: Simulator, steps: int) -> Tracking:
         """The tracking kernels of the state after step ``steps`` (see the module table)."""
         ref = self.reference(steps)
         scales = self.spec.scales
-        pose = self.pose_error(state, ref)
+        pose = self.pose_error(state, ref, self.ramp(steps))
         speed = state.dof_vel[self._index] - np.array([ref.joint_speeds[j] for j in self.joints])
         pitch, list_ = pelvis_pitch_list(state.pelvis_up, self.up, self.forward)
         height = float(state.pelvis_pos[self.up]) - ref.pelvis_height
@@ -197,3 +224,14 @@ class Imitation:
         about_y = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
         to_world = self._to_os.T
         return to_world @ about_y @ self._to_os
+
+
+def _faster(state: MotionState, tempo: float) -> MotionState:
+    """``state`` of the motion played ``tempo`` times faster: every speed times ``tempo``."""
+    return replace(
+        state,
+        joint_speeds={j: v * tempo for j, v in state.joint_speeds.items()},
+        pelvis_angular_speed=tuple(w * tempo for w in state.pelvis_angular_speed),
+        pelvis_vertical_speed=state.pelvis_vertical_speed * tempo,
+        forward_speed=state.forward_speed * tempo,
+    )

@@ -13,7 +13,7 @@ from typing import Annotated, Literal
 
 from gaitforge.workers.bodies.topology import Topology
 from gaitforge.workers.motions import MotionError, available_motions, load_motion
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 NonNegative = Annotated[float, Field(ge=0)]
 Positive = Annotated[float, Field(gt=0)]
@@ -60,6 +60,28 @@ class ImitationInit(_Strict):
     random_phase: bool = Field(default=True, description="a uniform random phase; else 0")
     mirror: bool = Field(default=True, description="left and right swapped at random (p=0.5)")
     noise: NonNegative = Field(default=0.02, description="rad, uniform on the joint angles")
+    standing_fraction: Annotated[float, Field(ge=0, le=1)] = Field(
+        default=0.0,
+        description="with start: motion, this fraction of the episodes starts standing "
+        "instead, at phase 0 (the way a scene with start: standing and random_phase: false "
+        "starts), so that one policy learns both the walk and the first steps into it",
+    )
+    ramp_s: NonNegative = Field(
+        default=0.0,
+        description="s; after a standing start, joint-target actions' base pose (and its "
+        "speeds) and the pose that the pose term and max_pose_error_rad compare with blend "
+        "linearly from the standing pose into the motion's over this time (0: the motion's "
+        "pose at once)",
+    )
+
+    @model_validator(mode="after")
+    def _fraction_with_motion_start(self) -> ImitationInit:
+        if self.start == "standing" and self.standing_fraction:
+            raise ValueError(
+                "task.imitate.init.standing_fraction: only with start: motion (with start: "
+                "standing every episode starts standing)"
+            )
+        return self
 
 
 class Imitate(_Strict):
@@ -74,6 +96,11 @@ class Imitate(_Strict):
         "passes it (none: never)",
     )
     init: ImitationInit = ImitationInit()
+    tempo: Annotated[float, Field(ge=0.5, le=2.0)] = Field(
+        default=1.0,
+        description="the motion plays this many times faster (a shorter period; joint, pelvis "
+        "and forward speeds times tempo): a walk at another pace with the same strides",
+    )
 
 
 IMITATION_TERMS: tuple[str, ...] = tuple(f"imitate_{n}" for n in ImitationWeights.model_fields)
