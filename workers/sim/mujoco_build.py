@@ -76,6 +76,10 @@ def _add_segments(spec: mujoco.MjSpec, body: Body) -> dict[str, mujoco.MjsBody]:
             inertia=list(seg.inertia),
             explicitinertial=True,
         )
+        # The root's dofs place the body in the world: never limited (OpenSim clamps no
+        # coordinate either). A range there is a wall: gait2d's pelvis_tx range of +-5 m
+        # stopped every walker 5 m from the origin.
+        in_world = joint.parent == GROUND
         for dof in joint.dofs:
             kind = (
                 mujoco.mjtJoint.mjJNT_HINGE if dof.type == "hinge" else mujoco.mjtJoint.mjJNT_SLIDE
@@ -85,7 +89,7 @@ def _add_segments(spec: mujoco.MjSpec, body: Body) -> dict[str, mujoco.MjsBody]:
                 type=kind,
                 axis=list(dof.axis),
                 range=list(dof.limit.range if dof.limit else dof.range),
-                limited=mujoco.mjtLimited.mjLIMITED_TRUE if dof.limited else 0,
+                limited=mujoco.mjtLimited.mjLIMITED_TRUE if dof.limited and not in_world else 0,
             )
         if seg.length_hint > 0:
             mj_body.add_geom(

@@ -88,3 +88,21 @@ def test_single_muscle_moves_its_joints_the_anatomical_way(muscle: str, side: st
         added = active[dof] - passive[dof]
         assert np.sign(added) == sign, f"{muscle}_{side} accelerates {dof} by {added:+.1f}"
         assert abs(added) > 1.0, f"{muscle}_{side} barely acts on {dof}: {added:+.3f} rad/s^2"
+
+
+def test_the_body_moves_on_past_its_roots_nominal_range() -> None:
+    """gait2d's pelvis_tx has a nominal range of +-5 m (OpenSim's, never clamped); it is no
+    wall: a body launched forward from 4.9 m passes 5.5 m. The root is never limited."""
+    sim = MujocoSimulator(load_scene("walk-2d"))
+    sim.reset(seed=0)
+    m, d = sim.model, sim.data
+    tx = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "pelvis_tx")
+    d.qpos[m.jnt_qposadr[tx]] = 4.9
+    d.qvel[m.jnt_dofadr[tx]] = 3.0
+    mujoco.mj_forward(m, d)
+    off = np.zeros(len(sim.muscle_names))
+    for _ in range(30):  # 0.3 s
+        assert sim.step(off, 0.01).ok
+    assert d.qpos[m.jnt_qposadr[tx]] > 5.5
+    for name in ("pelvis_tx", "pelvis_ty", "pelvis_tilt"):
+        assert not m.jnt_limited[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)]
