@@ -19,11 +19,15 @@ $(STAMP): pyproject.toml
 # with a blended bigger network, run, obstacles) at 1/1000 of its budget, follow it live,
 # download its final checkpoint and recordings, evaluate the checkpoint with an MCAP recording
 # and a video, stop the service and its Ray head (also on failure), print where everything is.
+# Then the shipped walker (examples/policies/walk-2d, trained by examples/learn-to-walk.yaml)
+# walks walk-2d's 10 s from standing: 5 episodes, the first as a video and an MCAP recording.
 RUN_DIR := runs/make-run
 run: $(STAMP)
 	$(BIN)/gaitforge scenes check --all --seconds 1
 	$(BIN)/python -m gaitforge.service.client.round_trip --job examples/gait2d-curriculum.yaml \
 		--budget-scale 0.001 --out $(RUN_DIR) --episodes 5
+	$(BIN)/gaitforge evaluate examples/policies/walk-2d --episodes 5 \
+		--video $(RUN_DIR)/walker.mp4 --record $(RUN_DIR)/walker.mcap
 
 test: $(STAMP)
 	$(BIN)/ruff check .
