@@ -61,12 +61,10 @@ class Imitation:
             raise ValueError(f"scene {scene.name!r}: task.imitate is not set")
         self.spec: Imitate = imitate
         self.motion: Motion = load_motion(scene.body, imitate.motion)
-        self.joints = tracked_joints(
-            imitate, scene.body, scene.keep.joints, topology_for(scene.body)
-        )
+        topology = topology_for(scene.body)
+        self.joints = tracked_joints(imitate, scene.body, scene.keep.joints, topology)
         self._index = np.array([sim.dof_names.index(j) for j in self.joints], dtype=int)
-        defaults = topology_for(scene.body).dof_defaults
-        self._standing = np.array([defaults[j] for j in self.joints])
+        self._standing = np.array([topology.dof_defaults[j] for j in self.joints])
         self._feet = [f for f in sim.foot_names if f in self.motion.feet]
         self.dt = dt
         self.up, self.forward = sim.up_axis, sim.forward_axis
