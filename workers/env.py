@@ -178,13 +178,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         assert self.reflex is not None
         base, speeds = self._default_pose, np.zeros_like(self._default_pose)
         if self.imitation is not None:
-            ref = self.imitation.reference(self._steps)
-            motion = np.array(
-                [ref.joints.get(d, b) for d, b in zip(self.sim.dof_names, base, strict=True)]
-            )
-            blend = self.imitation.ramp(self._steps)
-            base = base + blend * (motion - base)
-            speeds = blend * np.array([ref.joint_speeds.get(d, 0.0) for d in self.sim.dof_names])
+            base, speeds = self.imitation.target_base(self._steps, self.sim.dof_names, base)
         self.reflex.set_targets(action, base, speeds)
         return self.sim.step_reflex(self.reflex, self.dt, self.scene.reflex_chunks)
 

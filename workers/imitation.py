@@ -29,6 +29,7 @@ The tracked joints are the motion's joints that the scene keeps. The episode end
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -96,6 +97,18 @@ class Imitation:
         if not self.standing_start or ramp_s <= 0.0:
             return 1.0
         return min(1.0, steps * self.dt / ramp_s)
+
+    def target_base(
+        self, steps: int, dofs: Sequence[str], standing: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Joint-target actions' base after ``steps`` control steps, for ``dofs`` [n_dofs]:
+        the reference's angles (rad) and speeds (rad/s) where it has them, else ``standing``
+        [n_dofs] and 0, blended from ``standing`` (speeds from 0) by :meth:`ramp`."""
+        ref = self.reference(steps)
+        angles = np.array([ref.joints.get(d, q) for d, q in zip(dofs, standing, strict=True)])
+        speeds = np.array([ref.joint_speeds.get(d, 0.0) for d in dofs])
+        blend = self.ramp(steps)
+        return standing + blend * (angles - standing), blend * speeds
 
     def observe(self, steps: int) -> list[float]:
         """``PHASE_OBS`` after ``steps`` steps."""
