@@ -1,6 +1,7 @@
 """Shipping a trained policy with the repository: a checkpoint copied to a folder of its own
 (``examples/policies/<scene>/``) as the trainer writes one, without the optimizer's state
-(the policy and normaliser safetensors are a few hundred kB), its ``meta.json`` given a
+(the policy and normaliser safetensors are a few hundred kB) or the episodes its curriculum
+kept for promotion rules (tens of kB of one run's history), its ``meta.json`` given a
 ``provenance``: the command and seed that made it, the commit it was trained at, the
 checkpoint it was copied from and, if given, its evaluation's headline figures.
 
@@ -67,7 +68,12 @@ def ship_policy(
     }
     if evaluation is not None:
         provenance["evaluation"] = headline(evaluation)
-    shipped = meta.model_copy(update={"provenance": provenance, "optimizer_param_groups": None})
+    curriculum = meta.curriculum
+    if curriculum is not None:  # the promotion window's episodes: a run's, not the policy's
+        curriculum = curriculum.model_copy(update={"episodes": []})
+    shipped = meta.model_copy(
+        update={"provenance": provenance, "optimizer_param_groups": None, "curriculum": curriculum}
+    )
     with tempfile.TemporaryDirectory(dir=dest.parent if dest.parent.exists() else None) as tmp:
         written = save_checkpoint(Path(tmp), meta.env_steps, state, shipped, keep_last=1)
         if dest.exists():

@@ -74,6 +74,7 @@ class Imitation:
         self.phase0 = 0.0
         self.mirrored = False
         self.standing_start = False
+        self._last_reference: tuple[tuple[int, float, bool], MotionState] | None = None
 
     # ---- phase and reference ----------------------------------------------------------
 
@@ -83,11 +84,18 @@ class Imitation:
 
     def reference(self, steps: int) -> MotionState:
         """The reference after ``steps`` control steps (mirrored if the episode is; speeds
-        times ``tempo``)."""
+        times ``tempo``). A step asks for it twice (the targets' base, then tracking): the
+        last one is kept."""
+        key = (steps, self.phase0, self.mirrored)
+        if self._last_reference is not None and self._last_reference[0] == key:
+            return self._last_reference[1]
         state = self.motion.at(self.phase(steps))
         if self.spec.tempo != 1.0:
             state = _faster(state, self.spec.tempo)
-        return self.motion.mirrored_state(state) if self.mirrored else state
+        if self.mirrored:
+            state = self.motion.mirrored_state(state)
+        self._last_reference = (key, state)
+        return state
 
     def ramp(self, steps: int) -> float:
         """How far (0..1) the joint targets' base has blended from the standing pose into the

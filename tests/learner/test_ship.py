@@ -1,5 +1,5 @@
-"""Shipping a policy: a checkpoint copied without its optimizer, with a provenance, that
-evaluates and starts a job like any checkpoint."""
+"""Shipping a policy: a checkpoint copied without its optimizer or its run's episode history,
+with a provenance, that evaluates and starts a job like any checkpoint."""
 
 from __future__ import annotations
 
@@ -34,6 +34,8 @@ def test_a_shipped_policy_keeps_the_weights_and_names_its_origin(tmp_path: Path)
     assert provenance["command"] == "gaitforge train elbow.yaml" and provenance["seed"] == 0
     assert provenance["commit"] and provenance["copied_from"] == str(source)
     assert provenance["evaluation"]["fall_rate"] == 0.0
+    assert meta.curriculum is not None and meta.curriculum.episodes == []
+    assert load_checkpoint(source)[1].curriculum.episodes  # the run had some
     shipped, _ = load_policy(dest)
     original, _ = load_policy(source)
     obs = torch.randn(16, original.obs_dim)
