@@ -38,6 +38,7 @@ from gaitforge.workers.sim.base import (
     check_pose_names,
 )
 from gaitforge.workers.sim.opensim_build import PARKED, build_model, quiet_opensim_log
+from gaitforge.workers.sim.opensim_drawing import body_frames, muscle_paths, vec3
 from gaitforge.workers.sim.opensim_size import full_plan, model_size
 
 logger = logging.getLogger(__name__)
@@ -239,10 +240,10 @@ class OpenSimSimulator:
             time=state.getTime(),
             dof_pos=np.array([c.getValue(state) for c in self._kept]),
             dof_vel=np.array([c.getSpeedValue(state) for c in self._kept]),
-            pelvis_pos=_vec3(pelvis.getPositionInGround(state)),
+            pelvis_pos=vec3(pelvis.getPositionInGround(state)),
             pelvis_up=up,
-            pelvis_vel=_vec3(velocity.get(1)),
-            pelvis_angvel=_vec3(velocity.get(0)),
+            pelvis_vel=vec3(velocity.get(1)),
+            pelvis_angvel=vec3(velocity.get(0)),
             activations=np.array([m.getActivation(state) for m in self._muscles]),
             foot_forces=np.array(
                 [sum(_ground_normal(f, state) for f in forces) for forces in self._foot_force_objs]
@@ -322,44 +323,11 @@ class OpenSimSimulator:
     # ---- read-outs for drawing ----------------------------------------------------------
 
     def body_frames(self) -> dict[str, BodyPose]:
-        state = self.osim_state
-        self.model.realizePosition(state)
-        parents = {}
-        joints = self.model.getJointSet()
-        for i in range(joints.getSize()):
-            joint = joints.get(i)
-            parent = joint.getParentFrame().findBaseFrame().getName()
-            parents[joint.getChildFrame().findBaseFrame().getName()] = (
-                "" if parent == "ground" else parent
-            )
-        frames = {}
-        bodies = self.model.getBodySet()
-        for i in range(bodies.getSize()):
-            body = bodies.get(i)
-            pose = body.getTransformInGround(state)
-            q = pose.R().convertRotationToQuaternion()
-            frames[body.getName()] = BodyPose(
-                _vec3(pose.p()),
-                np.array([q.get(k) for k in range(4)]),
-                parents.get(body.getName(), ""),
-            )
-        return frames
+        return body_frames(self.model, self.osim_state)
 
     def muscle_paths(self) -> dict[str, np.ndarray]:
         """``GeometryPath.getCurrentPath``: path points active now, wrap points included."""
-        state = self.osim_state
-        self.model.realizePosition(state)
-        paths = {}
-        for name, muscle in zip(self.muscle_names, self._muscles, strict=True):
-            geometry = opensim.GeometryPath.safeDownCast(muscle.getPath())
-            if geometry is None:  # a function-based path has no points
-                paths[name] = np.zeros((0, 3))
-                continue
-            points = geometry.getCurrentPath(state)
-            paths[name] = np.array(
-                [_vec3(points.get(k).getLocationInGround(state)) for k in range(points.getSize())]
-            ).reshape(-1, 3)
-        return paths
+        return muscle_paths(self.model, self.osim_state, self.muscle_names, self._muscles)
 
     def contact_spheres(self) -> dict[str, np.ndarray]:
         state = self.osim_state
@@ -367,7 +335,7 @@ class OpenSimSimulator:
         spheres: dict[str, list] = {foot: [] for foot in self.foot_names}
         for foot, (body, where, radius) in zip(self._sphere_feet, self._foot_spheres, strict=True):
             if foot in spheres:
-                centre = _vec3(body.findStationLocationInGround(state, where))
+                centre = vec3(body.findStationLocationInGround(state, where))
                 spheres[foot].append([*centre, radius])
         return {foot: np.array(s, dtype=float).reshape(-1, 4) for foot, s in spheres.items()}
 
@@ -418,10 +386,6 @@ class OpenSimSimulator:
         self._obstacles = np.array(obstacles, dtype=float)
         self.osim_state = self.model.initSystem()
         self._bind()
-
-
-def _vec3(v: opensim.Vec3) -> np.ndarray:
-    return np.array([v.get(0), v.get(1), v.get(2)])
 
 
 def _ground_normal(force: opensim.Force, state: opensim.State) -> float:
