@@ -13,14 +13,16 @@ over 100 10-s episodes. Each framework gets the same wall-clock budget per task
 (``--minutes``, default 3, 5 and 30) on the same scene (with the job's overrides, e.g.
 25 Hz control), the same number of rollout workers (``--workers``, default: CPUs less one
 for the learner), network, batch size, epochs, learning rate and discount. gaitforge stops
-at the target; RLlib is checked against the same rules after each of its iterations, with
-episode statistics logged by a callback as means over the rules' largest window.
+at the target; RLlib (``bench/rllib_runner.py``) goes through the same stages, each for its
+env-step budget, and is checked against the last stage's rules after each of its
+iterations, with episode statistics logged by a callback as means over the rules' largest
+window.
 
 gaitforge runs once per seed (``--seeds``, the job's ``seed``; RLlib runs with the first
-seed only); each run's newest checkpoint is then evaluated deterministically over
-``--eval-episodes`` episodes of the job's scene (``learner.evaluate``: fall rate, mean speed
-and, on imitation scenes, what the evaluation reports of the tracking), and the table gives
-each seed and the median over seeds.
+seed only); each run's newest checkpoint (RLlib's final module, its mean action) is then
+evaluated deterministically over ``--eval-episodes`` episodes of the scene its run ended on
+(``learner.evaluate``: fall rate, mean speed and, on imitation scenes, what the evaluation
+reports of the tracking), and the table gives each seed and the median over seeds.
 
 Prints a table (target reached?, wall-clock and env steps to it, or the last values),
 writes ``learning.json`` and ``learning.png`` (the rule's first metric against wall-clock
@@ -44,19 +46,17 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import ray
-from gaitforge.learner.curriculum import EpisodeStats
 from gaitforge.learner.evaluate import evaluate_checkpoint
-from gaitforge.learner.job import METRICS, Job, load_job
+from gaitforge.learner.job import Job, load_job
 from gaitforge.learner.trainer import Trainer
-from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import Scene
 from rich.console import Console
 from rich.table import Table
+from rllib_runner import run_rllib  # bench/rllib_runner.py (this script's folder is on sys.path)
 
 console = Console()
 EXAMPLES = Path(__file__).parents[1] / "examples"
 DEFAULT_MINUTES = {"elbow-reach": 3.0, "stand-2d": 5.0, "walk-2d": 30.0}
-RLLIB_ENV = "gaitforge-learning"
 
 
 def run_gaitforge(
@@ -107,75 +107,6 @@ def _headline(evaluation: dict) -> dict[str, float | None]:
         if key.startswith(("tracking", "kept")) and isinstance(value, dict):
             out[key] = value.get("mean", value.get("value"))
     return out
-
-
-def run_rllib(job: Job, scene: Scene, minutes: float, workers: int) -> dict:
-    from ray.rllib.algorithms.ppo import PPOConfig
-    from ray.rllib.callbacks.callbacks import RLlibCallback
-    from ray.tune.registry import register_env
-
-    logging.getLogger("ray.rllib").setLevel(logging.ERROR)
-    register_env(RLLIB_ENV, lambda cfg: MuscleEnv(Scene.model_validate(cfg["scene"]),
-                                                   cfg["backend"]))  # fmt: skip
-    steps_per_episode = scene.steps_per_episode
-    control_hz = scene.control_hz
-
-    rules = job.stages[0].promote
-    window = max(rule.window for rule in rules)
-
-    class EpisodeLog(RLlibCallback):
-        """Each finished episode's statistics as the gaitforge trainer keeps them, as means
-        over the last ``window`` episodes."""
-
-        def on_episode_end(self, *, episode, metrics_logger, **kwargs) -> None:
-            info = episode.get_infos()[-1]
-            length = len(episode)
-            stats = EpisodeStats(
-                float(episode.get_return()), float(info.get("distance", 0.0)),
-                length / control_hz, bool(info.get("fell", False)), length >= steps_per_episode,
-            )  # fmt: skip
-            for metric in METRICS:
-                metrics_logger.log_value(f"gf_{metric}", stats.metric(metric), window=window)
-
-    ppo = job.ppo
-    config = (
-        PPOConfig()
-        .environment(RLLIB_ENV, env_config={"scene": scene.model_dump(mode="json"),
-                                            "backend": job.backend})
-        .env_runners(num_env_runners=workers,
-                     num_envs_per_env_runner=job.workers.envs_per_worker)
-        .training(train_batch_size_per_learner=ppo.batch_env_steps,
-                  minibatch_size=ppo.minibatch_size, num_epochs=ppo.epochs, lr=ppo.lr,
-                  gamma=ppo.gamma, lambda_=ppo.lam, clip_param=ppo.clip)
-        .rl_module(model_config={"fcnet_hiddens": list(job.network.hidden),
-                                 "fcnet_activation": "tanh"})
-        .callbacks(EpisodeLog)
-        .debugging(seed=job.seed)
-    )  # fmt: skip
-    start = time.monotonic()  # set-up counts, as it does for gaitforge
-    algo = config.build_algo()
-    curve: list[dict] = []
-    reached = False
-    try:
-        while time.monotonic() - start < minutes * 60:
-            result = algo.train()
-            runners = result.get("env_runners", {})
-            means = {r.metric: float(runners.get(f"gf_{r.metric}", float("nan"))) for r in rules}
-            reached = runners.get("num_episodes_lifetime", 0) >= window and all(
-                r.passes(means[r.metric]) for r in rules
-            )
-            steps = runners.get("num_env_steps_sampled_lifetime") or result.get(
-                "num_env_steps_sampled_lifetime", 0
-            )
-            returns = float(runners.get("episode_return_mean", float("nan")))
-            curve.append({"wall_s": time.monotonic() - start, "env_steps": int(steps),
-                          "return": returns, **means})  # fmt: skip
-            console.log(f"rllib {job.name}: {curve[-1]}")
-            if reached:
-                break
-    finally:
-        algo.stop()
-    return _summary(curve, reached)
 
 
 def _summary(curve: list[dict], reached: bool) -> dict:
@@ -311,9 +242,13 @@ def main() -> None:
             raw = job.model_dump()
             raw["workers"]["num_workers"] = workers
             raw["seed"] = args.seeds[0]
-            runs[f"rllib seed {args.seeds[0]}"] = run_rllib(
-                Job.model_validate(raw), scenes[0], budget, workers
+            curve, reached, evaluation = run_rllib(
+                Job.model_validate(raw), scenes, budget, workers, args.eval_episodes
             )
+            runs[f"rllib seed {args.seeds[0]}"] = _summary(curve, reached)
+            if evaluation is not None:
+                runs[f"rllib seed {args.seeds[0]}"]["evaluation"] = evaluation
+                console.log(f"evaluated RLlib's module: {_headline(evaluation)}")
         results[task] = {
             "target": " and ".join(str(r) for r in rules),
             "minutes": budget,
