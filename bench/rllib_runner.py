@@ -16,7 +16,7 @@ import time
 import numpy as np
 import torch
 from gaitforge.learner.curriculum import EpisodeStats
-from gaitforge.learner.evaluate import evaluate_policy
+from gaitforge.learner.evaluate import EvaluationReport, evaluate_policy
 from gaitforge.learner.job import METRICS, Job
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import Scene
@@ -162,6 +162,9 @@ def _evaluate(algo, job: Job, scene: Scene, stage: int, episodes: int) -> dict:
     policy = RLlibMeanPolicy(algo.get_module(), len(env.obs_names), env.action_space.low,
                              env.action_space.high)  # fmt: skip
     env.close()
-    result = evaluate_policy(policy, scene, backend, episodes=episodes).to_dict()  # type: ignore[arg-type]
-    result.pop("episodes", None)
-    return result
+    result = evaluate_policy(policy, scene, backend, episodes=episodes)  # type: ignore[arg-type]
+    report = EvaluationReport(checkpoint=None, env_steps=None, scene=scene.name, backend=backend,
+                              seed=0, results={"deterministic": result})  # fmt: skip
+    out = report.to_dict()["results"]["deterministic"]
+    out.pop("episodes", None)
+    return out
