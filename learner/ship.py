@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import shutil
 import tempfile
 from pathlib import Path
@@ -80,5 +81,17 @@ def ship_policy(
             shutil.rmtree(dest)
         dest.parent.mkdir(parents=True, exist_ok=True)
         written.rename(dest)
+    _readable_as_umask_allows(dest)
     logger.info("shipped %s to %s: %s", source, dest, json.dumps(provenance))
     return dest
+
+
+def _readable_as_umask_allows(folder: Path) -> None:
+    """Give ``folder`` (made in a private temporary directory) and its files the modes a new
+    folder and file get here (0o777 and 0o666 less the umask): a shipped policy is for
+    anyone who checks out the repository."""
+    umask = os.umask(0)
+    os.umask(umask)
+    folder.chmod(0o777 & ~umask)
+    for path in folder.iterdir():
+        path.chmod(0o666 & ~umask)

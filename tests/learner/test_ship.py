@@ -4,6 +4,7 @@ with a provenance, that evaluates and starts a job like any checkpoint."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -29,6 +30,10 @@ def test_a_shipped_policy_keeps_the_weights_and_names_its_origin(tmp_path: Path)
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert not (dest / "optimizer.safetensors").exists()
+    umask = os.umask(0)
+    os.umask(umask)
+    assert dest.stat().st_mode & 0o777 == 0o777 & ~umask
+    assert {p.stat().st_mode & 0o777 for p in dest.iterdir()} == {0o666 & ~umask}
     _, meta = load_checkpoint(dest)
     provenance = meta.provenance or {}
     assert provenance["command"] == "gaitforge train elbow.yaml" and provenance["seed"] == 0
