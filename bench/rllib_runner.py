@@ -13,7 +13,6 @@ from __future__ import annotations
 import logging
 import time
 
-import numpy as np
 import torch
 from gaitforge.learner.curriculum import EpisodeStats
 from gaitforge.learner.evaluate import EvaluationReport, evaluate_policy
@@ -41,13 +40,14 @@ def env_config(job: Job, scenes: list[Scene], stage: int) -> dict:
 class RLlibMeanPolicy:
     """An RLlib PPO module as gaitforge's evaluation sees a policy: ``describe`` gives its
     sizes and ``mean_action`` [batch, n_obs] -> [batch, n_act] its mean action, unsquashed
-    from RLlib's [-1, 1] to the env's action bounds as RLlib does when it samples."""
+    from RLlib's [-1, 1] to its action space's bounds as RLlib does when it samples."""
 
-    def __init__(self, module, obs_dim: int, low: np.ndarray, high: np.ndarray) -> None:
+    def __init__(self, module) -> None:
         self.module = module
-        self.obs_dim, self.act_dim = obs_dim, len(low)
-        self.low = torch.as_tensor(low, dtype=torch.float32)
-        self.high = torch.as_tensor(high, dtype=torch.float32)
+        self.obs_dim = int(module.observation_space.shape[0])
+        self.act_dim = int(module.action_space.shape[0])
+        self.low = torch.as_tensor(module.action_space.low, dtype=torch.float32)
+        self.high = torch.as_tensor(module.action_space.high, dtype=torch.float32)
 
     def describe(self) -> dict:
         return {"class": "RLlibMeanPolicy", "obs_dim": self.obs_dim, "act_dim": self.act_dim}
@@ -158,10 +158,7 @@ def _evaluate(algo, job: Job, scene: Scene, stage: int, episodes: int) -> dict:
     """The module's mean action on ``scene``, ``episodes`` deterministic episodes, as
     ``bench/learning.py`` evaluates gaitforge's runs."""
     backend = job.stage_backend(stage)
-    env = MuscleEnv(scene, backend)
-    policy = RLlibMeanPolicy(algo.get_module(), len(env.obs_names), env.action_space.low,
-                             env.action_space.high)  # fmt: skip
-    env.close()
+    policy = RLlibMeanPolicy(algo.get_module())
     result = evaluate_policy(policy, scene, backend, episodes=episodes)  # type: ignore[arg-type]
     report = EvaluationReport(checkpoint=None, env_steps=None, scene=scene.name, backend=backend,
                               seed=0, results={"deterministic": result})  # fmt: skip
