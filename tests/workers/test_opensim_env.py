@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import pickle
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -90,3 +93,29 @@ def test_model_is_rebuilt_every_n_episodes() -> None:
         sim.reset(seed)
         sim.step(np.zeros(len(sim.muscle_names)), 0.01)
     assert sim.rebuilds == 2
+
+
+def test_a_step_reads_no_freed_state_under_a_poisoning_allocator() -> None:
+    """``Manager.integrate`` returns a reference into its Manager; reading it once that
+    Manager is freed read garbage now and then (a pickled run-2d-clock diverged in CI). With
+    glibc filling freed memory with a pattern (tcache off, so every free is filled), such a
+    read segfaults or goes wrong every time rather than now and then."""
+    script = (
+        "import numpy as np\n"
+        "from gaitforge.workers.env import MuscleEnv\n"
+        "env = MuscleEnv('run-2d-clock', 'opensim')\n"
+        "env.reset(seed=3)\n"
+        "for _ in range(4):\n"
+        "    before = env.sim.state().time\n"
+        "    env.step(np.full(env.action_space.shape, 0.5))\n"
+        "    assert abs(env.sim.state().time - before - 1 / 25) < 1e-9, env.sim.state().time\n"
+    )
+    poisoning = {"GLIBC_TUNABLES": "glibc.malloc.tcache_count=0", "MALLOC_PERTURB_": "165"}
+    done = subprocess.run(
+        [sys.executable, "-c", script],
+        env={**os.environ, **poisoning},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]

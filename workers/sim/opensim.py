@@ -193,12 +193,16 @@ class OpenSimSimulator:
         for control, value in zip(self._controls, excitations, strict=True):
             control.setValue(float(value))
         start = time.perf_counter()
+        end_time = self.osim_state.getTime() + duration
         try:
-            self._stepper = self._manager()  # owns the state that integrate() returns
-            self.osim_state = self._stepper.integrate(self.osim_state.getTime() + duration)
+            manager = self._manager()
+            state = manager.integrate(end_time)
         except RuntimeError as exc:
             logger.info("opensim integration failed: %s", str(exc).strip().splitlines()[-1])
             return Health("opensim_integrator_failed")
+        # integrate() returns a reference into its Manager: the previous Manager, and the
+        # state it owned, are freed only here, once nothing reads that state any more.
+        self._stepper, self.osim_state = manager, state
         if time.perf_counter() - start > self.scene.step_wall_limit_s:
             return Health("opensim_wall_time")
         y = self.osim_state.getY().to_numpy()
