@@ -141,7 +141,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             dt=self.dt,
             forward_axis=self.sim.forward_axis,
             up_axis=self.sim.up_axis,
-            target_speed=self.scene.task.target_speed,
+            target_speed=self._target_speed(),
             reach_index=self._reach_index,
             reach_target=self._reach_target,
         )
@@ -181,6 +181,13 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             base, speeds = self.imitation.target_base(self._steps, self.sim.dof_names, base)
         self.reflex.set_targets(action, base, speeds)
         return self.sim.step_reflex(self.reflex, self.dt, self.scene.reflex_chunks)
+
+    def _target_speed(self) -> float | None:
+        """The target_speed term's target (m/s) for the step just taken."""
+        target = self.scene.task.target_speed
+        if self.imitation is None:
+            return target
+        return self.imitation.target_speed(self._steps, target)
 
     def reference_state(self) -> MotionState | None:
         """The motion's reference at the current phase (mirrored if this episode is), for

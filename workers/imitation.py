@@ -9,7 +9,10 @@ pitch, list, rotation and their rates, forward and vertical speed; ``Simulator.s
 or, with ``init.start: standing`` or in a fraction ``init.standing_fraction`` of episodes, in
 the body's standing reset pose, and then :meth:`Imitation.ramp` says how far (0..1) the
 joint-target base, and the pose the pose term and ``max_pose_error_rad`` compare with, have
-blended from standing into the motion (over ``init.ramp_s``).
+blended from standing into the motion (over ``init.ramp_s``). With ``imitate.lead_in``, an
+episode that starts standing plays the lead-in motion first and cross-fades into the scene's
+(``workers.motions.playback``: a run that starts as a walk); the phase, the reference and
+(with ``speed_target_from_clock``) the target speed of the ``target_speed`` term follow it.
 
 Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imitate.weights``:
 
@@ -30,11 +33,12 @@ The tracked joints are the motion's joints that the scene keeps. The episode end
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.motions import Motion, MotionState, load_motion
+from gaitforge.workers.motions.playback import CrossFade, faster
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.scenes.imitate import IMITATION_TERMS, Imitate, tracked_joints
 from gaitforge.workers.sim.base import Pose, SimState, Simulator
@@ -62,6 +66,20 @@ class Imitation:
             raise ValueError(f"scene {scene.name!r}: task.imitate is not set")
         self.spec: Imitate = imitate
         self.motion: Motion = load_motion(scene.body, imitate.motion)
+        lead_in = imitate.lead_in
+        self.crossfade = (
+            None
+            if lead_in is None
+            else CrossFade(
+                lead=load_motion(scene.body, lead_in.motion),
+                lead_tempo=lead_in.tempo,
+                main=self.motion,
+                main_tempo=imitate.tempo,
+                hold_s=lead_in.hold_s,
+                crossfade_s=lead_in.crossfade_s,
+            )
+        )
+        """The lead-in's cross-fade, played after a standing start (None: no lead-in)."""
         topology = topology_for(scene.body)
         self.joints = tracked_joints(imitate, scene.body, scene.keep.joints, topology)
         self._index = np.array([sim.dof_names.index(j) for j in self.joints], dtype=int)
@@ -74,24 +92,31 @@ class Imitation:
         self.phase0 = 0.0
         self.mirrored = False
         self.standing_start = False
-        self._last_reference: tuple[tuple[int, float, bool], MotionState] | None = None
+        self._last_reference: tuple[tuple[int, float, bool, bool], MotionState] | None = None
 
     # ---- phase and reference ----------------------------------------------------------
 
+    def _fading(self) -> CrossFade | None:
+        """The lead-in's cross-fade if this episode plays it (it started standing)."""
+        return self.crossfade if self.standing_start else None
+
     def phase(self, steps: int) -> float:
         """Phase in [0, 1) after ``steps`` control steps of this episode."""
+        if fade := self._fading():
+            return (self.phase0 + fade.cycles(steps * self.dt)) % 1.0
         return (self.phase0 + steps * self.dt * self.spec.tempo / self.motion.period_s) % 1.0
 
     def reference(self, steps: int) -> MotionState:
         """The reference after ``steps`` control steps (mirrored if the episode is; speeds
-        times ``tempo``). A step asks for it twice (the targets' base, then tracking): the
-        last one is kept."""
-        key = (steps, self.phase0, self.mirrored)
+        times ``tempo``; cross-faded from the lead-in after a standing start). A step asks
+        for it twice (the targets' base, then tracking): the last one is kept."""
+        key = (steps, self.phase0, self.mirrored, self.standing_start)
         if self._last_reference is not None and self._last_reference[0] == key:
             return self._last_reference[1]
-        state = self.motion.at(self.phase(steps))
-        if self.spec.tempo != 1.0:
-            state = _faster(state, self.spec.tempo)
+        if fade := self._fading():
+            state = fade.at(steps * self.dt, self.phase0)
+        else:
+            state = faster(self.motion.at(self.phase(steps)), self.spec.tempo)
         if self.mirrored:
             state = self.motion.mirrored_state(state)
         self._last_reference = (key, state)
@@ -105,6 +130,14 @@ class Imitation:
         if not self.standing_start or ramp_s <= 0.0:
             return 1.0
         return min(1.0, steps * self.dt / ramp_s)
+
+    def target_speed(self, steps: int, task_target: float | None) -> float | None:
+        """The ``target_speed`` term's target (m/s) after ``steps`` steps: ``task_target``, or
+        with ``speed_target_from_clock`` the smaller of it and the reference's forward speed
+        times :meth:`ramp` (from standing into the motion, faded from the lead-in)."""
+        if task_target is None or not self.spec.speed_target_from_clock:
+            return task_target
+        return min(task_target, self.reference(steps).forward_speed * self.ramp(steps))
 
     def target_base(
         self, steps: int, dofs: Sequence[str], standing: np.ndarray
@@ -243,14 +276,3 @@ class Imitation:
         about_y = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
         to_world = self._to_os.T
         return to_world @ about_y @ self._to_os
-
-
-def _faster(state: MotionState, tempo: float) -> MotionState:
-    """``state`` of the motion played ``tempo`` times faster: every speed times ``tempo``."""
-    return replace(
-        state,
-        joint_speeds={j: v * tempo for j, v in state.joint_speeds.items()},
-        pelvis_angular_speed=tuple(w * tempo for w in state.pelvis_angular_speed),
-        pelvis_vertical_speed=state.pelvis_vertical_speed * tempo,
-        forward_speed=state.forward_speed * tempo,
-    )

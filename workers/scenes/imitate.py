@@ -84,6 +84,23 @@ class ImitationInit(_Strict):
         return self
 
 
+class LeadIn(_Strict):
+    """After a standing start, play another motion first and cross-fade from it into the
+    scene's (``workers.motions.playback``): a run that starts as a walk. The phase clock,
+    the joint targets' base, the pose the tracking terms compare with and (with
+    ``speed_target_from_clock``) the target speed all follow the fade."""
+
+    motion: str = Field(description="a motion shipped for the body (or a file): e.g. walk")
+    tempo: Annotated[float, Field(ge=0.5, le=2.0)] = Field(
+        default=1.0, description="the lead-in motion plays this many times faster"
+    )
+    hold_s: NonNegative = Field(
+        description="s from the episode's start in the lead-in motion alone (the standing "
+        "ramp, init.ramp_s, included)"
+    )
+    crossfade_s: Positive = Field(description="s of the linear blend into the scene's motion")
+
+
 class Imitate(_Strict):
     """Track motion ``motion`` of the scene's body (``workers.motions``)."""
 
@@ -101,6 +118,28 @@ class Imitate(_Strict):
         description="the motion plays this many times faster (a shorter period; joint, pelvis "
         "and forward speeds times tempo): a walk at another pace with the same strides",
     )
+    lead_in: LeadIn | None = Field(
+        default=None,
+        description="after a standing start (init.start: standing or standing_fraction), "
+        "start in this motion and cross-fade into ``motion``",
+    )
+    speed_target_from_clock: bool = Field(
+        default=False,
+        description="the target_speed reward term asks for the smaller of task.target_speed "
+        "and the reference's forward speed now (ramped from standing, faded from the lead-in), "
+        "so a standing start is not asked for full speed at once; the observation keeps "
+        "task.target_speed",
+    )
+
+    @model_validator(mode="after")
+    def _lead_in_needs_standing_starts(self) -> Imitate:
+        init = self.init
+        if self.lead_in is not None and init.start != "standing" and not init.standing_fraction:
+            raise ValueError(
+                "task.imitate.lead_in: only with standing starts (init.start: standing, or "
+                "init.standing_fraction > 0): the lead-in plays from a standing start"
+            )
+        return self
 
 
 IMITATION_TERMS: tuple[str, ...] = tuple(f"imitate_{n}" for n in ImitationWeights.model_fields)
@@ -149,4 +188,17 @@ def check_imitation(
             f"task.imitate: body {body!r} has no free pelvis (root) to place; imitation needs "
             "a legged body (gait2d, myoleg)"
         )
-    tracked_joints(imitate, body, kept, topology)
+    tracked = tracked_joints(imitate, body, kept, topology)
+    if imitate.lead_in is not None:
+        lead = imitate.model_copy(update={"motion": imitate.lead_in.motion})
+        try:
+            lead_tracked = tracked_joints(lead, body, kept, topology)
+        except ValueError as exc:
+            message = str(exc).replace("task.imitate.motion", "task.imitate.lead_in.motion")
+            raise ValueError(message) from None
+        if lead_tracked != tracked:
+            raise ValueError(
+                f"task.imitate.lead_in.motion: motion {imitate.lead_in.motion!r} tracks "
+                f"{lead_tracked}, motion {imitate.motion!r} tracks {tracked}: a cross-fade needs "
+                "the same joints"
+            )
