@@ -46,9 +46,7 @@ def test_the_state_is_the_walk_then_a_blend_then_the_run() -> None:
     fade = _walk_into_run()
     for t, pick in [(0.5, "walk"), (3.0, "run")]:
         phase = fade.cycles(t) % 1.0
-        expected = (
-            faster(fade.lead.at(phase), 1.25) if pick == "walk" else fade.main.at(phase)
-        )
+        expected = faster(fade.lead.at(phase), 1.25) if pick == "walk" else fade.main.at(phase)
         assert fade.at(t) == expected
     t = 1.5  # half way
     phase = fade.cycles(t) % 1.0
