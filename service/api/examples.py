@@ -32,6 +32,7 @@ def schema_examples(schemas: dict[str, Any]) -> dict[str, Any]:
         ("JobStatus", status),
         ("Scene", load_scene("imitate-walk-2d").model_dump(mode="json")),
         ("Scene", load_scene("obstacles-2d").model_dump(mode="json")),
+        ("Scene", load_scene("run-2d-clock").model_dump(mode="json")),  # a lead-in
         ("SceneSummary", routes_scenes.summaries()[0].model_dump(mode="json")),
         ("SceneReport", routes_scenes.report("stand-2d", None).model_dump(mode="json")),
     ]
