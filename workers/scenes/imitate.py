@@ -156,21 +156,28 @@ def tracked_joints(
             available ones listed), the body lacks one of its joints, or the scene keeps
             none of them.
     """
+    return _kept_joints_of(imitate.motion, "task.imitate.motion", body, kept, topology)
+
+
+def _kept_joints_of(
+    name: str, field: str, body: str, kept: Sequence[str] | Literal["all"], topology: Topology
+) -> list[str]:
+    """Motion ``name``'s joints that the scene keeps; errors name ``field``."""
     try:
-        motion = load_motion(body, imitate.motion)
+        motion = load_motion(body, name)
     except MotionError as exc:
-        raise ValueError(f"task.imitate.motion: {exc}") from None
+        raise ValueError(f"{field}: {exc}") from None
     missing = [j for j in motion.joints if j not in topology.dof_defaults]
     if missing:
         raise ValueError(
-            f"task.imitate.motion: motion {imitate.motion!r} tracks joints {missing} that body "
+            f"{field}: motion {name!r} tracks joints {missing} that body "
             f"{body!r} lacks; available motions: {available_motions(body)}"
         )
     kept_set = set(topology.dof_defaults if kept == "all" else kept)
     tracked = [j for j in motion.joints if j in kept_set]
     if not tracked:
         raise ValueError(
-            f"task.imitate.motion: the scene keeps none of the joints of motion {imitate.motion!r} "
+            f"{field}: the scene keeps none of the joints of motion {name!r} "
             f"{motion.joints}; keep.joints must include some"
         )
     return tracked
@@ -190,12 +197,8 @@ def check_imitation(
         )
     tracked = tracked_joints(imitate, body, kept, topology)
     if imitate.lead_in is not None:
-        lead = imitate.model_copy(update={"motion": imitate.lead_in.motion})
-        try:
-            lead_tracked = tracked_joints(lead, body, kept, topology)
-        except ValueError as exc:
-            message = str(exc).replace("task.imitate.motion", "task.imitate.lead_in.motion")
-            raise ValueError(message) from None
+        field = "task.imitate.lead_in.motion"
+        lead_tracked = _kept_joints_of(imitate.lead_in.motion, field, body, kept, topology)
         if lead_tracked != tracked:
             raise ValueError(
                 f"task.imitate.lead_in.motion: motion {imitate.lead_in.motion!r} tracks "
