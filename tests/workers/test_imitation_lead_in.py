@@ -8,12 +8,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.motions import load_motion
 from gaitforge.workers.motions.playback import CrossFade, faster
-from gaitforge.workers.scenes import catalogue_file, load_scene
-from gaitforge.workers.spec_io import SpecError
+
+from tests.workers.test_imitation_errors import _fails, _write
 
 
 def _walk_into_run(hold_s: float = 1.0, crossfade_s: float = 1.0) -> CrossFade:
@@ -112,14 +111,6 @@ def test_only_standing_starts_play_the_lead_in() -> None:
     assert seen == {True, False}
 
 
-def _write(tmp_path: Path, base: str, edit) -> Path:
-    raw = yaml.safe_load(catalogue_file(base).read_text())
-    edit(raw["task"]["imitate"])
-    path = tmp_path / "bad.yaml"
-    path.write_text(yaml.safe_dump(raw))
-    return path
-
-
 @pytest.mark.parametrize(
     ("base", "edit", "fragments"),
     [
@@ -146,10 +137,4 @@ def _write(tmp_path: Path, base: str, edit) -> Path:
     ],
 )
 def test_bad_lead_ins_name_the_field(tmp_path: Path, base: str, edit, fragments) -> None:
-    path = _write(tmp_path, base, edit)
-    with pytest.raises(SpecError) as info:
-        load_scene(path)
-    message = str(info.value)
-    assert "\n" not in message and str(path) in message, message
-    for fragment in fragments:
-        assert fragment in message, message
+    _fails(_write(tmp_path, base, lambda raw: edit(raw["task"]["imitate"])), *fragments)
