@@ -122,6 +122,20 @@ class WarmStartSpec(_Strict):
     lr: Annotated[float, Field(gt=0, le=1)] = 1e-3
 
 
+class StagePPO(_Strict):
+    """A stage's own PPO schedules, in place of the job's ``ppo`` ones (each field left out
+    keeps the job's): fine-tuning a trained policy at a lower learning rate, for example."""
+
+    lr: Annotated[float, Field(gt=0, le=1)] | None = None
+    """Adam learning rate at the stage's start"""
+    lr_end: Annotated[float, Field(gt=0, le=1)] | None = None
+    """learning rate at the stage's end (linear schedule)"""
+    entropy_coef: Annotated[float, Field(ge=0)] | None = None
+    """entropy weight at the stage's start"""
+    entropy_coef_end: Annotated[float, Field(ge=0)] | None = None
+    """entropy weight at the stage's end (linear schedule)"""
+
+
 class Stage(_Strict):
     """One curriculum stage: a scene, a budget and a rule to leave early."""
 
@@ -151,6 +165,8 @@ class Stage(_Strict):
     warm_start: WarmStartSpec | None = None
     """clone a motion's recorded excitations into the actor's mean when the stage starts
     (after its transition); None: no warm start"""
+    ppo: StagePPO = StagePPO()
+    """the stage's learning-rate and entropy schedules, where they differ from the job's"""
 
     @field_validator("promote", mode="before")
     @classmethod
@@ -212,6 +228,10 @@ class Job(_Strict):
     def stage_backend(self, index: int) -> str:
         """The simulator of stage ``index``: its own ``backend``, else the job's."""
         return self.stages[index].backend or self.backend
+
+    def stage_ppo(self, index: int) -> PPOSettings:
+        """The PPO settings of stage ``index``: the job's, with the stage's own schedules."""
+        return self.ppo.model_copy(update=self.stages[index].ppo.model_dump(exclude_none=True))
 
     @model_validator(mode="after")
     def _first_stage(self) -> Job:

@@ -262,7 +262,7 @@ class Trainer:
         return fragments
 
     def _iterate(self, sampler: Sampler) -> None:
-        stage, ppo = self.stage, self.job.ppo
+        stage, ppo = self.stage, self.job.stage_ppo(self.curriculum.stage)
         start = time.perf_counter()
         fragments = self._gather(sampler, ppo.batch_env_steps)
         gathered_s = time.perf_counter() - start

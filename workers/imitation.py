@@ -13,6 +13,9 @@ blended from standing into the motion (over ``init.ramp_s``). With ``imitate.lea
 episode that starts standing plays the lead-in motion first and cross-fades into the scene's
 (``workers.motions.playback``: a run that starts as a walk); the phase, the reference and
 (with ``speed_target_from_clock``) the target speed of the ``target_speed`` term follow it.
+In a fraction ``init.lead_in_fraction`` of episodes the body starts part way along that way
+in, in the faded reference state at a random time ``start_s`` past the ramp, and the episode's
+clock reads ``start_s`` plus the time since (reference state initialisation along the fade).
 
 Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imitate.weights``:
 
@@ -92,29 +95,36 @@ class Imitation:
         self.phase0 = 0.0
         self.mirrored = False
         self.standing_start = False
-        self._last_reference: tuple[tuple[int, float, bool, bool], MotionState] | None = None
+        self.start_s = 0.0
+        """s along the lead-in at which this episode started (0 unless it started inside it)"""
+        self._last_reference: tuple[tuple, MotionState] | None = None
 
     # ---- phase and reference ----------------------------------------------------------
 
     def _fading(self) -> CrossFade | None:
-        """The lead-in's cross-fade if this episode plays it (it started standing)."""
-        return self.crossfade if self.standing_start else None
+        """The lead-in's cross-fade if this episode plays it (it started standing, or
+        inside the lead-in)."""
+        return self.crossfade if self.standing_start or self.start_s > 0.0 else None
+
+    def _clock_s(self, steps: int) -> float:
+        """s on the episode's clock after ``steps`` control steps (from ``start_s``)."""
+        return self.start_s + steps * self.dt
 
     def phase(self, steps: int) -> float:
         """Phase in [0, 1) after ``steps`` control steps of this episode."""
         if fade := self._fading():
-            return (self.phase0 + fade.cycles(steps * self.dt)) % 1.0
+            return (self.phase0 + fade.cycles(self._clock_s(steps))) % 1.0
         return (self.phase0 + steps * self.dt * self.spec.tempo / self.motion.period_s) % 1.0
 
     def reference(self, steps: int) -> MotionState:
         """The reference after ``steps`` control steps (mirrored if the episode is; speeds
         times ``tempo``; cross-faded from the lead-in after a standing start). A step asks
         for it twice (the targets' base, then tracking): the last one is kept."""
-        key = (steps, self.phase0, self.mirrored, self.standing_start)
+        key = (steps, self.phase0, self.mirrored, self.standing_start, self.start_s)
         if self._last_reference is not None and self._last_reference[0] == key:
             return self._last_reference[1]
         if fade := self._fading():
-            state = fade.at(steps * self.dt, self.phase0)
+            state = fade.at(self._clock_s(steps), self.phase0)
         else:
             state = faster(self.motion.at(self.phase(steps)), self.spec.tempo)
         if self.mirrored:
@@ -125,11 +135,11 @@ class Imitation:
     def ramp(self, steps: int) -> float:
         """How far (0..1) the joint targets' base has blended from the standing pose into the
         motion's after ``steps`` control steps: 1 unless this episode started standing and
-        ``init.ramp_s`` has not yet passed."""
+        ``init.ramp_s`` has not yet passed (a start inside the lead-in is past it)."""
         ramp_s = self.spec.init.ramp_s
         if not self.standing_start or ramp_s <= 0.0:
             return 1.0
-        return min(1.0, steps * self.dt / ramp_s)
+        return min(1.0, self._clock_s(steps) / ramp_s)
 
     def target_speed(self, steps: int, task_target: float | None) -> float | None:
         """The ``target_speed`` term's target (m/s) after ``steps`` steps: ``task_target``, or
@@ -167,12 +177,26 @@ class Imitation:
         fraction = init.standing_fraction
         mixed_standing = fraction > 0.0 and bool(rng.uniform() < fraction)
         self.standing_start = init.start == "standing" or mixed_standing
-        if mixed_standing:
+        self.start_s = 0.0
+        # of the episodes not standing, a share lead_in_fraction / (1 - fraction) starts
+        # inside the lead-in: lead_in_fraction of all
+        inside_lead_in = not self.standing_start and init.lead_in_fraction > 0.0
+        if inside_lead_in and rng.uniform() * (1.0 - fraction) < init.lead_in_fraction:
+            self.start_s = self._lead_in_start_s(rng)
+        if mixed_standing or self.start_s > 0.0:
             self.phase0 = 0.0
         if self.standing_start:
             return None
         noise = rng.uniform(-init.noise, init.noise, len(self.joints))
         return self.pose_of(self.reference(0), noise)
+
+    def _lead_in_start_s(self, rng: np.random.Generator) -> float:
+        """A uniform random time (s, > 0) along the lead-in from the end of the standing ramp
+        to the end of the cross-fade."""
+        assert self.crossfade is not None  # the scene's validation ties the fraction to it
+        first = max(self.spec.init.ramp_s, self.dt)
+        last = max(first, self.crossfade.hold_s + self.crossfade.crossfade_s)
+        return float(rng.uniform(first, last))
 
     def pose_of(self, ref: MotionState, noise: np.ndarray | None = None) -> Pose:
         """The simulator pose of reference state ``ref``: its tracked joints (plus ``noise``,

@@ -22,6 +22,7 @@ def schema_examples(schemas: dict[str, Any]) -> dict[str, Any]:
         "Job": EXAMPLE_JOB,
         "Scene": load_scene("stand-2d").model_dump(mode="json"),
         "WarmStartSpec": {"excitations": "walk", "env_steps": 8192, "rounds": 2},
+        "StagePPO": {"lr": 1e-4, "lr_end": 5e-5},
         "FaultInjection": {"abort_prob": 0.0, "hang_prob": 0.0, "nan_prob": 0.001},
         "Action": status["actions"][0],
         "Artifact": artifacts["items"][0],

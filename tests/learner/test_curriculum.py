@@ -67,6 +67,10 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
         ("stages: [{scene: walk-2d, env_steps: 9, fidelity: warp}]",
          "stages.0: fidelity: unknown profile 'warp'"),
         ("stages: [{scene: walk-2d, env_steps: 9}]\nppo: {lr: -1}", "ppo.lr: Input should be"),
+        ("stages: [{scene: walk-2d, env_steps: 9, ppo: {lr: 0}}]",
+         "stages.0.ppo.lr: Input should be greater than 0"),
+        ("stages: [{scene: walk-2d, env_steps: 9, ppo: {epochs: 3}}]",
+         "stages.0.ppo.epochs: Extra inputs are not permitted"),
         ("stages: [{scene: walk-2d, env_steps: 9}]\nworkers: {threads: 3}",
          "workers.threads: Extra inputs are not permitted"),
     ],
@@ -82,15 +86,16 @@ def test_bad_job_files_fail_early_in_one_line(tmp_path: Path, body: str, message
 
 def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> None:
     """Stand for one fast stage, promote on a rule that any episode passes, then the same
-    scene at the accurate profile (a fidelity curriculum)."""
+    scene at the accurate profile (a fidelity curriculum) with its own learning rate."""
     job = Job.model_validate({
         "name": "fidelity-curriculum",
         "workers": {"num_workers": 0, "envs_per_worker": 4, "fragment_length": 100},
-        "ppo": {"batch_env_steps": 400, "minibatch_size": 200, "epochs": 1},
+        "ppo": {"batch_env_steps": 400, "minibatch_size": 200, "epochs": 1, "lr": 1e-3},
         "stages": [
             {"scene": "stand-2d", "fidelity": "fast", "env_steps": 100_000,
              "promote": "length >= 0 over 2"},
-            {"scene": "stand-2d", "fidelity": "accurate", "env_steps": 400},
+            {"scene": "stand-2d", "fidelity": "accurate", "env_steps": 400,
+             "ppo": {"lr": 1e-4, "lr_end": 5e-5}},
         ],
     })  # fmt: skip
     trainer = Trainer(job, tmp_path, tensorboard=False)
@@ -100,6 +105,9 @@ def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> 
     assert [h["stage"] for h in ends] == [0, 1]
     assert ends[0]["verdict"].startswith("promoted: length")
     assert ends[0]["env_steps"] < 100_000 and ends[1]["verdict"] == "budget spent"
+    # the job's learning rate, then the second stage's own schedule (its end: one batch)
+    assert all(h["lr"] == pytest.approx(1e-3) for h in history if h["stage"] == 0)
+    assert ends[1]["lr"] == pytest.approx(5e-5)
     metas = [load_checkpoint(p)[1] for p in checkpoints(tmp_path / "checkpoints")]
     assert [m.stage.index for m in metas][-2:] == [0, 1]
     # the checkpoint holds the resolved scene: the concrete profile, and the name it came by

@@ -93,22 +93,38 @@ def test_run_2d_clock_starts_walking_and_its_targets_and_clock_follow_the_fade()
     assert imitation.target_speed(100, 3.0) == 3.0  # the run is faster than 3 m/s
 
 
-def test_only_standing_starts_play_the_lead_in() -> None:
-    env = MuscleEnv("imitate-run-2d-start")
-    seen = set()
-    for seed in range(12):
-        env.reset(seed=seed)
-        imitation = env.imitation
-        seen.add(imitation.standing_start)
+def test_each_start_plays_its_clock_standing_part_way_along_the_lead_in_or_in_the_run() -> None:
+    env = MuscleEnv("imitate-run-2d-start")  # 35 % standing, 35 % along the lead-in
+    init = env.scene.task.imitate.init
+    kinds = []
+    for seed in range(40):
+        _, info = env.reset(seed=seed)
+        imitation, fade = env.imitation, env.imitation.crossfade
         run_phase = (imitation.phase0 + 10 * env.dt / imitation.motion.period_s) % 1.0
         if imitation.standing_start:
-            assert imitation.phase(10) == pytest.approx(imitation.crossfade.cycles(10 * env.dt))
-            assert imitation.phase(10) != pytest.approx(run_phase)
+            kinds.append("standing")
+            assert imitation.start_s == 0.0 and imitation.ramp(0) == 0.0
+            assert imitation.phase(10) == pytest.approx(fade.cycles(10 * env.dt))
+        elif imitation.start_s > 0.0:
+            kinds.append("lead-in")
+            start_s = imitation.start_s
+            assert init.ramp_s <= start_s <= fade.hold_s + fade.crossfade_s
+            assert imitation.phase0 == 0.0 and imitation.ramp(0) == 1.0
+            # the body starts in the faded reference there, and the clock goes on from it
+            expected = fade.at(start_s)
+            if imitation.mirrored:
+                expected = imitation.motion.mirrored_state(expected)
+            assert imitation.reference(0) == expected
+            assert 0.0 < info["imitation"]["pose_error_rad"] <= init.noise
+            assert info["imitation"]["phase"] == pytest.approx(fade.cycles(start_s) % 1.0)
+            assert imitation.phase(10) == pytest.approx(fade.cycles(start_s + 10 * env.dt) % 1)
         else:
+            kinds.append("run")
             assert imitation.phase(10) == pytest.approx(run_phase)
         # no speed_target_from_clock here: the task's target speed throughout
         assert imitation.target_speed(0, 3.0) == 3.0
-    assert seen == {True, False}
+    # p = 0.35, 0.35, 0.3 over 40 draws: each within [4, 24] with p > 0.999
+    assert all(4 <= kinds.count(kind) <= 24 for kind in ("standing", "lead-in", "run")), kinds
 
 
 @pytest.mark.parametrize(
@@ -133,6 +149,21 @@ def test_only_standing_starts_play_the_lead_in() -> None:
             "run-2d-clock",
             lambda i: i["lead_in"].pop("hold_s"),
             ["task.imitate.lead_in.hold_s", "required"],
+        ),
+        (
+            "imitate-run-2d",
+            lambda i: i["init"].update(lead_in_fraction=0.3),
+            ["task.imitate.init.lead_in_fraction", "only with a task.imitate.lead_in"],
+        ),
+        (
+            "imitate-run-2d-start",
+            lambda i: i["init"].update(standing_fraction=0.5, lead_in_fraction=0.6),
+            ["task.imitate.init.lead_in_fraction", "1.1", "at most 1"],
+        ),
+        (
+            "run-2d-clock",
+            lambda i: i["init"].update(lead_in_fraction=0.2),
+            ["task.imitate.init.lead_in_fraction", "only with start: motion"],
         ),
     ],
 )

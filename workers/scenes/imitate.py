@@ -73,13 +73,27 @@ class ImitationInit(_Strict):
         "linearly from the standing pose into the motion's over this time (0: the motion's "
         "pose at once)",
     )
+    lead_in_fraction: Annotated[float, Field(ge=0, le=1)] = Field(
+        default=0.0,
+        description="with start: motion and a lead_in, this fraction of the episodes starts "
+        "part way along the way in from standing: at a uniform random time between ramp_s "
+        "and the end of the lead-in's cross-fade, in the faded reference state there (phase "
+        "0 at the standing start), the clock going on from there (reference state "
+        "initialisation along the lead-in, so that its fade is learned from every point)",
+    )
 
     @model_validator(mode="after")
-    def _fraction_with_motion_start(self) -> ImitationInit:
-        if self.start == "standing" and self.standing_fraction:
+    def _fractions_with_motion_start(self) -> ImitationInit:
+        for name in ("standing_fraction", "lead_in_fraction"):
+            if self.start == "standing" and getattr(self, name):
+                raise ValueError(
+                    f"task.imitate.init.{name}: only with start: motion (with start: "
+                    "standing every episode starts standing)"
+                )
+        if self.standing_fraction + self.lead_in_fraction > 1.0:
             raise ValueError(
-                "task.imitate.init.standing_fraction: only with start: motion (with start: "
-                "standing every episode starts standing)"
+                "task.imitate.init.lead_in_fraction: standing_fraction + lead_in_fraction is "
+                f"{self.standing_fraction + self.lead_in_fraction:g}; at most 1 is allowed"
             )
         return self
 
@@ -134,10 +148,17 @@ class Imitate(_Strict):
     @model_validator(mode="after")
     def _lead_in_needs_standing_starts(self) -> Imitate:
         init = self.init
-        if self.lead_in is not None and init.start != "standing" and not init.standing_fraction:
+        starts_in_lead_in = init.standing_fraction or init.lead_in_fraction
+        if self.lead_in is not None and init.start != "standing" and not starts_in_lead_in:
             raise ValueError(
                 "task.imitate.lead_in: only with standing starts (init.start: standing, or "
-                "init.standing_fraction > 0): the lead-in plays from a standing start"
+                "init.standing_fraction or init.lead_in_fraction > 0): the lead-in plays from "
+                "a standing start"
+            )
+        if self.lead_in is None and init.lead_in_fraction:
+            raise ValueError(
+                "task.imitate.init.lead_in_fraction: only with a task.imitate.lead_in to "
+                "start along"
             )
         return self
 
