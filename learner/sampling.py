@@ -7,9 +7,11 @@ scene or network switch (requests already queued finish on the old ones).
 
 from __future__ import annotations
 
+import logging
 from typing import Protocol
 
 import torch
+from gaitforge.learner.job import WorkersSpec
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
 from gaitforge.workers.scenes import Scene
@@ -54,3 +56,23 @@ class LocalSampler:
 
     def close(self) -> None:
         pass
+
+
+def open_sampler(
+    workers: WorkersSpec, scene: Scene, backend: str, policy_factory: PolicyFactory, seed: int
+) -> Sampler:
+    """A job's sampler for ``scene`` on ``backend``: one in-process worker for
+    ``workers.num_workers: 0``, else a Ray ``WorkerPool`` (Ray started first at
+    ``workers.ray_address`` if it is set and Ray is not up yet)."""
+    kwargs = {"backend": backend, "fragment_length": workers.fragment_length, "seed": seed}
+    if workers.num_workers == 0:
+        return LocalSampler(scene, policy_factory, num_envs=workers.envs_per_worker, **kwargs)
+    import ray  # lazy: the in-process mode needs no Ray
+    from gaitforge.workers.pool import WorkerPool
+
+    if not ray.is_initialized() and workers.ray_address is not None:
+        ray.init(address=workers.ray_address, logging_level=logging.WARNING)
+    return WorkerPool(
+        scene, policy_factory, num_workers=workers.num_workers,
+        envs_per_worker=workers.envs_per_worker, timeout_s=workers.timeout_s, **kwargs,
+    )  # fmt: skip

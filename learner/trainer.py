@@ -44,21 +44,15 @@ from gaitforge.learner.checkpoint import (
 from gaitforge.learner.checkpoint_meta import CheckpointMeta
 from gaitforge.learner.curriculum import CurriculumState, StageIO, check_stages
 from gaitforge.learner.job import Job, Stage, resolve_scenes
-from gaitforge.learner.policy import (
-    ActorCritic,
-    BlendedPolicy,
-    GaussianPolicy,
-    build_policy,
-    release_constant_inputs,
-    widen_inputs,
-)
+from gaitforge.learner.policy import ActorCritic, BlendedPolicy, GaussianPolicy, build_policy
 from gaitforge.learner.ppo import batch_from_fragments, ppo_update
 from gaitforge.learner.run_log import ScalarLog, batch_stats, record_policy
-from gaitforge.learner.sampling import LocalSampler, Sampler
+from gaitforge.learner.sampling import Sampler, open_sampler
 from gaitforge.learner.symmetry import add_mirrored
 from gaitforge.learner.transitions import (
     Rollout,
     collapsed,
+    continued,
     excitation_warm_start,
     fresh_network,
     network_from_checkpoint,
@@ -191,26 +185,10 @@ class Trainer:
         )  # fmt: skip
 
     def _make_sampler(self) -> Sampler:
-        workers = self.job.workers
-        kwargs = {
-            "backend": self.backend,
-            "fragment_length": workers.fragment_length,
-            "seed": self.job.seed * 1000 + self.iteration,
-        }
-        if workers.num_workers == 0:
-            sampler: Sampler = LocalSampler(
-                self.scene, self._policy_factory(), num_envs=workers.envs_per_worker, **kwargs
-            )
-        else:
-            import ray  # lazy: the in-process mode needs no Ray
-            from gaitforge.workers.pool import WorkerPool
-
-            if not ray.is_initialized() and workers.ray_address is not None:
-                ray.init(address=workers.ray_address, logging_level=logging.WARNING)
-            sampler = WorkerPool(
-                self.scene, self._policy_factory(), num_workers=workers.num_workers,
-                envs_per_worker=workers.envs_per_worker, timeout_s=workers.timeout_s, **kwargs,
-            )  # fmt: skip
+        sampler = open_sampler(
+            self.job.workers, self.scene, self.backend, self._policy_factory(),
+            seed=self.job.seed * 1000 + self.iteration,
+        )  # fmt: skip
         self._min_version = sampler.set_weights(self.policy.state_dict())
         return sampler
 
@@ -320,18 +298,8 @@ class Trainer:
             self.curriculum.entered = True
             return
         if stage.transition == "continue":
-            widen = io.obs_names != self.obs_names
-            if widen:
-                self.policy = widen_inputs(collapsed(self.policy), self.obs_names, io.obs_names)
-            released = (
-                release_constant_inputs(self.policy)
-                if isinstance(self.policy, GaussianPolicy)
-                else []
-            )
-            if released:
-                logger.info("stage %d: inputs constant so far, released: %s", index,
-                            [io.obs_names[i] for i in released])  # fmt: skip
-            if widen or released:
+            self.policy, changed = continued(self.policy, self.obs_names, io, index)
+            if changed:
                 self._switch_policy(sampler, io)
         elif stage.transition == "scratch":
             self.policy = fresh_network(io, net)

@@ -52,6 +52,22 @@ def collapsed(policy: ActorCritic) -> GaussianPolicy:
     return policy
 
 
+def continued(
+    policy: ActorCritic, obs_names: list[str], io: StageIO, index: int
+) -> tuple[ActorCritic, bool]:
+    """The ``continue`` transition into stage ``index``: ``policy`` (observing ``obs_names``)
+    widened with zero weights if the stage observes more, and its inputs that were constant
+    so far released (``release_constant_inputs``); True if the network changed."""
+    widen = io.obs_names != obs_names
+    if widen:
+        policy = widen_inputs(collapsed(policy), obs_names, io.obs_names)
+    released = release_constant_inputs(policy) if isinstance(policy, GaussianPolicy) else []
+    if released:
+        logger.info("stage %d: inputs constant so far, released: %s", index,
+                    [io.obs_names[i] for i in released])  # fmt: skip
+    return policy, bool(widen or released)
+
+
 def fresh_network(io: StageIO, net: NetworkSpec) -> GaussianPolicy:
     """A new network for the stage's observations and muscles."""
     return GaussianPolicy(len(io.obs_names), len(io.act_names), tuple(net.hidden), net.init_std)

@@ -37,22 +37,22 @@ from gaitforge.workers.sim.base import (
     SimState,
     check_pose_names,
 )
-from gaitforge.workers.sim.opensim_build import PARKED, build_model, quiet_opensim_log
-from gaitforge.workers.sim.opensim_drawing import body_frames, muscle_paths, vec3
+from gaitforge.workers.sim.opensim_build import (
+    INTEGRATORS,
+    PARKED,
+    build_model,
+    quiet_opensim_log,
+)
+from gaitforge.workers.sim.opensim_drawing import (
+    body_frames,
+    ground_normal_force,
+    muscle_paths,
+    vec3,
+)
 from gaitforge.workers.sim.opensim_size import full_plan, model_size
 
 logger = logging.getLogger(__name__)
 
-INTEGRATORS = {
-    "rk-merson": opensim.Manager.IntegratorMethod_RungeKuttaMerson,
-    "rk-feldberg": opensim.Manager.IntegratorMethod_RungeKuttaFeldberg,
-    "rk2": opensim.Manager.IntegratorMethod_RungeKutta2,
-    "rk3": opensim.Manager.IntegratorMethod_RungeKutta3,
-    "semi-explicit-euler2": opensim.Manager.IntegratorMethod_SemiExplicitEuler2,
-    "explicit-euler": opensim.Manager.IntegratorMethod_ExplicitEuler,
-    "verlet": opensim.Manager.IntegratorMethod_Verlet,
-    "cpodes": opensim.Manager.IntegratorMethod_CPodes,
-}
 UP, FORWARD = 1, 0
 """Neutral bodies are Y-up and face +X."""
 
@@ -240,6 +240,7 @@ class OpenSimSimulator:
         rotation = pelvis.getTransformInGround(state).R()
         up = np.array([rotation.get(i, UP) for i in range(3)])
         velocity = pelvis.getVelocityInGround(state)
+        feet = [sum(ground_normal_force(f, state) for f in foot) for foot in self._foot_force_objs]
         return SimState(
             time=state.getTime(),
             dof_pos=np.array([c.getValue(state) for c in self._kept]),
@@ -249,9 +250,7 @@ class OpenSimSimulator:
             pelvis_vel=vec3(velocity.get(1)),
             pelvis_angvel=vec3(velocity.get(0)),
             activations=np.array([m.getActivation(state) for m in self._muscles]),
-            foot_forces=np.array(
-                [sum(_ground_normal(f, state) for f in forces) for forces in self._foot_force_objs]
-            ),
+            foot_forces=np.array(feet),
         )
 
     def set_pose(self, pose: Pose) -> None:
@@ -390,15 +389,3 @@ class OpenSimSimulator:
         self._obstacles = np.array(obstacles, dtype=float)
         self.osim_state = self.model.initSystem()
         self._bind()
-
-
-def _ground_normal(force: opensim.Force, state: opensim.State) -> float:
-    """Magnitude of the vertical ground reaction that ``force`` applies (N)."""
-    values = force.getRecordValues(state)
-    labels = force.getRecordLabels()
-    total = 0.0
-    for i in range(labels.size()):
-        label = labels.get(i)
-        if label.endswith(".force.Y") and ".ground." not in f".{label}":
-            total += values.get(i)
-    return abs(total)

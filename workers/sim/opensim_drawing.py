@@ -1,5 +1,6 @@
-"""What an OpenSim model shows of its state for drawing and recording: each body's frame in
-ground and each muscle's path points (``OpenSimSimulator.body_frames``, ``muscle_paths``)."""
+"""What an OpenSim model shows of its state for drawing, recording and observing: each body's
+frame in ground, each muscle's path points (``OpenSimSimulator.body_frames``,
+``muscle_paths``) and the vertical ground reaction of a contact force (``foot_forces``)."""
 
 from __future__ import annotations
 
@@ -59,3 +60,15 @@ def muscle_paths(
             [vec3(points.get(k).getLocationInGround(state)) for k in range(points.getSize())]
         ).reshape(-1, 3)
     return paths
+
+
+def ground_normal_force(force: opensim.Force, state: opensim.State) -> float:
+    """Magnitude of the vertical ground reaction that ``force`` applies (N)."""
+    values = force.getRecordValues(state)
+    labels = force.getRecordLabels()
+    total = 0.0
+    for i in range(labels.size()):
+        label = labels.get(i)
+        if label.endswith(".force.Y") and ".ground." not in f".{label}":
+            total += values.get(i)
+    return abs(total)
