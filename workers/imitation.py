@@ -118,7 +118,8 @@ class Imitation:
 
     def reference(self, steps: int) -> MotionState:
         """The reference after ``steps`` control steps (mirrored if the episode is; speeds
-        times ``tempo``; cross-faded from the lead-in after a standing start). A step asks
+        times ``tempo``; cross-faded from the lead-in after a standing start or a start inside
+        the lead-in). A step asks
         for it twice (the targets' base, then tracking): the last one is kept."""
         key = (steps, self.phase0, self.mirrored, self.standing_start, self.start_s)
         if self._last_reference is not None and self._last_reference[0] == key:
