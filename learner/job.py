@@ -223,6 +223,10 @@ class Job(_Strict):
     statistics start the first stage, for fine-tuning a trained policy on another scene or
     backend (the optimizer, curriculum and env-step count start afresh); e.g.
     ``examples/policies/walk-2d``"""
+    init_from_action_std: Annotated[float, Field(gt=0, le=1)] | None = None
+    """with ``init_from``: the action noise's standard deviation (action units) the loaded
+    network starts with, in place of the one it was trained down to (a fine-tune that must
+    learn something new explores again); None keeps the checkpoint's"""
     stages: list[Stage] = Field(min_length=1)
 
     def stage_backend(self, index: int) -> str:
@@ -237,6 +241,8 @@ class Job(_Strict):
     def _first_stage(self) -> Job:
         if self.stages[0].transition != "continue" or self.stages[0].network is not None:
             raise ValueError("stages.0: the first stage uses the job's network (no transition)")
+        if self.init_from_action_std is not None and self.init_from is None:
+            raise ValueError("init_from_action_std: only with init_from (a network to reset)")
         return self
 
 

@@ -151,7 +151,9 @@ class Trainer:
     def _init_from(self, path: Path) -> None:
         """The first network from checkpoint ``path`` (``job.init_from``; see
         :func:`network_from_checkpoint`), with a fresh optimizer and the lineage naming it."""
-        self.policy, meta = network_from_checkpoint(path, self.io[0], self.scenes[0].name)
+        self.policy, meta = network_from_checkpoint(
+            path, self.io[0], self.scenes[0].name, self.job.init_from_action_std
+        )
         self.optimizer = self._new_optimizer()
         self.lineage = [
             {"stage": 0, "transition": "init_from", "network": self.policy.describe(),

@@ -16,6 +16,7 @@ the actor's mean (:func:`excitation_warm_start`, ``learner.clone_excitations``).
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
 from pathlib import Path
 
@@ -74,12 +75,13 @@ def fresh_network(io: StageIO, net: NetworkSpec) -> GaussianPolicy:
 
 
 def network_from_checkpoint(
-    path: Path, io: StageIO, scene_name: str
+    path: Path, io: StageIO, scene_name: str, action_std: float | None = None
 ) -> tuple[GaussianPolicy, CheckpointMeta]:
     """A job's ``init_from``: checkpoint ``path``'s network (collapsed to one) with its
     observation statistics, widened if the first stage (``io``, scene ``scene_name``)
-    observes more, its constant inputs released; in training mode. Returns it and the
-    checkpoint's metadata.
+    observes more, its constant inputs released, its action noise reset to ``action_std``
+    (every action entry; None: kept); in training mode. Returns it and the checkpoint's
+    metadata.
 
     Raises:
         ValueError: the checkpoint acts on other entries, or observes what the stage does not.
@@ -101,6 +103,9 @@ def network_from_checkpoint(
             )
         policy = widen_inputs(policy, names, io.obs_names)
     release_constant_inputs(policy)
+    if action_std is not None:
+        with torch.no_grad():
+            policy.log_std.fill_(math.log(action_std))
     policy.train()
     return policy, meta
 

@@ -23,8 +23,8 @@ def _trained(tmp_path: Path) -> Path:
     return found
 
 
-def _job(init_from: Path, scene: str = "elbow-reach") -> Job:
-    raw = elbow_job().model_dump()
+def _job(init_from: Path, scene: str = "elbow-reach", **extra) -> Job:
+    raw = elbow_job().model_dump() | extra
     raw["init_from"] = str(init_from)
     raw["stages"][0]["scene"] = scene
     return Job.model_validate(raw)
@@ -44,6 +44,20 @@ def test_the_first_stage_starts_from_the_checkpoint(tmp_path: Path) -> None:
     # a resumed run continues from its own checkpoint, not from init_from again
     resumed = Trainer(_job(source), tmp_path / "second", tensorboard=False)
     assert resumed.env_steps == 400
+
+
+def test_the_action_noise_may_start_anew(tmp_path: Path) -> None:
+    source = _trained(tmp_path)
+    loaded, _ = load_policy(source)
+    trainer = Trainer(
+        _job(source, init_from_action_std=0.25), tmp_path / "second", tensorboard=False
+    )
+    obs = torch.randn(64, loaded.obs_dim)
+    assert torch.allclose(trainer.policy.mean_action(obs), loaded.mean_action(obs), atol=1e-6)
+    assert not torch.allclose(loaded.log_std.exp(), torch.tensor(0.25))
+    assert torch.allclose(trainer.policy.log_std.exp(), torch.tensor(0.25))
+    with pytest.raises(ValueError, match="init_from_action_std: only with init_from"):
+        Job.model_validate(elbow_job().model_dump() | {"init_from_action_std": 0.25})
 
 
 def test_a_checkpoint_of_another_body_is_refused(tmp_path: Path) -> None:
