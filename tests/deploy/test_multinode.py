@@ -34,8 +34,10 @@ logger = logging.getLogger(__name__)
 SAVED = "stand-2d-mujoco-tol0.05"
 PROFILE = FidelityProfile(integrator="implicitfast", timestep=0.01)
 """4 steps per 25 Hz control step; no built-in MuJoCo profile integrates like this"""
-BUDGET = 256 * 40
-"""env steps of the job: about 20 s of training here, most of it after the kill"""
+BUDGET = 256 * 100
+"""env steps of the job: about 50 s of training here, most of it after the kill; long enough
+that Ray's state API, which lags under load (a clean-clone run's end once listed no actor
+until a 40-iteration job had finished), shows both actors while the job still runs"""
 API_TOKEN = "multinode-test-token"
 
 
