@@ -28,7 +28,7 @@ import re
 from pathlib import Path
 from typing import Annotated, Literal
 
-from gaitforge.learner.ppo import PPOSettings
+from gaitforge.learner.ppo import EntropyWeight, LearningRate, PPOSettings
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.scenes.action import ActionSpec
 from gaitforge.workers.scenes.profiles import Fidelity
@@ -126,13 +126,13 @@ class StagePPO(_Strict):
     """A stage's own PPO schedules, in place of the job's ``ppo`` ones (each field left out
     keeps the job's): fine-tuning a trained policy at a lower learning rate, for example."""
 
-    lr: Annotated[float, Field(gt=0, le=1)] | None = None
+    lr: LearningRate | None = None
     """Adam learning rate at the stage's start"""
-    lr_end: Annotated[float, Field(gt=0, le=1)] | None = None
+    lr_end: LearningRate | None = None
     """learning rate at the stage's end (linear schedule)"""
-    entropy_coef: Annotated[float, Field(ge=0)] | None = None
+    entropy_coef: EntropyWeight | None = None
     """entropy weight at the stage's start"""
-    entropy_coef_end: Annotated[float, Field(ge=0)] | None = None
+    entropy_coef_end: EntropyWeight | None = None
     """entropy weight at the stage's end (linear schedule)"""
 
 

@@ -13,6 +13,11 @@ from gaitforge.learner.policy import GaussianPolicy
 from gaitforge.workers.fragment import Fragment
 from pydantic import BaseModel, ConfigDict, Field
 
+LearningRate = Annotated[float, Field(gt=0, le=1)]
+"""An Adam learning rate: in (0, 1]."""
+EntropyWeight = Annotated[float, Field(ge=0)]
+"""A weight of the entropy bonus: >= 0."""
+
 
 class PPOSettings(BaseModel):
     """PPO settings: the job file's ``ppo:`` section (CleanRL's names and defaults where they
@@ -30,13 +35,13 @@ class PPOSettings(BaseModel):
     """surrogate clipping range: ratios are clipped to [1 - clip, 1 + clip]"""
     value_coef: Annotated[float, Field(ge=0)] = 0.5
     """weight of the value loss"""
-    entropy_coef: Annotated[float, Field(ge=0)] = 0.0
+    entropy_coef: EntropyWeight = 0.0
     """weight of the entropy bonus (at the start of each stage)"""
-    entropy_coef_end: Annotated[float, Field(ge=0)] | None = None
+    entropy_coef_end: EntropyWeight | None = None
     """entropy weight at the end of each stage (linear schedule); None: constant"""
-    lr: Annotated[float, Field(gt=0, le=1)] = 3e-4
+    lr: LearningRate = 3e-4
     """Adam learning rate (at the start of each stage)"""
-    lr_end: Annotated[float, Field(gt=0, le=1)] | None = None
+    lr_end: LearningRate | None = None
     """learning rate at the end of each stage (linear schedule); None: constant"""
     epochs: Annotated[int, Field(ge=1, le=100)] = 5
     """passes over each batch"""

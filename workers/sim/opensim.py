@@ -179,7 +179,7 @@ class OpenSimSimulator:
     def _manager(self) -> opensim.Manager:
         """A Manager for one control step, started from the current state."""
         manager = opensim.Manager(self.model)
-        manager.setWriteToStorage(False)  # no states table or analyses kept: ~10 % of a step
+        manager.setWriteToStorage(False)  # no states table or analyses: nothing reads them
         manager.setPerformAnalyses(False)
         manager.setIntegratorMethod(INTEGRATORS[self.profile.integrator])
         if self.profile.fixed_step:
