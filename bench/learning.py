@@ -24,7 +24,9 @@ evaluated deterministically over ``--eval-episodes`` episodes of the scene its r
 (``learner.evaluate``: fall rate, mean speed and, on imitation scenes, what the evaluation
 reports of the tracking), and the table gives each seed and the median over seeds.
 
-Prints a table (target reached?, wall-clock and env steps to it, or the last values),
+Prints a table (target reached in training, i.e. promoted on the stochastic episodes'
+window?, wall-clock and env steps to it, or the last values; target met on the
+deterministic evaluation's means, the issue's judge?),
 writes ``learning.json`` and ``learning.png`` (the rule's first metric against wall-clock
 time, one line per seed) to ``--out``.
 """
@@ -47,7 +49,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import ray
 from gaitforge.learner.evaluate import evaluate_checkpoint
-from gaitforge.learner.job import Job, load_job
+from gaitforge.learner.job import Job, PromotionRule, load_job
 from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.scenes import Scene
 from rich.console import Console
@@ -82,6 +84,7 @@ def run_gaitforge(
     summary = _summary(curve, reached is not None)
     if eval_episodes:
         summary["evaluation"] = evaluate_run(out, eval_episodes)
+        summary["met"] = met_deterministically(rules, summary["evaluation"])
     return summary
 
 
@@ -109,10 +112,39 @@ def _headline(evaluation: dict) -> dict[str, float | None]:
     return out
 
 
+def rule_means(evaluation: dict) -> dict[str, float]:
+    """The evaluation's means of the figures promotion rules read (``learner.job.METRICS``),
+    so a target can be judged on deterministic episodes rather than the stochastic training
+    window; an evaluation written before ``survival_rate`` existed has no ``survival``."""
+    means = {
+        "return": evaluation["return"]["mean"],
+        "distance": evaluation["distance_m"]["mean"],
+        "speed": evaluation["mean_speed_m_s"]["mean"],
+        "fall_rate": evaluation["fall_rate"]["value"],
+        "length": evaluation["time_s"]["mean"],
+    }
+    if "survival_rate" in evaluation:
+        means["survival"] = evaluation["survival_rate"]["value"]
+    return means
+
+
+def met_deterministically(rules: list[PromotionRule], evaluation: dict) -> bool | None:
+    """Whether every rule passes on the deterministic evaluation's means (over all its
+    episodes, whatever the rule's window); None where a rule's figure is missing."""
+    means = rule_means(evaluation)
+    if any(means.get(r.metric) is None for r in rules):
+        return None
+    return all(r.passes(means[r.metric]) for r in rules)
+
+
 def _summary(curve: list[dict], reached: bool) -> dict:
     last = curve[-1] if curve else {}
     return {"reached": reached, "wall_s": last.get("wall_s"), "env_steps": last.get("env_steps"),
             "last": last, "curve": curve}  # fmt: skip
+
+
+def _yes_no(value: bool | None) -> str:
+    return "-" if value is None else ("yes" if value else "no")
 
 
 def _rounded(values: dict) -> dict:
@@ -132,8 +164,8 @@ def median_evaluation(runs: dict[str, dict]) -> dict[str, float]:
 
 def table(results: dict) -> Table:
     out = Table(title=f"Learning to target, same wall-clock budget ({os.cpu_count()} CPUs)")
-    for col in ("task", "run", "target", "reached", "wall s", "env steps", "last values",
-                "deterministic evaluation"):  # fmt: skip
+    for col in ("task", "run", "target", "reached (training)", "wall s", "env steps",
+                "last values", "met (deterministic)", "deterministic evaluation"):  # fmt: skip
         out.add_column(col, overflow="fold")
     for task, by_task in results.items():
         for name, r in by_task["runs"].items():
@@ -143,17 +175,20 @@ def table(results: dict) -> Table:
                 task,
                 name,
                 by_task["target"],
-                "yes" if r["reached"] else "no",
+                _yes_no(r["reached"]),
                 f"{r['wall_s'] or 0:.0f}",
                 f"{r['env_steps'] or 0:,}",
                 str(_rounded(last)),
+                _yes_no(r.get("met")),
                 str(_rounded(evaluation)),
             )
         gaitforge = {n: r for n, r in by_task["runs"].items() if n.startswith("gaitforge")}
         if len(gaitforge) > 1:
             reached = sum(r["reached"] for r in gaitforge.values())
+            judged = [r["met"] for r in gaitforge.values() if r.get("met") is not None]
             out.add_row(task, f"gaitforge median of {len(gaitforge)}", by_task["target"],
                         f"{reached}/{len(gaitforge)}", "", "", "",
+                        f"{sum(judged)}/{len(judged)}" if judged else "-",
                         str(_rounded(median_evaluation(gaitforge))))  # fmt: skip
     return out
 
@@ -248,6 +283,9 @@ def main() -> None:
             runs[f"rllib seed {args.seeds[0]}"] = _summary(curve, reached)
             if evaluation is not None:
                 runs[f"rllib seed {args.seeds[0]}"]["evaluation"] = evaluation
+                runs[f"rllib seed {args.seeds[0]}"]["met"] = met_deterministically(
+                    rules, evaluation
+                )
                 console.log(f"evaluated RLlib's module: {_headline(evaluation)}")
         results[task] = {
             "target": " and ".join(str(r) for r in rules),

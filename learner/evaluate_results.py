@@ -122,6 +122,9 @@ class ModeResult:
     fall_rate: Rate
     failure_rate: Rate
     """episodes ended by a simulator failure (health other than "ok")"""
+    survival_rate: Rate
+    """episodes that ran to their end (``episode_s``) without a fall or a simulator failure:
+    the ``survival`` of a promotion rule"""
     health: dict[str, int]
     """episodes by the health cause they ended with ("ok" included)"""
     tracking_error_rad: Stat | None = None
@@ -163,6 +166,7 @@ class ModeResult:
             effort_sum=stat("effort_sum"),
             fall_rate=Rate.of(sum(e.fell for e in episodes), n),
             failure_rate=Rate.of(sum(e.health != "ok" for e in episodes), n),
+            survival_rate=Rate.of(sum(e.truncated for e in episodes), n),
             health=dict(sorted(Counter(e.health for e in episodes).items())),
             tracking_error_rad=tracking,
             kept_gait_rate=kept,

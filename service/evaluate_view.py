@@ -95,15 +95,15 @@ def render(report: Any, console: Console) -> Group:
     )
     imitating = _imitating(report)
     extra = ["tracking rad", "kept gait"] if imitating else []
-    headers = ["mode", "target m/s", "distance m", "speed m/s", "fall rate", "time s", "effort",
-               "return", "health failures", *extra]  # fmt: skip
+    headers = ["mode", "target m/s", "distance m", "speed m/s", "fall rate", "survival",
+               "time s", "effort", "return", "health failures", *extra]  # fmt: skip
     rows = []
     for mode, r in report.results.items():
         target = "-" if r.target_speed_m_s is None else f"{r.target_speed_m_s:.2f}"
         rows.append([
             mode, target, _ci(r.distance_m), _ci(r.mean_speed_m_s), _rate(r.fall_rate),
-            _ci(r.time_s), _ci(r.effort, ".3f"), _ci(r.return_, ".1f"), _health(r.health),
-            *(_tracking(r) if imitating else []),
+            _rate(r.survival_rate), _ci(r.time_s), _ci(r.effort, ".3f"), _ci(r.return_, ".1f"),
+            _health(r.health), *(_tracking(r) if imitating else []),
         ])  # fmt: skip
     parts: list[Any] = [head, _oriented("Evaluation", headers, rows, console)]
     if report.sweep:

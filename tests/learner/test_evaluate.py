@@ -117,6 +117,7 @@ def test_relaxed_muscles_fall_and_the_metrics_agree_with_the_motion(tmp_path: Pa
     assert result.fall_rate.value == 1.0 and result.fall_rate.count == 3
     assert 0.0 <= result.fall_rate.low <= result.fall_rate.high <= 1.0
     assert result.health == {"ok": 3} and result.failure_rate.value == 0.0
+    assert result.survival_rate.count == 0
     assert [e.seed for e in result.episodes] == [10, 11, 12]
 
 

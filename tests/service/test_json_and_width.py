@@ -114,6 +114,6 @@ def test_evaluate_at_80_columns_cuts_nothing(walk_run: Path) -> None:
     assert result.exit_code == 0, result.output
     text = result.output
     assert "…" not in text and max(map(len, text.splitlines())) <= 80
-    for needed in ("deterministic", "stochastic", "health failures", "fall rate", "30 %",
-                   "Speed against safety", "distance", "return", "effort"):  # fmt: skip
+    for needed in ("deterministic", "stochastic", "health failures", "fall rate", "survival",
+                   "30 %", "Speed against safety", "distance", "return", "effort"):  # fmt: skip
         assert needed in text, needed
