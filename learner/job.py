@@ -167,6 +167,10 @@ class Stage(_Strict):
     (after its transition); None: no warm start"""
     ppo: StagePPO = StagePPO()
     """the stage's learning-rate and entropy schedules, where they differ from the job's"""
+    action_std: Annotated[float, Field(gt=0, le=1)] | None = None
+    """with transition ``continue``: the action noise's standard deviation (action units)
+    the network starts the stage with, in place of the one the stage before trained it down
+    to (a stage that must learn something new explores again); None keeps it"""
 
     @field_validator("promote", mode="before")
     @classmethod
@@ -179,6 +183,11 @@ class Stage(_Strict):
         if self.network is not None and self.transition == "continue":
             raise ValueError(
                 "network: a new network needs transition blend, distil or scratch (not continue)"
+            )
+        if self.action_std is not None and self.transition != "continue":
+            raise ValueError(
+                "action_std: only with transition continue (a new network starts at its "
+                "network's init_std)"
             )
         if self.warm_start is not None and self.transition == "blend":
             raise ValueError(
@@ -239,8 +248,14 @@ class Job(_Strict):
 
     @model_validator(mode="after")
     def _first_stage(self) -> Job:
-        if self.stages[0].transition != "continue" or self.stages[0].network is not None:
+        first = self.stages[0]
+        if first.transition != "continue" or first.network is not None:
             raise ValueError("stages.0: the first stage uses the job's network (no transition)")
+        if first.action_std is not None:
+            raise ValueError(
+                "stages.0.action_std: the first stage starts at network.init_std, or with "
+                "init_from at init_from_action_std"
+            )
         if self.init_from_action_std is not None and self.init_from is None:
             raise ValueError("init_from_action_std: only with init_from (a network to reset)")
         return self

@@ -300,7 +300,9 @@ class Trainer:
             self.curriculum.entered = True
             return
         if stage.transition == "continue":
-            self.policy, changed = continued(self.policy, self.obs_names, io, index)
+            self.policy, changed = continued(
+                self.policy, self.obs_names, io, index, stage.action_std
+            )
             if changed:
                 self._switch_policy(sampler, io)
         elif stage.transition == "scratch":

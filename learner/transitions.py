@@ -54,11 +54,16 @@ def collapsed(policy: ActorCritic) -> GaussianPolicy:
 
 
 def continued(
-    policy: ActorCritic, obs_names: list[str], io: StageIO, index: int
+    policy: ActorCritic,
+    obs_names: list[str],
+    io: StageIO,
+    index: int,
+    action_std: float | None = None,
 ) -> tuple[ActorCritic, bool]:
     """The ``continue`` transition into stage ``index``: ``policy`` (observing ``obs_names``)
-    widened with zero weights if the stage observes more, and its inputs that were constant
-    so far released (``release_constant_inputs``); True if the network changed."""
+    widened with zero weights if the stage observes more, its inputs that were constant
+    so far released (``release_constant_inputs``) and, if ``action_std`` is given, its action
+    noise started anew there (:func:`reset_action_std`); True if the network changed."""
     widen = io.obs_names != obs_names
     if widen:
         policy = widen_inputs(collapsed(policy), obs_names, io.obs_names)
@@ -66,7 +71,19 @@ def continued(
     if released:
         logger.info("stage %d: inputs constant so far, released: %s", index,
                     [io.obs_names[i] for i in released])  # fmt: skip
-    return policy, bool(widen or released)
+    if action_std is not None:
+        reset_action_std(policy, action_std)
+        logger.info("stage %d: action noise started anew at std %g", index, action_std)
+    return policy, bool(widen or released or action_std is not None)
+
+
+def reset_action_std(policy: ActorCritic, action_std: float) -> None:
+    """Set every action entry's noise standard deviation (action units) to ``action_std``, in
+    place; for a blend, both networks' (so the blend's is exactly that at any alpha)."""
+    networks = [policy.old, policy.new] if isinstance(policy, BlendedPolicy) else [policy]
+    with torch.no_grad():
+        for network in networks:
+            network.log_std.fill_(math.log(action_std))
 
 
 def fresh_network(io: StageIO, net: NetworkSpec) -> GaussianPolicy:
@@ -104,8 +121,7 @@ def network_from_checkpoint(
         policy = widen_inputs(policy, names, io.obs_names)
     release_constant_inputs(policy)
     if action_std is not None:
-        with torch.no_grad():
-            policy.log_std.fill_(math.log(action_std))
+        reset_action_std(policy, action_std)
     policy.train()
     return policy, meta
 

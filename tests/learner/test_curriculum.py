@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import torch
 from gaitforge.learner.checkpoint import checkpoints, load_checkpoint
 from gaitforge.learner.curriculum import CurriculumState, EpisodeStats
 from gaitforge.learner.job import Job, PromotionRule, Stage, load_job
@@ -71,6 +72,11 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
          "stages.0.ppo.lr: Input should be greater than 0"),
         ("stages: [{scene: walk-2d, env_steps: 9, ppo: {epochs: 3}}]",
          "stages.0.ppo.epochs: Extra inputs are not permitted"),
+        ("stages: [{scene: walk-2d, env_steps: 9}, {scene: run-2d, env_steps: 9, "
+         "transition: scratch, action_std: 0.3}]", "stages.1: action_std: only with transition "
+         "continue"),
+        ("stages: [{scene: walk-2d, env_steps: 9, action_std: 0.3}]",
+         "stages.0.action_std: the first stage starts at network.init_std"),
         ("stages: [{scene: walk-2d, env_steps: 9}]\nworkers: {threads: 3}",
          "workers.threads: Extra inputs are not permitted"),
     ],
@@ -86,7 +92,8 @@ def test_bad_job_files_fail_early_in_one_line(tmp_path: Path, body: str, message
 
 def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> None:
     """Stand for one fast stage, promote on a rule that any episode passes, then the same
-    scene at the accurate profile (a fidelity curriculum) with its own learning rate."""
+    scene at the accurate profile (a fidelity curriculum) with its own learning rate and its
+    action noise started anew."""
     job = Job.model_validate({
         "name": "fidelity-curriculum",
         "workers": {"num_workers": 0, "envs_per_worker": 4, "fragment_length": 100},
@@ -95,7 +102,7 @@ def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> 
             {"scene": "stand-2d", "fidelity": "fast", "env_steps": 100_000,
              "promote": "length >= 0 over 2"},
             {"scene": "stand-2d", "fidelity": "accurate", "env_steps": 400,
-             "ppo": {"lr": 1e-4, "lr_end": 5e-5}},
+             "ppo": {"lr": 1e-4, "lr_end": 5e-5}, "action_std": 0.6},
         ],
     })  # fmt: skip
     trainer = Trainer(job, tmp_path, tensorboard=False)
@@ -108,8 +115,14 @@ def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> 
     # the job's learning rate, then the second stage's own schedule (its end: one batch)
     assert all(h["lr"] == pytest.approx(1e-3) for h in history if h["stage"] == 0)
     assert ends[1]["lr"] == pytest.approx(5e-5)
-    metas = [load_checkpoint(p)[1] for p in checkpoints(tmp_path / "checkpoints")]
+    loaded = [load_checkpoint(p) for p in checkpoints(tmp_path / "checkpoints")]
+    metas = [meta for _, meta in loaded]
     assert [m.stage.index for m in metas][-2:] == [0, 1]
+    # the network's noise: about its init_std 0.3 to the end of stage 0, 0.6 from stage 1's
+    # start (a couple of Adam steps at lr 1e-4 move log std by about 2e-4)
+    stds = [weights["log_std"].exp() for weights, _ in loaded[-2:]]
+    assert torch.allclose(stds[0], torch.tensor(0.3), atol=0.05)
+    assert torch.allclose(stds[1], torch.tensor(0.6), atol=0.01)
     # the checkpoint holds the resolved scene: the concrete profile, and the name it came by
     accurate = NAMED_PROFILES["mujoco"]["accurate"].model_dump(mode="json")
     assert metas[-1].scene["fidelity"] == {"mujoco": accurate}
