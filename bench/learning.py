@@ -112,15 +112,13 @@ def _headline(evaluation: dict) -> dict[str, float | None]:
     return out
 
 
-def rule_means(evaluation: dict) -> dict[str, float]:
+def rule_means(evaluation: dict) -> dict[str, float | None]:
     """The evaluation's means of the figures promotion rules read (``learner.job.METRICS``),
     so a target can be judged on deterministic episodes rather than the stochastic training
     window; an evaluation written before ``survival_rate`` existed has no ``survival``."""
     means = {
-        "return": evaluation["return"]["mean"],
+        **_headline(evaluation),  # return, fall_rate, speed: the rules' names already
         "distance": evaluation["distance_m"]["mean"],
-        "speed": evaluation["mean_speed_m_s"]["mean"],
-        "fall_rate": evaluation["fall_rate"]["value"],
         "length": evaluation["time_s"]["mean"],
     }
     if "survival_rate" in evaluation:
@@ -280,12 +278,10 @@ def main() -> None:
             curve, reached, evaluation = run_rllib(
                 Job.model_validate(raw), scenes, budget, workers, args.eval_episodes
             )
-            runs[f"rllib seed {args.seeds[0]}"] = _summary(curve, reached)
+            rllib = runs[f"rllib seed {args.seeds[0]}"] = _summary(curve, reached)
             if evaluation is not None:
-                runs[f"rllib seed {args.seeds[0]}"]["evaluation"] = evaluation
-                runs[f"rllib seed {args.seeds[0]}"]["met"] = met_deterministically(
-                    rules, evaluation
-                )
+                rllib["evaluation"] = evaluation
+                rllib["met"] = met_deterministically(rules, evaluation)
                 console.log(f"evaluated RLlib's module: {_headline(evaluation)}")
         results[task] = {
             "target": " and ".join(str(r) for r in rules),
