@@ -64,6 +64,14 @@ from gaitforge.workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
 
+STOP_CHECK_S = 1.0
+"""s between looks at a stop request while a fragment is awaited"""
+
+
+class StopRequested(Exception):
+    """A stop was requested while fragments were awaited; the batch is dropped."""
+
+
 IterationCallback = Callable[[dict], None]
 
 
@@ -197,16 +205,18 @@ class Trainer:
     # ---- the loop -------------------------------------------------------------------------
 
     def request_stop(self) -> None:
-        """Ask :meth:`run` to stop once the current iteration ends (it then writes a
-        checkpoint and returns). Safe from a signal handler or another thread."""
+        """Ask :meth:`run` to stop: the batch being gathered is dropped (its env steps and
+        episodes still count), the last update is checkpointed and :meth:`run` returns.
+        Safe from a signal handler or another thread."""
         self._stop.set()
 
     def run(
         self, max_iterations: int | None = None, max_seconds: float | None = None
     ) -> list[dict]:
         """Train until the last stage ends, or ``max_iterations`` more iterations, or
-        ``max_seconds`` of wall-clock time, or :meth:`request_stop` (checked between
-        iterations); the last iteration is checkpointed."""
+        ``max_seconds`` of wall-clock time (checked between iterations), or
+        :meth:`request_stop` (checked while fragments are awaited too); the last iteration is
+        checkpointed."""
         if self.done:
             return self.history
         sampler = self._make_sampler()
@@ -218,9 +228,12 @@ class Trainer:
                     break
                 if deadline is not None and time.monotonic() > deadline:
                     break
-                if not self.curriculum.entered:
-                    self._enter_stage(sampler)
-                self._iterate(sampler)
+                try:
+                    if not self.curriculum.entered:
+                        self._enter_stage(sampler)
+                    self._iterate(sampler)
+                except StopRequested:
+                    break
             if self.history and self.history[-1]["iteration"] > self._checkpointed_at:
                 self._checkpoint(self.history[-1])
         finally:
@@ -233,13 +246,32 @@ class Trainer:
         every one counts in the stage's episodes and the run's env steps."""
         fragments: list[Fragment] = []
         while sum(f.steps for f in fragments) < env_steps:
-            fragment, version = sampler.next_fragment(timeout_s=self.job.workers.timeout_s)
+            fragment, version = self._next_fragment(sampler)
             if version < self._min_version:
                 continue  # made before a scene or network switch
             fragments.append(fragment)
             self.curriculum.add(fragment, self.scene)
             self.env_steps += fragment.steps
         return fragments
+
+    def _next_fragment(self, sampler: Sampler) -> tuple[Fragment, int]:
+        """The sampler's next fragment within ``workers.timeout_s``, looking for a stop
+        request every ``STOP_CHECK_S`` while it waits: a stop does not wait for fragments
+        that may never come (a signal to the process group kills a local Ray head too).
+
+        Raises:
+            StopRequested: :meth:`request_stop` was called.
+            TimeoutError: no fragment within ``workers.timeout_s``.
+        """
+        timeout_s = self.job.workers.timeout_s
+        deadline = time.monotonic() + timeout_s
+        while not self._stop.is_set():
+            try:
+                return sampler.next_fragment(timeout_s=min(STOP_CHECK_S, timeout_s))
+            except TimeoutError:
+                if time.monotonic() >= deadline:
+                    raise TimeoutError(f"no fragment within {timeout_s} s") from None
+        raise StopRequested
 
     def _iterate(self, sampler: Sampler) -> None:
         stage, ppo = self.stage, self.job.stage_ppo(self.curriculum.stage)

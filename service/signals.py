@@ -25,7 +25,7 @@ class SignalStop:
         received: the signals received, in order.
     """
 
-    def __init__(self, what: str = "stopping after this iteration, with a checkpoint") -> None:
+    def __init__(self, what: str = "stopping with a checkpoint of the last update") -> None:
         self.what = what
         self.received: list[signal.Signals] = []
         self._stop: Callable[[], None] | None = None

@@ -2,8 +2,9 @@
 
 On a terminal, a live display of stage, env steps, speed, return, falls and health (log
 lines appear above it); off a terminal (a log file, a service, a batch system), one status
-line every ``--log-every`` seconds through ``logging``. SIGINT or SIGTERM ends the current
-iteration, writes a checkpoint and exits 0 naming it; a second signal stops at once. The
+line every ``--log-every`` seconds through ``logging``. SIGINT or SIGTERM drops the batch
+being gathered, checkpoints the last update and exits 0 naming it; a second signal stops at
+once. The
 work is :mod:`gaitforge.service.ops.train`'s; this parses and shows progress.
 """
 

@@ -10,7 +10,7 @@ every few seconds) and ``DIR/metrics.jsonl`` (a line per iteration). Ends:
 - training finished: the final checkpoint evaluated deterministically (``N`` episodes,
   default 5) into ``reports/evaluate-<ckpt>.json``, ``evaluation/<ckpt>.mcap`` and ``.mp4``;
   phase ``finished``, exit 0;
-- SIGTERM/SIGINT or the file ``DIR/cancel``: the iteration ends, a checkpoint is written,
+- SIGTERM/SIGINT or the file ``DIR/cancel``: the last update is checkpointed,
   phase ``stopped``, exit 0 (a second signal: at once, phase ``stopped``, exit 0);
 - an exception: phase ``failed`` with the error (one line) and traceback, exit 1.
 
@@ -237,7 +237,7 @@ def main(argv: list[str] | None = None) -> int:
     layout = JobLayout(job_dir.parent.parent, job_dir.name)
     if layout.dir != job_dir or not layout.job_file.is_file():
         parser.error(f"--job-dir: {args.job_dir}: expected <artifacts>/jobs/<id> with job.yaml")
-    signals = SignalStop("stopping after this iteration, with a checkpoint")
+    signals = SignalStop()
     signals.install()  # a signal while starting is remembered
     reporter = Reporter(layout)
     configure_logging(layout.log_file)

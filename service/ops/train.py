@@ -164,7 +164,8 @@ class Training:
         return True
 
     def request_stop(self) -> None:
-        """Stop after the current iteration, with a checkpoint; safe from a signal handler."""
+        """Stop with a checkpoint of the last update (the batch being gathered is dropped); safe
+        from a signal handler."""
         self._stopped = True
         self.trainer.request_stop()
 
