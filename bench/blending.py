@@ -3,6 +3,8 @@ transition at equal env steps, over several seeds.
 
 Usage: python bench/blending.py [--seeds 3] [--from-steps N] [--to-steps M]
                                 [--from-scene S] [--to-scene S] [--workers W] [--out DIR]
+       python bench/blending.py --job examples/obstacles-2d.yaml --to-steps M [--big 256 256]
+                                [--transitions blend distil scratch continue]
 
 Per seed, stage 0 trains a small network (``--small``, default 32x32) on ``--from-scene``
 for ``--from-steps`` env steps, once; its final checkpoint is then copied three times, and
@@ -14,8 +16,16 @@ by each transition for ``--to-steps`` env steps (warm-up rollouts included):
 - distil:  pi_new's actor cloned from pi_old's actions and its critic fitted, then PPO;
 - scratch: a fresh pi_new.
 
+With ``--job FILE`` the transition is a real one of the curriculum: the job file's first
+stage starts from its ``init_from`` checkpoint (e.g. ``examples/obstacles-2d.yaml``: the
+shipped runner onto obstacles-2d-clock), and each transition grows ``--big`` from it there
+for ``--to-steps`` env steps with the job's own PPO and worker settings (no stage 0 is
+trained); ``--transitions`` may add ``continue`` (the checkpoint's network, not grown) as a
+baseline.
+
 Reported per transition: the training return over the stage's last 100 episodes and a
-deterministic evaluation (20 seeded episodes) of the final policy, mean and spread (std)
+deterministic evaluation (20 seeded episodes; ``--eval-episodes``) of the final policy (its
+return, falls and speed), mean and spread (std)
 over seeds, with the return right after the switch (first iteration) to show the dip that
 blending avoids. The default transition is elbow-reach from a narrow band of targets to the
 full range (fast enough for this 2-core machine); ``--from-scene stand-2d --to-scene
@@ -44,7 +54,7 @@ import torch
 import yaml
 from gaitforge.learner.checkpoint import latest_checkpoint, load_policy
 from gaitforge.learner.evaluate import evaluate_policy
-from gaitforge.learner.job import Job
+from gaitforge.learner.job import Job, load_job
 from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.scenes import load_scene
 from rich.console import Console
@@ -84,37 +94,67 @@ def job_for(args: argparse.Namespace, seed: int, transition: str, from_scene: st
     })  # fmt: skip
 
 
+def job_from_file(args: argparse.Namespace, seed: int, transition: str) -> Job:
+    """``--job``'s file with its first stage made the transition under test: ``--big`` grown
+    from its ``init_from`` checkpoint (``continue``: that network as it is) for
+    ``--to-steps`` env steps, alpha ramped over half of them."""
+    job, _ = load_job(args.job)
+    first = job.stages[0].model_dump()
+    first.update(env_steps=args.to_steps, transition=transition, promote=[])
+    first["network"] = None
+    if transition != "continue":
+        first["network"] = {"hidden": args.big, "init_std": job.network.init_std}
+        first["blend"] = {"ramp_env_steps": max(1, args.to_steps // 2),
+                          "critic_warmup_env_steps": job.ppo.batch_env_steps}  # fmt: skip
+    raw = job.model_dump()
+    raw.update(name=f"blending-{transition}-{seed}", seed=seed, stages=[first])
+    raw["checkpoint"] = {"every_iters": 1000, "keep_last": 1, "record_every_iters": 0}
+    if args.workers:
+        raw["workers"]["num_workers"] = args.workers
+    return Job.model_validate(raw)
+
+
 def run_seed(args: argparse.Namespace, seed: int, from_scene: str, progress: Progress) -> dict:
-    """Stage 0 once, then each transition from a copy of its final checkpoint."""
-    base = args.out / f"seed{seed}" / "stage0"
-    task = progress.add_task(f"seed {seed} stage 0", total=args.from_steps)
+    """Stage 0 once, then each transition from a copy of its final checkpoint; with
+    ``--job``, each transition from the job's ``init_from`` checkpoint."""
 
     def tick(task_id: int):
         return lambda m: progress.update(task_id, completed=m["stage_env_steps"])
 
-    if latest_checkpoint(base / "checkpoints") is None:
+    base = args.out / f"seed{seed}" / "stage0"
+    if args.job is None and latest_checkpoint(base / "checkpoints") is None:
+        task = progress.add_task(f"seed {seed} stage 0", total=args.from_steps)
         stage0 = job_for(args, seed, "blend", from_scene).model_dump()
         stage0["stages"] = stage0["stages"][:1]
         Trainer(Job.model_validate(stage0), base, on_iteration=tick(task), tensorboard=False).run()
     results = {}
-    for transition in TRANSITIONS:
+    for transition in args.transitions:
         run_dir = args.out / f"seed{seed}" / transition
         shutil.rmtree(run_dir, ignore_errors=True)
         (run_dir / "checkpoints").mkdir(parents=True)
-        stage0_end = _stage_end(base)
-        shutil.copytree(stage0_end, run_dir / "checkpoints" / stage0_end.name)
+        if args.job is None:
+            job = job_for(args, seed, transition, from_scene)
+            stage0_end = _stage_end(base)
+            shutil.copytree(stage0_end, run_dir / "checkpoints" / stage0_end.name)
+        else:
+            job = job_from_file(args, seed, transition)
+        stage = len(job.stages) - 1
         task = progress.add_task(f"seed {seed} {transition}", total=args.to_steps)
-        job = job_for(args, seed, transition, from_scene)
         start = time.perf_counter()
         trainer = Trainer(job, run_dir, on_iteration=tick(task), tensorboard=False)
-        history = [h for h in trainer.run() if h["stage"] == 1]
+        history = [h for h in trainer.run() if h["stage"] == stage]
         policy, _ = load_policy(latest_checkpoint(run_dir / "checkpoints"))
-        evaluation = evaluate_policy(policy, trainer.scenes[1], episodes=20, seed=10_000)
+        evaluation = evaluate_policy(
+            policy, trainer.scenes[stage], job.stage_backend(stage),
+            episodes=args.eval_episodes, seed=10_000,
+        )  # fmt: skip
         results[transition] = {
             "curve": [(h["stage_env_steps"], h["return"]) for h in history],
             "first_return": history[0]["return"],
             "final_train_return": history[-1]["return"],
             "eval_return": evaluation.return_.mean,
+            "eval_fall_rate": evaluation.fall_rate.value,
+            "eval_speed_m_s": evaluation.mean_speed_m_s.mean,
             "wall_s": time.perf_counter() - start,
         }
     return results
@@ -126,24 +166,32 @@ def _stage_end(base: Path) -> Path:
     return path
 
 
-def summarise(per_seed: list[dict]) -> Table:
+SUMMARY = {
+    "first_return": "return after switch", "final_train_return": "final train return",
+    "eval_return": "eval return", "eval_fall_rate": "eval falls", "eval_speed_m_s": "eval m/s",
+    "wall_s": "wall s",
+}  # fmt: skip
+
+
+def summarise(per_seed: list[dict], transitions: list[str]) -> Table:
     table = Table(title="Stage transition at equal env steps (mean ± std over seeds)")
-    for col in ("transition", "return after switch", "final train return", "eval return",
-                "wall s"):  # fmt: skip
+    for col in ("transition", *SUMMARY.values()):
         table.add_column(col, justify="right")
-    for transition in TRANSITIONS:
+    for transition in transitions:
         cells = []
-        for key in ("first_return", "final_train_return", "eval_return", "wall_s"):
-            values = [seed[transition][key] for seed in per_seed]
+        for key in SUMMARY:
+            values = [seed[transition].get(key, float("nan")) for seed in per_seed]
             spread = statistics.stdev(values) if len(values) > 1 else 0.0
-            cells.append(f"{statistics.mean(values):.1f} ± {spread:.1f}")
+            digits = 2 if key in ("eval_fall_rate", "eval_speed_m_s") else 1
+            cells.append(f"{statistics.mean(values):.{digits}f} ± {spread:.{digits}f}")
         table.add_row(transition, *cells)
     return table
 
 
-def plot(per_seed: list[dict], path: Path) -> None:
+def plot(per_seed: list[dict], transitions: list[str], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(7, 4))
-    for colour, transition in zip(("C0", "C1", "C2"), TRANSITIONS, strict=True):
+    for index, transition in enumerate(transitions):
+        colour = f"C{index}"
         for i, seed in enumerate(per_seed):
             steps, returns = zip(*seed[transition]["curve"], strict=True)
             ax.plot(steps, returns, color=colour, alpha=0.7,
@@ -167,11 +215,34 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=2048)
     parser.add_argument("--lr", type=float, default=1e-3)
     parser.add_argument("--mirror", action="store_true")
-    parser.add_argument("--workers", type=int, default=0, help="Ray actors (0: in-process)")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=0,
+        help="Ray actors (0: in-process; with --job: the job's own)",
+    )
+    parser.add_argument(
+        "--job",
+        type=Path,
+        default=None,
+        help="a job file whose first stage starts from init_from: the "
+        "transition measured (no stage 0)",
+    )
+    parser.add_argument(
+        "--transitions", nargs="+", default=list(TRANSITIONS), choices=[*TRANSITIONS, "continue"]
+    )
+    parser.add_argument("--eval-episodes", type=int, default=20)
     parser.add_argument("--out", type=Path, default=Path("bench/results/blending"))
     args = parser.parse_args()
     if args.seeds < 1:
         parser.error("--seeds must be >= 1")
+    if args.eval_episodes < 1:
+        parser.error("--eval-episodes must be >= 1")
+    if args.job is not None:
+        if not args.job.is_file():
+            parser.error(f"--job: no file {args.job}")
+        if load_job(args.job)[0].init_from is None:
+            parser.error(f"--job: {args.job} has no init_from (the network to grow from)")
     logging.basicConfig(level=logging.WARNING)
     torch.set_num_threads(1)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -181,9 +252,9 @@ def main() -> None:
     columns = (TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn())
     with Progress(*columns, console=console) as progress:
         per_seed = [run_seed(args, seed, from_scene, progress) for seed in range(args.seeds)]
-    console.print(summarise(per_seed))
+    console.print(summarise(per_seed, args.transitions))
     (args.out / "blending.json").write_text(json.dumps(per_seed, indent=1))
-    plot(per_seed, args.out / "blending.png")
+    plot(per_seed, args.transitions, args.out / "blending.png")
     console.print(f"written: {args.out / 'blending.json'}, {args.out / 'blending.png'} "
                   f"(machine: {os.cpu_count()} CPUs)")  # fmt: skip
 

@@ -231,7 +231,9 @@ class Job(_Strict):
     """a checkpoint directory (relative to the job file) whose network and observation
     statistics start the first stage, for fine-tuning a trained policy on another scene or
     backend (the optimizer, curriculum and env-step count start afresh); e.g.
-    ``examples/policies/walk-2d``"""
+    ``examples/policies/walk-2d``. The first stage may then grow a new network from it
+    (``transition: blend``, ``distil`` or ``scratch`` with its own ``network``), as a later
+    stage grows one from the stage before"""
     init_from_action_std: Annotated[float, Field(gt=0, le=1)] | None = None
     """with ``init_from``: the action noise's standard deviation (action units) the loaded
     network starts with, in place of the one it was trained down to (a fine-tune that must
@@ -249,8 +251,11 @@ class Job(_Strict):
     @model_validator(mode="after")
     def _first_stage(self) -> Job:
         first = self.stages[0]
-        if first.transition != "continue" or first.network is not None:
-            raise ValueError("stages.0: the first stage uses the job's network (no transition)")
+        if (first.transition != "continue" or first.network is not None) and not self.init_from:
+            raise ValueError(
+                "stages.0: the first stage uses the job's network (no transition); a transition "
+                "(blend, distil, scratch) there needs init_from, the network it starts from"
+            )
         if first.action_std is not None:
             raise ValueError(
                 "stages.0.action_std: the first stage starts at network.init_std, or with "

@@ -17,6 +17,9 @@ the live workers and, where the stage asks for it, a new network is built
   to the returns, then PPO;
 - ``scratch``: a fresh network.
 
+A job that starts from another run's checkpoint (``init_from``) may give its first stage
+one of these transitions too: the checkpoint's network is then pi_old.
+
 After the transition, a stage with ``warm_start`` clones a motion's recorded excitations into
 the actor's mean (``learner.clone_excitations``), the first stage included.
 Warm-up rollouts count as env steps of the stage, so the three compare at equal env steps.
@@ -327,7 +330,7 @@ class Trainer:
             self._switch_policy(sampler, io)
             return self._gather(sampler, env_steps)
 
-        if index == 0:
+        if index == 0 and stage.transition == "continue":
             self._clone_excitations(sampler, io, rollout)
             self.curriculum.entered = True
             return

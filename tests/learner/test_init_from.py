@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 import torch
 from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint, load_policy
-from gaitforge.learner.job import Job, load_job
+from gaitforge.learner.job import BlendSpec, Job, NetworkSpec, load_job
+from gaitforge.learner.policy import BlendedPolicy, GaussianPolicy
 from gaitforge.learner.trainer import Trainer
 from gaitforge.service.jobs.spec import SubmissionError, prepare_submission
 from gaitforge.workers.spec_io import SpecError
@@ -58,6 +59,38 @@ def test_the_action_noise_may_start_anew(tmp_path: Path) -> None:
     assert torch.allclose(trainer.policy.log_std.exp(), torch.tensor(0.25))
     with pytest.raises(ValueError, match="init_from_action_std: only with init_from"):
         Job.model_validate(elbow_job().model_dump() | {"init_from_action_std": 0.25})
+
+
+@pytest.mark.parametrize("transition", ["blend", "distil", "scratch"])
+def test_the_first_stage_may_grow_a_network_from_the_checkpoint(
+    tmp_path: Path, transition: str
+) -> None:
+    """As between stages: the checkpoint's network is pi_old of a blend (acting exactly as
+    it did at alpha 0), the teacher of a distillation, or replaced by a fresh network."""
+    source = _trained(tmp_path)
+    loaded, _ = load_policy(source)
+    job = _job(source)
+    job.stages[0] = job.stages[0].model_copy(update={
+        "transition": transition, "network": NetworkSpec(hidden=[32, 16]),
+        "blend": BlendSpec(ramp_env_steps=400, critic_warmup_env_steps=200, fit_epochs=2),
+    })  # fmt: skip
+    trainer = Trainer(Job.model_validate(job.model_dump()), tmp_path / "grown", tensorboard=False)
+    trainer.run(max_iterations=1)
+    assert [entry["transition"] for entry in trainer.lineage] == ["init_from", transition]
+    if transition == "blend":
+        assert isinstance(trainer.policy, BlendedPolicy)
+        assert trainer.policy.old.hidden == loaded.hidden
+        trainer.run(max_iterations=3)  # alpha reaches 1: pi_old is dropped
+    assert isinstance(trainer.policy, GaussianPolicy) and trainer.policy.hidden == (32, 16)
+    _, meta = load_checkpoint(latest_checkpoint(tmp_path / "grown" / "checkpoints"))
+    assert [entry.transition for entry in meta.lineage] == ["init_from", transition]
+
+
+def test_a_transition_in_the_first_stage_needs_init_from() -> None:
+    raw = elbow_job().model_dump()
+    raw["stages"][0] |= {"transition": "blend", "network": {"hidden": [32]}}
+    with pytest.raises(ValueError, match=r"stages\.0: .* a transition .* needs init_from"):
+        Job.model_validate(raw)
 
 
 def test_a_checkpoint_of_another_body_is_refused(tmp_path: Path) -> None:
