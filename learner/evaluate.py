@@ -20,12 +20,14 @@ and :func:`write_json` a file.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Literal
 
 from gaitforge.learner.checkpoint import checkpoints, load_policy, select_checkpoint
 from gaitforge.learner.checkpoint_meta import META_FILE, CheckpointMeta
+from gaitforge.learner.curriculum import StageIO
 from gaitforge.learner.eval_observers import (
     EvaluationError,
     check_recording_available,
@@ -53,9 +55,13 @@ from gaitforge.learner.evaluate_results import (
     SweepPoint,
     write_json,
 )
+from gaitforge.learner.policy import ActorCritic, widen_inputs
+from gaitforge.learner.transitions import collapsed
 from gaitforge.workers.episode import EpisodeObserver
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.spec_io import SpecError
+
+logger = logging.getLogger(__name__)
 
 __all__ = [
     "DEFAULT_REDUCTIONS",
@@ -69,6 +75,7 @@ __all__ = [
     "evaluate_checkpoint",
     "evaluate_episode",
     "evaluate_policy",
+    "fitted_to_scene",
     "make_runner",
     "policy_act",
     "resolve_checkpoint",
@@ -119,6 +126,27 @@ def _scene_of(meta: CheckpointMeta, path: Path, override: str | Path | Scene | N
         raise EvaluationError(f"{path}: {exc}") from None
 
 
+def fitted_to_scene(
+    policy: ActorCritic, obs_names: list[str] | None, scene: Scene, backend: str
+) -> tuple[ActorCritic, list[str] | None]:
+    """``policy`` (observing ``obs_names``) widened with zero weights for the inputs
+    ``scene`` observes besides (as ``init_from`` does), so a runner can be evaluated on the
+    obstacles it has not yet learned to see, and the names it now observes; unchanged if the
+    scene observes nothing new or something the policy did not observe (then the sizes are
+    checked as before)."""
+    if not obs_names or backend not in scene.backends:
+        return policy, obs_names
+    names = StageIO(scene, backend).obs_names
+    extra = [n for n in names if n not in obs_names]
+    if not extra or len(names) - len(extra) != len(obs_names):
+        return policy, obs_names
+    logger.warning(
+        "scene %r observes %s, which the policy never saw: zero weights for them",
+        scene.name, extra,
+    )  # fmt: skip
+    return widen_inputs(collapsed(policy), obs_names, names).eval(), names
+
+
 def evaluate_checkpoint(
     path: Path,
     *,
@@ -139,7 +167,8 @@ def evaluate_checkpoint(
 
     Args:
         scene: a catalogue name, scene YAML or Scene to evaluate on instead of the
-            checkpoint's own (its observation and action sizes must match the policy's).
+            checkpoint's own (its observation and action sizes must match the policy's, or
+            its observation add inputs: see :func:`fitted_to_scene`).
         backend: simulator; default the checkpoint's ``config.backend``, else "mujoco".
         episodes: per mode and per sweep point.
         modes: action modes at the scene's own target speed.
@@ -167,12 +196,15 @@ def evaluate_checkpoint(
     policy, meta = load_policy(ckpt)
     chosen = _scene_of(meta, ckpt, scene)
     backend = backend or meta.backend
+    obs_names = meta.obs_names
+    if scene is not None:
+        policy, obs_names = fitted_to_scene(policy, obs_names, chosen, backend)
     sweep_list = None if sweep is None else list(sweep)
     if sweep_list is not None:
         check_sweep(chosen, sweep_list)
     results: dict[str, ModeResult] = {}
     for k, mode in enumerate(modes):
-        with make_runner(policy, chosen, backend, meta.obs_names if scene else None) as run:
+        with make_runner(policy, chosen, backend, obs_names if scene else None) as run:
             watching: list[EpisodeObserver] = []
             if k == 0:
                 watching = list(observers)

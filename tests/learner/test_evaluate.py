@@ -4,6 +4,7 @@ counted, seeded runs repeat exactly, the sweep lowers the target speed, the CLI'
 from __future__ import annotations
 
 import json
+import logging
 import math
 import shutil
 import statistics
@@ -202,6 +203,19 @@ def test_another_scene_must_have_the_policy_sizes(walk: tuple[Path, Scene]) -> N
     assert (
         report.results["deterministic"].target_speed_m_s == load_scene("run-2d").task.target_speed
     )
+
+
+def test_a_scene_that_observes_more_gets_zero_weights_for_it(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """The shipped runner on the obstacles before it learned them: the 3 obstacle inputs are
+    added with zero weights (its actions are those it takes without them)."""
+    runner = Path(__file__).parents[2] / "examples" / "policies" / "run-2d"
+    with caplog.at_level(logging.WARNING, logger="gaitforge.learner.evaluate"):
+        report = evaluate_checkpoint(runner, scene="obstacles-2d-clock", episodes=1)
+    assert report.scene == "obstacles-2d-clock"
+    assert "obstacle_dx" in caplog.text and "zero weights" in caplog.text
+    assert report.results["deterministic"].episodes[0].steps > 25  # it got going
 
 
 def test_a_run_directory_gives_its_latest_or_best(tmp_path: Path) -> None:
