@@ -180,7 +180,7 @@ def summarise(per_seed: list[dict], transitions: list[str]) -> Table:
     for transition in transitions:
         cells = []
         for key in SUMMARY:
-            values = [seed[transition].get(key, float("nan")) for seed in per_seed]
+            values = [seed[transition][key] for seed in per_seed]
             spread = statistics.stdev(values) if len(values) > 1 else 0.0
             digits = 2 if key in ("eval_fall_rate", "eval_speed_m_s") else 1
             cells.append(f"{statistics.mean(values):.{digits}f} ± {spread:.{digits}f}")
