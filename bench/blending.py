@@ -41,6 +41,7 @@ import logging
 import os
 import shutil
 import statistics
+import sys
 import time
 from pathlib import Path
 
@@ -56,12 +57,15 @@ from gaitforge.learner.checkpoint import latest_checkpoint, load_policy
 from gaitforge.learner.evaluate import evaluate_policy
 from gaitforge.learner.job import Job, load_job
 from gaitforge.learner.trainer import Trainer
+from gaitforge.service.ops.train import status_line
 from gaitforge.workers.scenes import load_scene
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-console = Console()
+console = Console(width=None if sys.stdout.isatty() else 140)  # a log file gets the whole table
+logger = logging.getLogger("bench.blending")
+LOG_EVERY_S = 10.0
 TRANSITIONS = ("blend", "distil", "scratch")
 
 
@@ -118,15 +122,25 @@ def run_seed(args: argparse.Namespace, seed: int, from_scene: str, progress: Pro
     """Stage 0 once, then each transition from a copy of its final checkpoint; with
     ``--job``, each transition from the job's ``init_from`` checkpoint."""
 
-    def tick(task_id: int):
-        return lambda m: progress.update(task_id, completed=m["stage_env_steps"])
+    def tick(task_id: int, label: str):
+        """The progress bar on a terminal; off one, a status line every LOG_EVERY_S."""
+        last = [float("-inf")]
+
+        def on_iteration(m: dict) -> None:
+            progress.update(task_id, completed=m["stage_env_steps"])
+            if not console.is_terminal and time.monotonic() - last[0] >= LOG_EVERY_S:
+                last[0] = time.monotonic()
+                logger.info("seed %d %s: %s", seed, label, status_line(m))
+
+        return on_iteration
 
     base = args.out / f"seed{seed}" / "stage0"
     if args.job is None and latest_checkpoint(base / "checkpoints") is None:
         task = progress.add_task(f"seed {seed} stage 0", total=args.from_steps)
         stage0 = job_for(args, seed, "blend", from_scene).model_dump()
         stage0["stages"] = stage0["stages"][:1]
-        Trainer(Job.model_validate(stage0), base, on_iteration=tick(task), tensorboard=False).run()
+        Trainer(Job.model_validate(stage0), base, on_iteration=tick(task, "stage 0"),
+                tensorboard=False).run()  # fmt: skip
     results = {}
     for transition in args.transitions:
         run_dir = args.out / f"seed{seed}" / transition
@@ -141,7 +155,7 @@ def run_seed(args: argparse.Namespace, seed: int, from_scene: str, progress: Pro
         stage = len(job.stages) - 1
         task = progress.add_task(f"seed {seed} {transition}", total=args.to_steps)
         start = time.perf_counter()
-        trainer = Trainer(job, run_dir, on_iteration=tick(task), tensorboard=False)
+        trainer = Trainer(job, run_dir, on_iteration=tick(task, transition), tensorboard=False)
         history = [h for h in trainer.run() if h["stage"] == stage]
         policy, _ = load_policy(latest_checkpoint(run_dir / "checkpoints"))
         evaluation = evaluate_policy(
@@ -243,14 +257,15 @@ def main() -> None:
             parser.error(f"--job: no file {args.job}")
         if load_job(args.job)[0].init_from is None:
             parser.error(f"--job: {args.job} has no init_from (the network to grow from)")
-    logging.basicConfig(level=logging.WARNING)
+    logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(message)s")
+    logger.setLevel(logging.INFO)
     torch.set_num_threads(1)
     args.out.mkdir(parents=True, exist_ok=True)
-    from_scene = args.from_scene or str(narrow_elbow(args.out))
+    from_scene = args.from_scene or ("" if args.job else str(narrow_elbow(args.out)))
     if args.from_scene is not None:
         load_scene(args.from_scene)  # one-line error for an unknown scene
     columns = (TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn())
-    with Progress(*columns, console=console) as progress:
+    with Progress(*columns, console=console, disable=not console.is_terminal) as progress:
         per_seed = [run_seed(args, seed, from_scene, progress) for seed in range(args.seeds)]
     console.print(summarise(per_seed, args.transitions))
     (args.out / "blending.json").write_text(json.dumps(per_seed, indent=1))
