@@ -4,7 +4,7 @@ transition at equal env steps, over several seeds.
 Usage: python bench/blending.py [--seeds 3] [--from-steps N] [--to-steps M]
                                 [--from-scene S] [--to-scene S] [--workers W] [--out DIR]
        python bench/blending.py --job examples/obstacles-2d.yaml --to-steps M [--big 256 256]
-                                [--transitions blend distil scratch continue]
+                                [--transitions blend distil scratch blend-cloned continue]
 
 Per seed, stage 0 trains a small network (``--small``, default 32x32) on ``--from-scene``
 for ``--from-steps`` env steps, once; its final checkpoint is then copied three times, and
@@ -14,7 +14,9 @@ by each transition for ``--to-steps`` env steps (warm-up rollouts included):
 - blend:   pi_new trained in blend with the frozen pi_old, alpha ramped 0 -> 1 over half
            of the stage (critic fitted to pi_old's returns first);
 - distil:  pi_new's actor cloned from pi_old's actions and its critic fitted, then PPO;
-- scratch: a fresh pi_new.
+- scratch: a fresh pi_new;
+- blend-cloned (on request): blend, with pi_new's actor first cloned from pi_old as for
+           distil (``blend.clone_actor``).
 
 With ``--job FILE`` the transition is a real one of the curriculum: the job file's first
 stage starts from its ``init_from`` checkpoint (e.g. ``examples/obstacles-2d.yaml``: the
@@ -67,6 +69,7 @@ console = Console(width=None if sys.stdout.isatty() else 140)  # a log file gets
 logger = logging.getLogger("bench.blending")
 LOG_EVERY_S = 10.0
 TRANSITIONS = ("blend", "distil", "scratch")
+VARIANTS = ("blend-cloned", "continue")  # on request: --transitions
 
 
 def narrow_elbow(out: Path) -> Path:
@@ -77,6 +80,14 @@ def narrow_elbow(out: Path) -> Path:
     path = out / "elbow-reach-narrow.yaml"
     path.write_text(yaml.safe_dump(raw))
     return path
+
+
+def stage_transition(transition: str, ramp: int, warmup: int) -> dict:
+    """A stage's ``transition`` and ``blend`` for one of TRANSITIONS (``blend-cloned``: a
+    blend whose pi_new is first cloned from pi_old, ``blend.clone_actor``)."""
+    blend = {"ramp_env_steps": ramp, "critic_warmup_env_steps": warmup,
+             "clone_actor": transition == "blend-cloned"}  # fmt: skip
+    return {"transition": transition.removesuffix("-cloned"), "blend": blend}
 
 
 def job_for(args: argparse.Namespace, seed: int, transition: str, from_scene: str) -> Job:
@@ -91,9 +102,8 @@ def job_for(args: argparse.Namespace, seed: int, transition: str, from_scene: st
         "checkpoint": {"every_iters": 1000, "keep_last": 1},
         "stages": [
             {"scene": from_scene, "env_steps": args.from_steps},
-            {"scene": args.to_scene, "env_steps": args.to_steps, "transition": transition,
-             "network": {"hidden": args.big},
-             "blend": {"ramp_env_steps": ramp, "critic_warmup_env_steps": args.batch}},
+            {"scene": args.to_scene, "env_steps": args.to_steps, "network": {"hidden": args.big},
+             **stage_transition(transition, ramp, args.batch)},
         ],
     })  # fmt: skip
 
@@ -104,12 +114,11 @@ def job_from_file(args: argparse.Namespace, seed: int, transition: str) -> Job:
     ``--to-steps`` env steps, alpha ramped over half of them."""
     job, _ = load_job(args.job)
     first = job.stages[0].model_dump()
-    first.update(env_steps=args.to_steps, transition=transition, promote=[])
-    first["network"] = None
+    first.update(env_steps=args.to_steps, transition=transition, promote=[], network=None)
     if transition != "continue":
         first["network"] = {"hidden": args.big, "init_std": job.network.init_std}
-        first["blend"] = {"ramp_env_steps": max(1, args.to_steps // 2),
-                          "critic_warmup_env_steps": job.ppo.batch_env_steps}  # fmt: skip
+        first.update(stage_transition(transition, max(1, args.to_steps // 2),
+                                      job.ppo.batch_env_steps))  # fmt: skip
     raw = job.model_dump()
     raw.update(name=f"blending-{transition}-{seed}", seed=seed, stages=[first])
     raw["checkpoint"] = {"every_iters": 1000, "keep_last": 1, "record_every_iters": 0}
@@ -243,13 +252,16 @@ def main() -> None:
         "transition measured (no stage 0)",
     )
     parser.add_argument(
-        "--transitions", nargs="+", default=list(TRANSITIONS), choices=[*TRANSITIONS, "continue"]
+        "--transitions", nargs="+", default=list(TRANSITIONS), choices=[*TRANSITIONS, *VARIANTS]
     )
     parser.add_argument("--eval-episodes", type=int, default=20)
     parser.add_argument("--out", type=Path, default=Path("bench/results/blending"))
     args = parser.parse_args()
     if args.seeds < 1:
         parser.error("--seeds must be >= 1")
+    if "continue" in args.transitions and args.job is None:
+        parser.error("--transitions continue: only with --job (without it every transition "
+                     "grows the network)")  # fmt: skip
     if args.eval_episodes < 1:
         parser.error("--eval-episodes must be >= 1")
     if args.job is not None:

@@ -100,6 +100,10 @@ class BlendSpec(_Strict):
     """env steps of pi_old's rollouts the new critic (and, for distil, actor) is fitted to"""
     fit_epochs: Annotated[int, Field(ge=1, le=1000)] = 50
     """passes of the fit over that data"""
+    clone_actor: bool = False
+    """``blend`` only: fit pi_new's actor to pi_old's actions too (as ``distil`` does)
+    before alpha ramps, so that the blend moves from pi_old towards its clone rather than
+    towards an untrained network"""
 
 
 class WarmStartSpec(_Strict):
@@ -188,6 +192,10 @@ class Stage(_Strict):
             raise ValueError(
                 "action_std: only with transition continue (a new network starts at its "
                 "network's init_std)"
+            )
+        if self.blend.clone_actor and self.transition != "blend":
+            raise ValueError(
+                "blend.clone_actor: only with transition blend (distil always clones the actor)"
             )
         if self.warm_start is not None and self.transition == "blend":
             raise ValueError(

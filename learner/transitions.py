@@ -6,7 +6,8 @@ stage is entered):
 - ``scratch``: a fresh network (:func:`fresh_network`);
 - a job's ``init_from``: the first network from a checkpoint (:func:`network_from_checkpoint`);
 - ``blend`` and ``distil``: :func:`warm_start` rolls pi_old out on the new stage (as a blend
-  at alpha 0), fits pi_new's critic (and for ``distil`` its actor) to that data, and returns
+  at alpha 0), fits pi_new's critic (and for ``distil``, or ``blend`` with
+  ``blend.clone_actor``, its actor) to that data, and returns
   the blend (``blend``: alpha then ramps 0 -> 1, :func:`ramp_alpha`) or pi_new (``distil``).
 
 After the transition, a stage with ``warm_start`` clones a motion's recorded excitations into
@@ -137,7 +138,9 @@ def warm_start(
     seed: int,
 ) -> ActorCritic:
     """``blend`` and ``distil``: pi_new (``net``) fitted to pi_old's (``teacher``'s)
-    rollouts on the new stage, ``stage.blend.critic_warmup_env_steps`` of them; returns the
+    rollouts on the new stage, ``stage.blend.critic_warmup_env_steps`` of them (its critic
+    to their returns; its actor to pi_old's mean actions for ``distil`` and for ``blend``
+    with ``stage.blend.clone_actor``); returns the
     blend of the two at alpha 0 (``blend``) or pi_new alone (``distil``)."""
     student = fresh_network(io, net)
     old_inputs = [io.obs_names.index(n) for n in teacher_obs_names]
@@ -152,7 +155,7 @@ def warm_start(
         teacher_mean = blended.distribution(batch["obs"]).mean
     fit = fit_student(
         student, batch["obs"], batch["return"],
-        teacher_mean if stage.transition == "distil" else None,
+        teacher_mean if stage.transition == "distil" or stage.blend.clone_actor else None,
         epochs=stage.blend.fit_epochs, seed=seed,
     )  # fmt: skip
     logger.info("warm start (%s): %s", stage.transition, fit)
