@@ -59,7 +59,7 @@ from gaitforge.learner.checkpoint import latest_checkpoint, load_policy
 from gaitforge.learner.evaluate import evaluate_policy
 from gaitforge.learner.job import Job, load_job
 from gaitforge.learner.trainer import Trainer
-from gaitforge.service.ops.train import status_line
+from gaitforge.service.ops.train import ProgressLog
 from gaitforge.workers.scenes import load_scene
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -132,16 +132,12 @@ def run_seed(args: argparse.Namespace, seed: int, from_scene: str, progress: Pro
     ``--job``, each transition from the job's ``init_from`` checkpoint."""
 
     def tick(task_id: int, label: str):
-        """The progress bar on a terminal; off one, a status line every LOG_EVERY_S."""
-        last = [float("-inf")]
-
-        def on_iteration(m: dict) -> None:
-            progress.update(task_id, completed=m["stage_env_steps"])
-            if not console.is_terminal and time.monotonic() - last[0] >= LOG_EVERY_S:
-                last[0] = time.monotonic()
-                logger.info("seed %d %s: %s", seed, label, status_line(m))
-
-        return on_iteration
+        """The progress bar on a terminal; off one, a line naming the run, then the trainer's
+        status lines (``ProgressLog``, every LOG_EVERY_S)."""
+        if console.is_terminal:
+            return lambda m: progress.update(task_id, completed=m["stage_env_steps"])
+        logger.info("seed %d: %s", seed, label)
+        return ProgressLog(every_s=LOG_EVERY_S)
 
     base = args.out / f"seed{seed}" / "stage0"
     if args.job is None and latest_checkpoint(base / "checkpoints") is None:
@@ -270,7 +266,8 @@ def main() -> None:
         if load_job(args.job)[0].init_from is None:
             parser.error(f"--job: {args.job} has no init_from (the network to grow from)")
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(message)s")
-    logger.setLevel(logging.INFO)
+    for name in (logger.name, "gaitforge.service.ops.train"):  # this file's and ProgressLog's
+        logging.getLogger(name).setLevel(logging.INFO)
     torch.set_num_threads(1)
     args.out.mkdir(parents=True, exist_ok=True)
     from_scene = args.from_scene or ("" if args.job else str(narrow_elbow(args.out)))
