@@ -126,6 +126,28 @@ class WarmStartSpec(_Strict):
     lr: Annotated[float, Field(gt=0, le=1)] = 1e-3
 
 
+class StageEvaluation(_Strict):
+    """Deterministic evaluations during a stage (``learner.stage_judge``): the stage is
+    judged on an evaluation scene as ``gaitforge evaluate`` would judge it, not only on its
+    training episodes (stochastic actions, and a training scene's mixed starts, hide how the
+    mean policy does from standing)."""
+
+    scene: str | None = None
+    """catalogue name or scene YAML path (relative to the job file) with the stage's
+    observations and muscles: the plain catalogue scene an imitation or curriculum scene
+    stands in for (e.g. ``run-2d-clock`` for ``imitate-run-2d-start``), as it is (the
+    stage's fidelity, control-rate and action overrides are not applied); None: the stage's
+    own scene as trained"""
+    episodes: Annotated[int, Field(ge=1, le=10_000)] = 50
+    """episodes per evaluation (seeds ``EVALUATION_SEED`` + i, the same at every evaluation)"""
+    every_env_steps: Annotated[int, Field(ge=1)] = 200_000
+    """env steps of the stage between evaluations (the first follows its first update, the
+    last its end)"""
+    keep_best: bool = True
+    """end the stage with the best network evaluated (the most promotion rules passed on the
+    evaluation, then the fewest falls, then the highest return) instead of the last"""
+
+
 class StagePPO(_Strict):
     """A stage's own PPO schedules, in place of the job's ``ppo`` ones (each field left out
     keeps the job's): fine-tuning a trained policy at a lower learning rate, for example."""
@@ -169,6 +191,9 @@ class Stage(_Strict):
     warm_start: WarmStartSpec | None = None
     """clone a motion's recorded excitations into the actor's mean when the stage starts
     (after its transition); None: no warm start"""
+    evaluate: StageEvaluation | None = None
+    """deterministic evaluations on a scene during the stage, and the best network kept at
+    its end; None: none"""
     ppo: StagePPO = StagePPO()
     """the stage's learning-rate and entropy schedules, where they differ from the job's"""
     action_std: Annotated[float, Field(gt=0, le=1)] | None = None
@@ -290,7 +315,21 @@ def load_job(path: Path) -> tuple[Job, list[Scene]]:
                 "meta.json and policy.safetensors, as the trainer writes them)"
             )
         job = job.model_copy(update={"init_from": str(start)})
+    job = _with_evaluation_paths(job, path.parent)
     return job, resolve_scenes(job, base=path.parent, source=str(path))
+
+
+def _with_evaluation_paths(job: Job, base: Path) -> Job:
+    """``job`` with each stage's ``evaluate.scene`` YAML path made absolute (relative to the
+    job file's directory ``base``), so the trainer finds it from any working directory."""
+    stages = []
+    for stage in job.stages:
+        ref = stage.evaluate.scene if stage.evaluate is not None else None
+        if ref and ref.endswith((".yaml", ".yml")) and not Path(ref).is_absolute():
+            spec = stage.evaluate.model_copy(update={"scene": str((base / ref).resolve())})
+            stage = stage.model_copy(update={"evaluate": spec})
+        stages.append(stage)
+    return job.model_copy(update={"stages": stages})
 
 
 def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> list[Scene]:
@@ -327,7 +366,29 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
             raise SpecError(f"{source}: stages.{i}.scene: {exc}") from None
         if stage.warm_start is not None:
             check_warm_start(scenes[-1], stage.warm_start, f"{source}: stages.{i}.warm_start")
+        if stage.evaluate is not None and (ref := stage.evaluate.scene) is not None:
+            if ref.endswith((".yaml", ".yml")) and not Path(ref).is_absolute():
+                ref = str(base / ref)
+            evaluation_scene(ref, backend, f"{source}: stages.{i}.evaluate.scene")
     return scenes
+
+
+def evaluation_scene(ref: str, backend: str, where: str) -> Scene:
+    """A stage's evaluation scene (``evaluate.scene``), loaded and resolved for ``backend``.
+
+    Raises:
+        SpecError: ``where`` (file and field): the scene does not load or runs elsewhere.
+    """
+    try:
+        scene = load_scene(ref)
+    except SpecError as exc:
+        raise SpecError(f"{where}: {exc}") from None
+    if backend not in scene.backends:
+        raise SpecError(f"{where}: {scene.name!r} runs on {scene.backends}, not on {backend!r}")
+    try:
+        return scene.resolved()
+    except ValueError as exc:
+        raise SpecError(f"{where}: {exc}") from None
 
 
 def check_warm_start(scene: Scene, spec: WarmStartSpec, where: str) -> None:

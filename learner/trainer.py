@@ -51,6 +51,7 @@ from gaitforge.learner.policy import ActorCritic, BlendedPolicy, GaussianPolicy,
 from gaitforge.learner.ppo import batch_from_fragments, ppo_update
 from gaitforge.learner.run_log import ScalarLog, batch_stats, record_policy
 from gaitforge.learner.sampling import Sampler, open_sampler
+from gaitforge.learner.stage_judge import StageJudge
 from gaitforge.learner.symmetry import add_mirrored
 from gaitforge.learner.transitions import (
     Rollout,
@@ -126,6 +127,11 @@ class Trainer:
         self._checkpointed_at = 0
         self._stop = threading.Event()
         self.scalars = ScalarLog(run_dir / "tb", enabled=tensorboard)
+        self.judges = {
+            i: StageJudge(stage, i, self.scenes[i], job.stage_backend(i), self.io[i],
+                          run_dir / "best" / f"stage-{i}")
+            for i, stage in enumerate(job.stages) if stage.evaluate is not None
+        }  # fmt: skip
         if job.init_from is not None and latest_checkpoint(self.checkpoint_dir) is None:
             self._init_from(Path(job.init_from))
         self._resume()
@@ -299,6 +305,10 @@ class Trainer:
         verdict = self.curriculum.verdict(stage)
         metrics = self._metrics(fragments, losses, cfg.lr, cfg.entropy_coef, gathered_s, start)
         metrics["verdict"] = verdict
+        judge = self.judges.get(self.curriculum.stage)
+        stage_end = verdict is not None
+        if judge is not None and (stage_end or judge.due(self.curriculum.stage_env_steps)):
+            self._judge(judge, sampler, metrics, stage_end)
         self.history.append(metrics)
         self.scalars.log(metrics)
         if self.on_iteration is not None:
@@ -375,6 +385,23 @@ class Trainer:
             self.policy = collapsed(self.policy)  # pi_old no longer acts: drop it
             self._min_version = sampler.set_policy(self._policy_factory(), self.policy.state_dict())
 
+    def _judge(self, judge: StageJudge, sampler: Sampler, metrics: dict, stage_end: bool) -> None:
+        """Evaluate the network (``learner.stage_judge``) into ``metrics``, keep it if it is
+        the stage's best so far; at a ``keep_best`` stage's end, go back to the best."""
+        metrics.update(judge.evaluate(self.policy, self.curriculum.stage_env_steps))
+        kept = judge.offer(self.policy, metrics, self._meta(metrics), self.env_steps)
+        if not (stage_end and judge.spec.keep_best) or kept:
+            return
+        best = judge.best_network()
+        if best is None:
+            return
+        self.policy, meta = best
+        self._switch_policy(sampler, self.io[self.curriculum.stage])
+        metrics.update({k: v for k, v in meta.metrics.items() if k.startswith("eval_")})
+        metrics["kept_best_from_env_steps"] = meta.env_steps
+        logger.info("stage %d ends with its best evaluated network, from %d env steps",
+                    self.curriculum.stage, meta.env_steps)  # fmt: skip
+
     # ---- metrics and checkpoints ----------------------------------------------------------
 
     def _metrics(self, fragments: list[Fragment], losses: dict, lr: float, entropy_coef: float,
@@ -398,10 +425,10 @@ class Trainer:
             **stats,
         }
 
-    def _checkpoint(self, metrics: dict) -> Path:
-        self._checkpointed_at = self.iteration
+    def _meta(self, metrics: dict) -> CheckpointMeta:
+        """A checkpoint's metadata for the current network, ``metrics`` the last iteration's."""
         flat = {k: v for k, v in metrics.items() if not isinstance(v, dict)}
-        meta = CheckpointMeta.model_validate({
+        return CheckpointMeta.model_validate({
             "iteration": self.iteration,
             "job": self.job.model_dump(mode="json"),
             "config": {"backend": self.backend},
@@ -418,8 +445,11 @@ class Trainer:
             "obs_names": self.obs_names,
             "metrics": flat,
         })  # fmt: skip
+
+    def _checkpoint(self, metrics: dict) -> Path:
+        self._checkpointed_at = self.iteration
         return save_checkpoint(
-            self.checkpoint_dir, self.env_steps, self.policy.state_dict(), meta,
+            self.checkpoint_dir, self.env_steps, self.policy.state_dict(), self._meta(metrics),
             keep_last=self.job.checkpoint.keep_last, best_metric="return",
             optimizer_state=self.optimizer.state_dict(),
         )  # fmt: skip

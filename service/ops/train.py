@@ -229,20 +229,27 @@ def start_line(training: Training) -> str:
 
 
 def status_line(m: dict) -> str:
-    """One line of an iteration's metrics: stage, env steps, speed, return, falls."""
+    """One line of an iteration's metrics: stage, env steps, speed, return, falls, and the
+    stage's deterministic evaluation where one ran (``learner.stage_judge``)."""
     verdict = f" ({m['verdict']})" if m.get("verdict") else ""
+    evaluated = ""
+    if "eval_fall_rate" in m:
+        evaluated = (
+            f"; evaluated: return {m['eval_return']:.1f}, speed {m['eval_speed']:.2f} m/s, "
+            f"falls {100 * m['eval_fall_rate']:.0f} %"
+        )
     return (
         f"stage {m['stage']} {m['stage_name']}{verdict}: iteration {m['iteration']}, "
         f"{m['env_steps']:,} env steps ({m['stage_env_steps']:,} in stage), "
         f"{m['steps_per_s']:,.0f} steps/s; return {m['return']:.1f}, "
-        f"speed {m['speed']:.2f} m/s, falls {100 * m['fall_rate']:.0f} %"
+        f"speed {m['speed']:.2f} m/s, falls {100 * m['fall_rate']:.0f} %{evaluated}"
     )
 
 
 class ProgressLog:
     """An ``on_iteration`` callback that logs :func:`status_line` at INFO (logger
     ``gaitforge.service.ops.train``) at most once every ``every_s`` seconds, and at each
-    stage's end; the first iteration is logged at once."""
+    stage's end and evaluation; the first iteration is logged at once."""
 
     def __init__(self, every_s: float = 10.0) -> None:
         self.every_s = every_s
@@ -251,6 +258,6 @@ class ProgressLog:
     def __call__(self, metrics: dict) -> None:
         now = time.monotonic()
         due = self._last is None or now - self._last >= self.every_s
-        if due or metrics.get("verdict"):
+        if due or metrics.get("verdict") or "eval_fall_rate" in metrics:
             self._last = now
             logger.info("%s", status_line(metrics))

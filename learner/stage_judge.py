@@ -1,0 +1,141 @@
+"""A stage judged on deterministic evaluations, and the best network it evaluated kept.
+
+Training figures judge a stage by its training episodes: stochastic actions, and in an
+imitation scene starts along the motion that the mean policy never needs. A stage with
+``evaluate`` (``learner.job.StageEvaluation``) is also judged the way ``gaitforge evaluate``
+judges a checkpoint: after its first update, every ``every_env_steps`` env steps and at its
+end, the trainer runs the mean policy in-process for ``episodes`` episodes of the evaluation
+scene (seeds ``EVALUATION_SEED + i``, the same each time, so the networks are compared on the
+same initial states; apart from ``gaitforge evaluate``'s default seeds, so that a selection
+can be checked on episodes it was not chosen on). The rollout actors go on sampling
+meanwhile.
+
+The best network so far is saved as a checkpoint in ``run_dir/best/stage-<i>`` (its
+evaluation in ``meta.json``'s metrics, so a resumed run knows what it must beat). With
+``keep_best`` the stage ends with that network if it beats the last one: better means more
+of the stage's promotion rules passed on the evaluation, then fewer falls, then a higher mean
+return (:func:`score`).
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint, save_checkpoint
+from gaitforge.learner.checkpoint_meta import CheckpointMeta
+from gaitforge.learner.curriculum import StageIO
+from gaitforge.learner.evaluate_episodes import evaluate_policy
+from gaitforge.learner.evaluate_results import ModeResult
+from gaitforge.learner.job import PromotionRule, Stage, StageEvaluation, evaluation_scene
+from gaitforge.learner.policy import ActorCritic, build_policy
+from gaitforge.workers.scenes import Scene
+from gaitforge.workers.spec_io import SpecError
+
+logger = logging.getLogger(__name__)
+
+EVALUATION_SEED = 1_000_000
+"""episode i of every in-training evaluation resets with this seed + i"""
+
+Score = tuple[int, float, float]
+"""(promotion rules passed, -fall rate, mean return): larger is better"""
+
+
+def evaluation_metrics(result: ModeResult) -> dict[str, float]:
+    """A deterministic evaluation as the metrics a promotion rule tests (each episode's
+    figure averaged over the evaluation's episodes), keyed ``eval_<metric>``."""
+    return {
+        "eval_return": result.return_.mean,
+        "eval_distance": result.distance_m.mean,
+        "eval_speed": result.mean_speed_m_s.mean,
+        "eval_fall_rate": result.fall_rate.value,
+        "eval_survival": result.survival_rate.value,
+        "eval_length": result.time_s.mean,
+    }
+
+
+def score(metrics: dict[str, float], rules: list[PromotionRule]) -> Score:
+    """How good an evaluation (``eval_*`` metrics) is for a stage with promotion ``rules``."""
+    passed = sum(rule.passes(metrics[f"eval_{rule.metric}"]) for rule in rules)
+    return passed, -metrics["eval_fall_rate"], metrics["eval_return"]
+
+
+class StageJudge:
+    """The evaluations of stage ``index`` (which has ``stage.evaluate``) of a run.
+
+    Args:
+        stage: the stage; its ``evaluate`` says what, how often and whether to keep the best.
+        index: its index in the job.
+        trained_scene: the stage's scene as trained (the evaluation scene by default).
+        backend: the stage's simulator.
+        io: the stage's observation and muscle names (the evaluation scene must have them).
+        best_dir: where the best network so far is kept (``run_dir/best/stage-<index>``).
+
+    Raises:
+        SpecError: ``stages.<index>.evaluate.scene`` does not load, runs on another backend,
+            or observes or actuates other names than the stage.
+    """
+
+    def __init__(self, stage: Stage, index: int, trained_scene: Scene, backend: str,
+                 io: StageIO, best_dir: Path) -> None:  # fmt: skip
+        assert stage.evaluate is not None
+        self.spec: StageEvaluation = stage.evaluate
+        self.rules = stage.promote
+        self.backend = backend
+        self.best_dir = best_dir
+        where = f"stages.{index}.evaluate.scene"
+        if self.spec.scene is None:
+            self.scene = trained_scene
+        else:
+            self.scene = evaluation_scene(self.spec.scene, backend, where)
+            judged = StageIO(self.scene, backend)
+            if judged.obs_names != io.obs_names or judged.act_names != io.act_names:
+                raise SpecError(
+                    f"{where}: {self.scene.name!r} on {backend} observes or actuates other names "
+                    f"than the stage's scene {trained_scene.name!r}; an evaluation scene must "
+                    "take the stage's policy as it is"
+                )
+        self.best: Score | None = None
+        if (saved := latest_checkpoint(best_dir)) is not None:
+            _, meta = load_checkpoint(saved)
+            self.best = score(meta.metrics, self.rules)
+        self._evaluated_at: int | None = None
+        """the number of ``every_env_steps`` intervals of the stage at the last evaluation"""
+
+    def due(self, stage_env_steps: int) -> bool:
+        """Whether an evaluation is due after the update that brought the stage to
+        ``stage_env_steps`` (its first update, then each ``every_env_steps``)."""
+        interval = stage_env_steps // self.spec.every_env_steps
+        if self._evaluated_at is None and self.best is not None:
+            self._evaluated_at = interval  # resumed: the next boundary, not at once
+        return self._evaluated_at is None or interval > self._evaluated_at
+
+    def evaluate(self, policy: ActorCritic, stage_env_steps: int) -> dict[str, float]:
+        """Run the evaluation of ``policy`` (mean actions); returns its ``eval_*`` metrics."""
+        self._evaluated_at = stage_env_steps // self.spec.every_env_steps
+        result = evaluate_policy(
+            policy, self.scene, self.backend, episodes=self.spec.episodes,
+            seed=EVALUATION_SEED, label=f"evaluation on {self.scene.name}",
+        )  # fmt: skip
+        return evaluation_metrics(result)
+
+    def offer(self, policy: ActorCritic, metrics: dict, meta: CheckpointMeta,
+              env_steps: int) -> bool:  # fmt: skip
+        """Keep ``policy`` (its checkpoint ``meta``, evaluated ``metrics`` and the run's
+        ``env_steps``) if it is the best so far; returns whether it was kept."""
+        candidate = score(metrics, self.rules)
+        if self.best is not None and candidate <= self.best:
+            return False
+        self.best = candidate
+        save_checkpoint(self.best_dir, env_steps, policy.state_dict(), meta, keep_last=1)
+        return True
+
+    def best_network(self) -> tuple[ActorCritic, CheckpointMeta] | None:
+        """The best network kept (and its checkpoint's meta), or None if none was."""
+        saved = latest_checkpoint(self.best_dir)
+        if saved is None:
+            return None
+        state, meta = load_checkpoint(saved)
+        policy = build_policy(meta.network)
+        policy.load_state_dict(state)
+        return policy, meta
