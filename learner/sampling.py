@@ -8,6 +8,8 @@ scene or network switch (requests already queued finish on the old ones).
 from __future__ import annotations
 
 import logging
+import threading
+import time
 from typing import Protocol
 
 import torch
@@ -15,6 +17,13 @@ from gaitforge.learner.job import WorkersSpec
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
 from gaitforge.workers.scenes import Scene
+
+STOP_CHECK_S = 1.0
+"""s between looks at a stop request while a fragment is awaited"""
+
+
+class StopRequested(Exception):
+    """A stop was requested while fragments were awaited; the batch is dropped."""
 
 
 class Sampler(Protocol):
@@ -76,3 +85,24 @@ def open_sampler(
         scene, policy_factory, num_workers=workers.num_workers,
         envs_per_worker=workers.envs_per_worker, timeout_s=workers.timeout_s, **kwargs,
     )  # fmt: skip
+
+
+def next_fragment(
+    sampler: Sampler, timeout_s: float, stop: threading.Event
+) -> tuple[Fragment, int]:
+    """``sampler``'s next fragment (and its policy version) within ``timeout_s``, looking at
+    ``stop`` every ``STOP_CHECK_S`` while it waits: a stop does not wait for fragments that
+    may never come (a signal to the process group kills a local Ray head too).
+
+    Raises:
+        StopRequested: ``stop`` was set.
+        TimeoutError: no fragment within ``timeout_s``.
+    """
+    deadline = time.monotonic() + timeout_s
+    while not stop.is_set():
+        try:
+            return sampler.next_fragment(timeout_s=min(STOP_CHECK_S, timeout_s))
+        except TimeoutError:
+            if time.monotonic() >= deadline:
+                raise TimeoutError(f"no fragment within {timeout_s} s") from None
+    raise StopRequested

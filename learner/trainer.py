@@ -6,23 +6,15 @@ the mirrored batch too with ``ppo.mirror``), then merges the batch's observation
 normaliser (not before: the behaviour log-probabilities were taken with the old statistics)
 and publishes the new weights. After each update the curriculum decides whether the stage is
 over (its promotion rule passed or its budget is spent); the next stage's scene is pushed to
-the live workers and, where the stage asks for it, a new network is built
-(``learner.transitions``):
-
-- ``continue``: the same network (widened with zero weights if the observation grew);
-- ``blend``: pi_new trained in blend with the frozen pi_old, alpha ramped 0 -> 1 over
-  ``blend.ramp_env_steps``; its critic is first fitted to pi_old's GAE returns; once alpha
-  is 1 the blend collapses to pi_new;
-- ``distil``: pi_new's actor fitted to pi_old's actions (behavioural cloning) and its critic
-  to the returns, then PPO;
-- ``scratch``: a fresh network.
-
-A job that starts from another run's checkpoint (``init_from``) may give its first stage
-one of these transitions too: the checkpoint's network is then pi_old.
+the live workers and its transition (``continue``, ``blend``, ``distil``, ``scratch``) builds
+its network (``learner.transitions``); a blend's alpha ramps 0 -> 1 over
+``blend.ramp_env_steps`` and then collapses to pi_new (a job's ``init_from`` checkpoint is
+the first stage's pi_old). A stage with ``evaluate`` is judged on
+deterministic evaluations too, and may end with its best network (``learner.stage_judge``).
 
 After the transition, a stage with ``warm_start`` clones a motion's recorded excitations into
-the actor's mean (``learner.clone_excitations``), the first stage included.
-Warm-up rollouts count as env steps of the stage, so the three compare at equal env steps.
+the actor's mean (``learner.clone_excitations``), the first stage included. Warm-up
+rollouts count as env steps of the stage, so transitions compare at equal env steps.
 A checkpoint is written every ``checkpoint.every_iters`` iterations and at each stage end;
 ``Trainer`` resumes from the newest one in ``run_dir/checkpoints``.
 """
@@ -50,7 +42,7 @@ from gaitforge.learner.job import Job, Stage, resolve_scenes
 from gaitforge.learner.policy import ActorCritic, BlendedPolicy, GaussianPolicy, build_policy
 from gaitforge.learner.ppo import batch_from_fragments, ppo_update
 from gaitforge.learner.run_log import ScalarLog, batch_stats, record_policy
-from gaitforge.learner.sampling import Sampler, open_sampler
+from gaitforge.learner.sampling import Sampler, StopRequested, next_fragment, open_sampler
 from gaitforge.learner.stage_judge import StageJudge
 from gaitforge.learner.symmetry import add_mirrored
 from gaitforge.learner.transitions import (
@@ -67,14 +59,6 @@ from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
-
-STOP_CHECK_S = 1.0
-"""s between looks at a stop request while a fragment is awaited"""
-
-
-class StopRequested(Exception):
-    """A stop was requested while fragments were awaited; the batch is dropped."""
-
 
 IterationCallback = Callable[[dict], None]
 
@@ -255,32 +239,13 @@ class Trainer:
         every one counts in the stage's episodes and the run's env steps."""
         fragments: list[Fragment] = []
         while sum(f.steps for f in fragments) < env_steps:
-            fragment, version = self._next_fragment(sampler)
+            fragment, version = next_fragment(sampler, self.job.workers.timeout_s, self._stop)
             if version < self._min_version:
                 continue  # made before a scene or network switch
             fragments.append(fragment)
             self.curriculum.add(fragment, self.scene)
             self.env_steps += fragment.steps
         return fragments
-
-    def _next_fragment(self, sampler: Sampler) -> tuple[Fragment, int]:
-        """The sampler's next fragment within ``workers.timeout_s``, looking for a stop
-        request every ``STOP_CHECK_S`` while it waits: a stop does not wait for fragments
-        that may never come (a signal to the process group kills a local Ray head too).
-
-        Raises:
-            StopRequested: :meth:`request_stop` was called.
-            TimeoutError: no fragment within ``workers.timeout_s``.
-        """
-        timeout_s = self.job.workers.timeout_s
-        deadline = time.monotonic() + timeout_s
-        while not self._stop.is_set():
-            try:
-                return sampler.next_fragment(timeout_s=min(STOP_CHECK_S, timeout_s))
-            except TimeoutError:
-                if time.monotonic() >= deadline:
-                    raise TimeoutError(f"no fragment within {timeout_s} s") from None
-        raise StopRequested
 
     def _iterate(self, sampler: Sampler) -> None:
         stage, ppo = self.stage, self.job.stage_ppo(self.curriculum.stage)

@@ -1,0 +1,202 @@
+"""A job's stages as its file writes them: the scene and budget of each, promotion rules,
+the network and the transition that builds it, blending, warm starts, in-training
+evaluations and the stage's own PPO schedules (``learner.job`` holds the job around them)."""
+
+from __future__ import annotations
+
+import re
+from typing import Annotated, Literal
+
+from gaitforge.learner.ppo import EntropyWeight, LearningRate
+from gaitforge.workers.scenes.action import ActionSpec
+from gaitforge.workers.scenes.profiles import Fidelity
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+METRICS = ("return", "distance", "speed", "fall_rate", "survival", "length")
+"""Episode statistics a promotion rule can test, each averaged over its window: return;
+distance covered (m); mean speed (m/s); fall rate (fraction of episodes that fell);
+survival (fraction that lasted the whole episode without falling); length (s)."""
+
+_RULE = re.compile(
+    r"^\s*(?P<metric>[a-z_]+)\s*(?P<op>>=|<=)\s*(?P<value>[-+0-9.eE]+)\s*"
+    r"(?:over\s+(?P<window>\d+))?\s*$"
+)
+
+
+class StrictSpec(BaseModel):
+    """A part of a job file: unknown fields are errors, values are frozen."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class PromotionRule(StrictSpec):
+    """Promote when the mean of ``metric`` over the last ``window`` episodes passes
+    ``value``. Written as a mapping or a string: ``"distance >= 5 over 100"``."""
+
+    metric: Literal["return", "distance", "speed", "fall_rate", "survival", "length"]
+    op: Literal[">=", "<="]
+    value: float
+    window: Annotated[int, Field(ge=1, le=10_000)] = 100
+
+    def __str__(self) -> str:
+        return f"{self.metric} {self.op} {self.value:g} over {self.window} episodes"
+
+    def passes(self, mean: float) -> bool:
+        return mean >= self.value if self.op == ">=" else mean <= self.value
+
+
+def _parse_rule(raw: object) -> object:
+    """``"distance >= 5 over 100"`` -> its fields; a mapping passes through."""
+    if not isinstance(raw, str):
+        return raw
+    match = _RULE.match(raw)
+    if match is None:
+        raise ValueError(
+            f"expected '<metric> >=|<= <value> [over <episodes>]', metric one of {METRICS}"
+        )
+    return {k: v for k, v in match.groupdict().items() if v is not None}
+
+
+class NetworkSpec(StrictSpec):
+    hidden: list[Annotated[int, Field(ge=1, le=4096)]] = Field(
+        default_factory=lambda: [64, 64], min_length=1, max_length=8
+    )
+    init_std: Annotated[float, Field(gt=0, le=2)] = 0.3
+    """initial standard deviation of the excitations"""
+
+
+class BlendSpec(StrictSpec):
+    ramp_env_steps: Annotated[int, Field(ge=1)] = 200_000
+    """alpha goes linearly from 0 to 1 over this many env steps of the stage"""
+    critic_warmup_env_steps: Annotated[int, Field(ge=0)] = 8192
+    """env steps of pi_old's rollouts the new critic (and, for distil, actor) is fitted to"""
+    fit_epochs: Annotated[int, Field(ge=1, le=1000)] = 50
+    """passes of the fit over that data"""
+    clone_actor: bool = False
+    """``blend`` only: fit pi_new's actor to pi_old's actions too (as ``distil`` does)
+    before alpha ramps, so that the blend moves from pi_old towards its clone rather than
+    towards an untrained network"""
+
+
+class WarmStartSpec(StrictSpec):
+    """Before PPO, fit the actor's mean excitation to a motion's recorded (CMC) excitations
+    as a function of the gait phase in the observation (behavioural cloning,
+    ``learner.clone_excitations``): roll out in the stage's imitation scene (episodes start
+    inside the motion), label each observation with the excitations at its phase, fit the
+    mean by squared error; then roll out the fitted policy and fit again (``rounds``)."""
+
+    excitations: str
+    """the motion whose recorded excitations are cloned (e.g. ``walk``): the motion the
+    stage's scene imitates (``task.imitate.motion``), whose phase it observes"""
+    env_steps: Annotated[int, Field(ge=1)] = 8192
+    """env steps of rollouts per round (they count in the stage's env steps)"""
+    rounds: Annotated[int, Field(ge=1, le=10)] = 2
+    """rollout-and-fit rounds: the first rolls out the initial policy, the next ones the
+    policy fitted so far (DAgger-like), on all the observations gathered"""
+    epochs: Annotated[int, Field(ge=1, le=1000)] = 30
+    """passes of each fit over the observations"""
+    lr: Annotated[float, Field(gt=0, le=1)] = 1e-3
+
+
+class StageEvaluation(StrictSpec):
+    """Deterministic evaluations during a stage (``learner.stage_judge``): the stage is
+    judged on an evaluation scene as ``gaitforge evaluate`` would judge it, not only on its
+    training episodes (stochastic actions, and a training scene's mixed starts, hide how the
+    mean policy does from standing)."""
+
+    scene: str | None = None
+    """catalogue name or scene YAML path (relative to the job file) with the stage's
+    observations and muscles: the plain catalogue scene an imitation or curriculum scene
+    stands in for (e.g. ``run-2d-clock`` for ``imitate-run-2d-start``), as it is (the
+    stage's fidelity, control-rate and action overrides are not applied); None: the stage's
+    own scene as trained"""
+    episodes: Annotated[int, Field(ge=1, le=10_000)] = 50
+    """episodes per evaluation (seeds ``EVALUATION_SEED`` + i, the same at every evaluation)"""
+    every_env_steps: Annotated[int, Field(ge=1)] = 200_000
+    """env steps of the stage between evaluations (the first follows its first update, the
+    last its end)"""
+    keep_best: bool = True
+    """end the stage with the best network evaluated (the most promotion rules passed on the
+    evaluation, then the fewest falls, then the highest return) instead of the last"""
+
+
+class StagePPO(StrictSpec):
+    """A stage's own PPO schedules, in place of the job's ``ppo`` ones (each field left out
+    keeps the job's): fine-tuning a trained policy at a lower learning rate, for example."""
+
+    lr: LearningRate | None = None
+    """Adam learning rate at the stage's start"""
+    lr_end: LearningRate | None = None
+    """learning rate at the stage's end (linear schedule)"""
+    entropy_coef: EntropyWeight | None = None
+    """entropy weight at the stage's start"""
+    entropy_coef_end: EntropyWeight | None = None
+    """entropy weight at the stage's end (linear schedule)"""
+
+
+class Stage(StrictSpec):
+    """One curriculum stage: a scene, a budget and a rule to leave early."""
+
+    scene: str
+    """catalogue name or scene YAML path (relative to the job file)"""
+    name: str | None = None
+    """defaults to the scene's name"""
+    backend: Literal["mujoco", "opensim"] | None = None
+    """the stage's simulator (default: the job's ``backend``): train fast on MuJoCo, then
+    finish on OpenSim in a later stage"""
+    fidelity: Fidelity | None = None
+    """overrides the scene's fidelity profile (a fidelity curriculum changes only this)"""
+    control_hz: Annotated[float, Field(gt=0, le=1000)] | None = None
+    """overrides the scene's control rate: a lower rate repeats each action over more
+    simulator steps (the 2017 entrants' frame skip), which shortens the credit horizon"""
+    action: ActionSpec | None = None
+    """overrides the scene's action space (``workers.scenes.action``): joint targets through
+    a reflex layer instead of excitations"""
+    env_steps: Annotated[int, Field(ge=1)]
+    """the stage's budget; it ends at the budget even if the rule never passed"""
+    promote: list[PromotionRule] = Field(default_factory=list)
+    """rules that must all pass to promote early; one rule may be given alone"""
+    network: NetworkSpec | None = None
+    """a new network for this stage (needs a building transition); None keeps the current"""
+    transition: Literal["continue", "blend", "distil", "scratch"] = "continue"
+    blend: BlendSpec = BlendSpec()
+    warm_start: WarmStartSpec | None = None
+    """clone a motion's recorded excitations into the actor's mean when the stage starts
+    (after its transition); None: no warm start"""
+    evaluate: StageEvaluation | None = None
+    """deterministic evaluations on a scene during the stage, and the best network kept at
+    its end; None: none"""
+    ppo: StagePPO = StagePPO()
+    """the stage's learning-rate and entropy schedules, where they differ from the job's"""
+    action_std: Annotated[float, Field(gt=0, le=1)] | None = None
+    """with transition ``continue``: the action noise's standard deviation (action units)
+    the network starts the stage with, in place of the one the stage before trained it down
+    to (a stage that must learn something new explores again); None keeps it"""
+
+    @field_validator("promote", mode="before")
+    @classmethod
+    def _parse_rules(cls, raw: object) -> object:
+        rules = raw if isinstance(raw, list) else [] if raw is None else [raw]
+        return [_parse_rule(rule) for rule in rules]
+
+    @model_validator(mode="after")
+    def _transition_fits(self) -> Stage:
+        if self.network is not None and self.transition == "continue":
+            raise ValueError(
+                "network: a new network needs transition blend, distil or scratch (not continue)"
+            )
+        if self.action_std is not None and self.transition != "continue":
+            raise ValueError(
+                "action_std: only with transition continue (a new network starts at its "
+                "network's init_std)"
+            )
+        if self.blend.clone_actor and self.transition != "blend":
+            raise ValueError(
+                "blend.clone_actor: only with transition blend (distil always clones the actor)"
+            )
+        if self.warm_start is not None and self.transition == "blend":
+            raise ValueError(
+                "warm_start: not with transition blend (pi_old acts at first); use distil, "
+                "scratch or continue"
+            )
+        return self
