@@ -5,16 +5,17 @@ Usage: python bench/learning.py [--tasks elbow-reach stand-2d walk-2d] [--minute
                                 [--workers W] [--out DIR]
        python bench/learning.py --merge A/learning.json B/learning.json --out DIR
 
-A task is an example job (``examples/<task>.yaml``); its target is its last stage's
-promotion rule(s) (a curriculum's earlier stages are the way there; their wall clock
-counts): elbow-reach ``return >= -12 over 50``; stand-2d ``survival >= 0.95 over 100``
-(the whole 5 s episode without a fall); walk-2d ``speed >= 1.0`` and ``fall_rate <= 0.1``
-over 100 10-s episodes. Each framework gets the same wall-clock budget per task
-(``--minutes``, default 3, 5 and 30) on the same scene (with the job's overrides, e.g.
-25 Hz control), the same number of rollout workers (``--workers``, default: CPUs less one
-for the learner), network, batch size, epochs, learning rate and discount. gaitforge stops
-at the target; RLlib (``bench/rllib_runner.py``) goes through the same stages, each for its
-env-step budget, and is checked against the last stage's rules after each of its
+A task is an example job (``examples/<task>.yaml``) or a job file's path (``*.yaml``, named
+by its file name without the suffix: a variant of an example kept beside its results); its
+target is its last stage's promotion rule(s) (a curriculum's earlier stages are the way
+there; their wall clock counts): elbow-reach ``return >= -12 over 50``; stand-2d
+``survival >= 0.95 over 100`` (the whole 5 s episode without a fall); walk-2d ``speed >= 1.0`` and
+``fall_rate <= 0.1`` over 100 10-s episodes. Each framework gets the same wall-clock budget
+per task (``--minutes``, default 3, 5 and 30) on the same scene (with the job's overrides,
+e.g. 25 Hz control), the same number of rollout workers (``--workers``, default: CPUs less
+one for the learner), network, batch size, epochs, learning rate and discount. gaitforge
+stops at the target; RLlib (``bench/rllib_runner.py``) goes through the same stages, each
+for its env-step budget, and is checked against the last stage's rules after each of its
 iterations, with episode statistics logged by a callback as means over the rules' largest
 window.
 
@@ -251,15 +252,17 @@ def main() -> None:
         console.print(table(results))
         plot(results, args.out / "learning.png")
         return
-    minutes = args.minutes or [DEFAULT_MINUTES.get(t, 5.0) for t in args.tasks]
+    minutes = args.minutes or [DEFAULT_MINUTES.get(Path(t).stem, 5.0) for t in args.tasks]
     if len(minutes) != len(args.tasks):
         parser.error("--minutes: one value per task")
     logging.basicConfig(level=logging.WARNING)
     ray.init(include_dashboard=False, logging_level=logging.WARNING)
     workers = args.workers or max(1, int(ray.cluster_resources()["CPU"]) - 1)
     results: dict = {}
-    for task, budget in zip(args.tasks, minutes, strict=True):
-        job, scenes = load_job(EXAMPLES / f"{task}.yaml")
+    for task_arg, budget in zip(args.tasks, minutes, strict=True):
+        job_file = Path(task_arg) if task_arg.endswith((".yaml", ".yml")) else None
+        task = job_file.stem if job_file else task_arg
+        job, scenes = load_job(job_file or EXAMPLES / f"{task}.yaml")
         rules = job.stages[-1].promote
         runs = {}
         for seed in [] if args.no_gaitforge else args.seeds:

@@ -362,7 +362,8 @@ class Trainer:
             return
         self.policy, meta = best
         self._switch_policy(sampler, self.io[self.curriculum.stage])
-        metrics.update({k: v for k, v in meta.metrics.items() if k.startswith("eval_")})
+        # eval_* stay the last network's; kept_eval_* are the network the stage ends with
+        metrics.update({f"kept_{k}": v for k, v in meta.metrics.items() if k.startswith("eval_")})
         metrics["kept_best_from_env_steps"] = meta.env_steps
         logger.info("stage %d ends with its best evaluated network, from %d env steps",
                     self.curriculum.stage, meta.env_steps)  # fmt: skip

@@ -238,6 +238,11 @@ def status_line(m: dict) -> str:
             f"; evaluated: return {m['eval_return']:.1f}, speed {m['eval_speed']:.2f} m/s, "
             f"falls {100 * m['eval_fall_rate']:.0f} %"
         )
+    if "kept_best_from_env_steps" in m:
+        evaluated += (
+            f"; ends with the best, from {m['kept_best_from_env_steps']:,} env steps (falls "
+            f"{100 * m['kept_eval_fall_rate']:.0f} %, speed {m['kept_eval_speed']:.2f} m/s)"
+        )
     return (
         f"stage {m['stage']} {m['stage_name']}{verdict}: iteration {m['iteration']}, "
         f"{m['env_steps']:,} env steps ({m['stage_env_steps']:,} in stage), "

@@ -72,6 +72,9 @@ def test_the_stage_ends_with_the_best_network_evaluated(tmp_path: Path) -> None:
     ))  # fmt: skip
     scores = [score(h, []) for h in _evaluated(trainer.history)]
     assert score(again, []) == pytest.approx(max(scores))
+    # the last network's own evaluation stays in eval_*, the kept one's in kept_eval_*
+    assert last["kept_eval_return"] == pytest.approx(again["eval_return"])
+    assert score(last, []) < max(scores)
     assert best_meta.env_steps == last["kept_best_from_env_steps"]
 
 
