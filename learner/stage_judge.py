@@ -24,13 +24,11 @@ from pathlib import Path
 
 from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint, save_checkpoint
 from gaitforge.learner.checkpoint_meta import CheckpointMeta
-from gaitforge.learner.curriculum import StageIO
 from gaitforge.learner.evaluate_episodes import evaluate_policy
 from gaitforge.learner.evaluate_results import ModeResult
 from gaitforge.learner.job import PromotionRule, Stage, StageEvaluation, evaluation_scene
 from gaitforge.learner.policy import ActorCritic, build_policy
 from gaitforge.workers.scenes import Scene
-from gaitforge.workers.spec_io import SpecError
 
 logger = logging.getLogger(__name__)
 
@@ -68,7 +66,6 @@ class StageJudge:
         index: its index in the job.
         trained_scene: the stage's scene as trained (the evaluation scene by default).
         backend: the stage's simulator.
-        io: the stage's observation and muscle names (the evaluation scene must have them).
         best_dir: where the best network so far is kept (``run_dir/best/stage-<index>``).
 
     Raises:
@@ -77,24 +74,16 @@ class StageJudge:
     """
 
     def __init__(self, stage: Stage, index: int, trained_scene: Scene, backend: str,
-                 io: StageIO, best_dir: Path) -> None:  # fmt: skip
+                 best_dir: Path) -> None:  # fmt: skip
         assert stage.evaluate is not None
         self.spec: StageEvaluation = stage.evaluate
         self.rules = stage.promote
         self.backend = backend
         self.best_dir = best_dir
-        where = f"stages.{index}.evaluate.scene"
-        if self.spec.scene is None:
-            self.scene = trained_scene
-        else:
-            self.scene = evaluation_scene(self.spec.scene, backend, where)
-            judged = StageIO(self.scene, backend)
-            if judged.obs_names != io.obs_names or judged.act_names != io.act_names:
-                raise SpecError(
-                    f"{where}: {self.scene.name!r} on {backend} observes or actuates other names "
-                    f"than the stage's scene {trained_scene.name!r}; an evaluation scene must "
-                    "take the stage's policy as it is"
-                )
+        self.scene = trained_scene
+        if self.spec.scene is not None:
+            where = f"stages.{index}.evaluate.scene"
+            self.scene = evaluation_scene(self.spec.scene, trained_scene, backend, where)
         self.best: Score | None = None
         if (saved := latest_checkpoint(best_dir)) is not None:
             _, meta = load_checkpoint(saved)

@@ -1,15 +1,15 @@
 """Submitted jobs: a REST body (a mapping, or YAML/JSON text) checked as a job file is, and
 as data only, then written into a job's folder for its trainer.
 
-Data only: a stage's ``scene`` is a catalogue name or an inline scene (a mapping validated as
-a ``Scene``); names that reach the file system (the scene, an inline scene's ``body`` and
-``task.imitate.motion``, ``warm_start.excitations``) must be plain names, never paths;
-``workers.ray_address`` is refused (the service decides where jobs run), as is an inline scene's
-``fault`` (fault injection, which hangs or poisons simulators, is for tests); anything not in
-the schema is refused. Then the job is written into a scratch folder and loaded exactly as its
-trainer will load it (``learner.job.load_job``: every scene compiled and resolved; the stages
-checked to fit one policy lineage), so that a job that cannot run fails here, with a 422,
-not minutes later.
+Data only: a stage's ``scene`` is a catalogue name or an inline scene (a mapping validated as a
+``Scene``); names that reach the file system (the scene, an inline scene's ``body`` and
+``task.imitate.motion``, ``warm_start.excitations``, ``evaluate.scene``) must be plain names,
+never paths; ``workers.ray_address`` is refused (the service decides where jobs run), as is an
+inline scene's ``fault`` (fault injection, which hangs or poisons simulators, is for tests);
+anything not in the schema is refused. Then the job is written into a scratch folder and loaded
+exactly as its trainer will load it (``learner.job.load_job``: every scene compiled and
+resolved; the stages checked to fit one policy lineage), so that a job that cannot run fails
+here, with a 422, not minutes later.
 """
 
 from __future__ import annotations
@@ -148,6 +148,12 @@ def _check_data_only(raw: dict, errors: list[tuple[str, str]]) -> dict[int, Scen
             what = "a catalogue scene name or an inline scene (a mapping)"
             if problem := _name_problem(scene, what):
                 errors.append((f"stages.{i}.scene", problem))
+        judged = stage.get("evaluate")
+        judged_scene = judged.get("scene") if isinstance(judged, dict) else None
+        if isinstance(judged_scene, str) and (
+            problem := _name_problem(judged_scene, "a catalogue scene name")
+        ):
+            errors.append((f"stages.{i}.evaluate.scene", problem))
         warm = stage.get("warm_start")
         if isinstance(warm, dict) and isinstance(warm.get("excitations"), str):
             what = "the name of a motion shipped for the body"

@@ -78,6 +78,13 @@ def test_an_inline_motion_or_excitations_path_is_refused() -> None:
     assert _refused(_stage("imitate-walk-2d", **warm)).field == "stages.0.warm_start.excitations"
 
 
+def test_an_evaluation_scene_is_a_catalogue_name_that_fits_the_stage() -> None:
+    path = {"evaluate": {"scene": "../run-2d-clock.yaml"}}
+    assert _refused(_stage("stand-2d", **path)).field == "stages.0.evaluate.scene"
+    other_body = _refused(_stage("stand-2d", evaluate={"scene": "elbow-reach"}))
+    assert other_body.field == "stages.0.evaluate.scene" and "other names" in str(other_body)
+
+
 def test_scenes_are_checked_fully_at_submission() -> None:
     assert _refused(_stage("no-such-scene")).field == "stages.0.scene"
     two_bodies = _stage("stand-2d")
