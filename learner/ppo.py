@@ -43,6 +43,10 @@ class PPOSettings(BaseModel):
     """Adam learning rate (at the start of each stage)"""
     lr_end: LearningRate | None = None
     """learning rate at the end of each stage (linear schedule); None: constant"""
+    critic_lr: LearningRate | None = None
+    """the critic's own Adam learning rate, constant over each stage; None: the actor's
+    ``lr`` and its schedule (a fine-tune at a low ``lr`` on a new reward otherwise leaves
+    the critic far behind the returns, of order 100)"""
     epochs: Annotated[int, Field(ge=1, le=100)] = 5
     """passes over each batch"""
     minibatch_size: Annotated[int, Field(ge=1)] = 2048
@@ -129,6 +133,24 @@ def _clip_groups(policy: GaussianPolicy) -> list[list[torch.nn.Parameter]]:
     critic = [p for n, p in named if "critic" in n]
     actor = [p for n, p in named if "critic" not in n]
     return [group for group in (actor, critic) if group]
+
+
+def optimizer_groups(policy: GaussianPolicy, critic_apart: bool) -> list[dict]:
+    """The policy's trainable parameters as Adam parameter groups: one group, or with
+    ``critic_apart`` the actor's and the critic's (named ``"actor"`` and ``"critic"``) for a
+    critic learning rate of its own (:func:`set_learning_rates`)."""
+    if not critic_apart:
+        return [{"params": policy.trainable_parameters(), "name": "all"}]
+    actor, critic = _clip_groups(policy)
+    return [{"params": actor, "name": "actor"}, {"params": critic, "name": "critic"}]
+
+
+def set_learning_rates(optimizer: torch.optim.Optimizer, cfg: PPOSettings) -> None:
+    """Each parameter group's rate from ``cfg`` (``settings.at(progress)``): the critic's
+    ``critic_lr`` where it has a group of its own and a rate set, else ``lr``."""
+    for group in optimizer.param_groups:
+        critic = group.get("name") == "critic" and cfg.critic_lr is not None
+        group["lr"] = cfg.critic_lr if critic else cfg.lr
 
 
 def ppo_update(

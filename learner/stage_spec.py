@@ -128,6 +128,8 @@ class StagePPO(StrictSpec):
     """Adam learning rate at the stage's start"""
     lr_end: LearningRate | None = None
     """learning rate at the stage's end (linear schedule)"""
+    critic_lr: LearningRate | None = None
+    """the critic's own learning rate over the stage (``learner.ppo.PPOSettings.critic_lr``)"""
     entropy_coef: EntropyWeight | None = None
     """entropy weight at the stage's start"""
     entropy_coef_end: EntropyWeight | None = None

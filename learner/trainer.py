@@ -40,7 +40,12 @@ from gaitforge.learner.checkpoint_meta import CheckpointMeta
 from gaitforge.learner.curriculum import CurriculumState, StageIO, check_stages
 from gaitforge.learner.job import Job, Stage, resolve_scenes
 from gaitforge.learner.policy import ActorCritic, BlendedPolicy, GaussianPolicy, build_policy
-from gaitforge.learner.ppo import batch_from_fragments, ppo_update
+from gaitforge.learner.ppo import (
+    batch_from_fragments,
+    optimizer_groups,
+    ppo_update,
+    set_learning_rates,
+)
 from gaitforge.learner.run_log import ScalarLog, batch_stats, record_policy
 from gaitforge.learner.sampling import Sampler, StopRequested, next_fragment, open_sampler
 from gaitforge.learner.stage_judge import StageJudge
@@ -144,7 +149,11 @@ class Trainer:
         return self.curriculum.stage >= len(self.job.stages)
 
     def _new_optimizer(self) -> torch.optim.Adam:
-        return torch.optim.Adam(self.policy.trainable_parameters(), lr=self.job.ppo.lr)
+        """Adam over the policy: the critic in a group of its own where any stage gives it a
+        learning rate of its own (the same groups all run long, so a checkpoint resumes)."""
+        stages = range(len(self.job.stages))
+        apart = any(self.job.stage_ppo(i).critic_lr is not None for i in stages)
+        return torch.optim.Adam(optimizer_groups(self.policy, apart), lr=self.job.ppo.lr)
 
     def _policy_factory(self) -> Callable[[], ActorCritic]:
         return functools.partial(build_policy, self.policy.describe())
@@ -255,8 +264,7 @@ class Trainer:
         obs = np.concatenate([f.flat_obs() for f in fragments])
         progress = min(1.0, self.curriculum.stage_env_steps / stage.env_steps)
         cfg = ppo.at(progress)
-        for group in self.optimizer.param_groups:
-            group["lr"] = cfg.lr
+        set_learning_rates(self.optimizer, cfg)
         batch = batch_from_fragments(fragments, cfg)
         mirror = self.mirrors[self.curriculum.stage]
         if mirror is not None:

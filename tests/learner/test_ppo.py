@@ -12,7 +12,9 @@ from gaitforge.learner.ppo import (
     PPOSettings,
     batch_from_fragments,
     clipped_surrogate_loss,
+    optimizer_groups,
     ppo_update,
+    set_learning_rates,
 )
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.rollout import RolloutWorker
@@ -89,3 +91,29 @@ def test_schedules_are_applied_by_the_settings() -> None:
     assert (ppo.minibatches(8192), ppo.minibatches(100), ppo.minibatches(5000)) == (4, 1, 2)
     with pytest.raises(ValueError, match="lr"):
         PPOSettings(lr=-1.0)
+
+
+def test_the_critic_may_learn_at_a_rate_of_its_own() -> None:
+    """With ``critic_lr`` the critic has its own Adam group: at an actor rate of 1e-7 and a
+    critic rate of 1e-2, one update moves the critic's weights and barely the actor's."""
+    torch.manual_seed(0)
+    factory = _elbow_factory()
+    worker = RolloutWorker(load_scene("elbow-reach").resolved(), factory, num_envs=4,
+                           fragment_length=50)  # fmt: skip
+    policy = factory()
+    cfg = PPOSettings(lr=1e-7, critic_lr=1e-2, epochs=2, minibatch_size=100, target_kl=None)
+    single = torch.optim.Adam(optimizer_groups(policy, critic_apart=False))
+    set_learning_rates(single, cfg)
+    assert [g["lr"] for g in single.param_groups] == [1e-7], "no group of its own: lr"
+    optimizer = torch.optim.Adam(optimizer_groups(policy, critic_apart=True))
+    set_learning_rates(optimizer, cfg)
+    assert [(g["name"], g["lr"]) for g in optimizer.param_groups] == [
+        ("actor", 1e-7),
+        ("critic", 1e-2),
+    ]
+    before = {n: p.detach().clone() for n, p in policy.named_parameters()}
+    batch = batch_from_fragments([worker.sample(policy.state_dict(), 0)], cfg)
+    ppo_update(policy, optimizer, batch, cfg)
+    moved = {n: (p - before[n]).abs().max().item() for n, p in policy.named_parameters()}
+    assert min(v for n, v in moved.items() if "critic" in n) > 1e-3, moved
+    assert max(v for n, v in moved.items() if "critic" not in n) < 1e-5, moved
