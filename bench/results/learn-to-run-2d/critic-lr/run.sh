@@ -1,14 +1,20 @@
 #!/bin/bash
-# Both arms of the critic-lr A/B, interleaved, one after the other (one rollout actor + the
-# learner each): bash bench/results/learn-to-run-2d/critic-lr/run.sh OUT_DIR
+# Arms of the fine-tune A/Bs on seeds 0-2, seed by seed (one rollout actor + the learner
+# each, one run at a time): bash bench/results/learn-to-run-2d/critic-lr/run.sh OUT_DIR ARM...
+# where an ARM is CRITIC_LR:MIRROR, e.g. null:true (the recipe), 3.0e-4:true, null:false.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 out=${1:?OUT_DIR}
+shift
 mkdir -p "$out"
 for seed in 0 1 2; do
-  for arm in null 3.0e-4; do
-    name="seed-$seed-critic-lr-$arm"
-    sed -e "s/SEED/$seed/" -e "s/CRITIC_LR/$arm/" "$here/finetune.yaml.in" > "$here/$name.yaml"
+  for arm in "$@"; do
+    critic_lr=${arm%%:*}
+    mirror=${arm##*:}
+    name="seed-$seed-critic-lr-$critic_lr"
+    [ "$mirror" = true ] || name="$name-no-mirror"
+    sed -e "s/SEED/$seed/" -e "s/CRITIC_LR/$critic_lr/" -e "s/MIRROR/$mirror/" \
+      "$here/finetune.yaml.in" > "$here/$name.yaml"
     gaitforge train "$here/$name.yaml" --run-dir "$out/$name" --log-every 30 > "$out/$name.log" 2>&1
   done
 done
