@@ -45,9 +45,11 @@ class StageIO:
         self.lateral_axis = lateral_axis(scene.body)
 
 
-def check_stages(io: list[StageIO], scene_names: list[str], mirror: bool) -> list[MirrorMap | None]:
+def check_stages(
+    io: list[StageIO], scene_names: list[str], mirror: list[bool]
+) -> list[MirrorMap | None]:
     """What the job file alone cannot tell: the stages' envs fit one policy lineage.
-    Returns each stage's mirror map (None without ``mirror``).
+    Returns each stage's mirror map (None where ``mirror``, one flag per stage, is off).
 
     Raises:
         SpecError: naming the stage (or ``ppo.mirror``) and what does not fit.
@@ -61,7 +63,7 @@ def check_stages(io: list[StageIO], scene_names: list[str], mirror: bool) -> lis
         lost = [n for n in previous if n not in stage_io.obs_names]
         if lost:
             raise SpecError(f"stages.{i}: observations of stage {i - 1} missing: {lost[:4]}")
-        if not mirror:
+        if not mirror[i]:
             mirrors.append(None)
             continue
         try:

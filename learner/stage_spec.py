@@ -130,6 +130,9 @@ class StagePPO(StrictSpec):
     """learning rate at the stage's end (linear schedule)"""
     critic_lr: LearningRate | None = None
     """the critic's own learning rate over the stage (``learner.ppo.PPOSettings.critic_lr``)"""
+    mirror: bool | None = None
+    """mirror augmentation in this stage (``learner.ppo.PPOSettings.mirror``): a fine-tune
+    of a policy with little action noise may do without it"""
     entropy_coef: EntropyWeight | None = None
     """entropy weight at the stage's start"""
     entropy_coef_end: EntropyWeight | None = None

@@ -205,7 +205,8 @@ def _check_loads(spec: dict[str, Any], source: str) -> None:
         try:
             job, scenes = load_job(job_file)
             io = [StageIO(scene, job.stage_backend(i)) for i, scene in enumerate(scenes)]
-            check_stages(io, [scene.name for scene in scenes], job.ppo.mirror)
+            mirror = [job.stage_ppo(i).mirror for i in range(len(job.stages))]
+            check_stages(io, [scene.name for scene in scenes], mirror)
         except (SpecError, ValueError) as exc:
             text = str(exc).replace(f"{job_file}: ", "").replace(f"{layout.dir}{os.sep}", "")
             field, _, problem = text.partition(": ")

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 import torch
+from gaitforge.learner.job import Job
 from gaitforge.learner.policy import GaussianPolicy
 from gaitforge.learner.symmetry import MirrorMap, add_mirrored
+from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.env import MuscleEnv
 
 
@@ -62,3 +66,15 @@ def test_the_mirrored_batch_doubles_and_keeps_advantages() -> None:
     torch.testing.assert_close(doubled["obs"][n:], mirror.obs(batch["obs"]))
     logp, _, _ = policy.evaluate(doubled["obs"][n:], doubled["action"][n:])
     torch.testing.assert_close(doubled["logp"][n:], logp.detach())
+
+
+def test_a_stage_may_turn_mirroring_off(tmp_path: Path) -> None:
+    """``stages[i].ppo.mirror`` in place of the job's: a fine-tune stage without mirror images."""
+    job = Job.model_validate({
+        "name": "stand-then-fine-tune", "ppo": {"mirror": True},
+        "workers": {"num_workers": 0},
+        "stages": [{"scene": "stand-2d", "env_steps": 1000},
+                   {"scene": "stand-2d", "env_steps": 1000, "ppo": {"mirror": False}}],
+    })  # fmt: skip
+    trainer = Trainer(job, tmp_path, tensorboard=False)
+    assert trainer.mirrors[0] is not None and trainer.mirrors[1] is None
