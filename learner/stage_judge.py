@@ -20,9 +20,15 @@ return (:func:`score`).
 from __future__ import annotations
 
 import logging
+import shutil
 from pathlib import Path
 
-from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint, save_checkpoint
+from gaitforge.learner.checkpoint import (
+    checkpoints,
+    latest_checkpoint,
+    load_checkpoint,
+    save_checkpoint,
+)
 from gaitforge.learner.checkpoint_meta import CheckpointMeta
 from gaitforge.learner.evaluate_episodes import evaluate_policy
 from gaitforge.learner.evaluate_results import ModeResult
@@ -116,7 +122,10 @@ class StageJudge:
         if self.best is not None and candidate <= self.best:
             return False
         self.best = candidate
-        save_checkpoint(self.best_dir, env_steps, policy.state_dict(), meta, keep_last=1)
+        kept = save_checkpoint(self.best_dir, env_steps, policy.state_dict(), meta)
+        for other in checkpoints(self.best_dir):  # one kept, even if older (after a resume)
+            if other != kept:
+                shutil.rmtree(other, ignore_errors=True)
         return True
 
     def best_network(self) -> tuple[ActorCritic, CheckpointMeta] | None:
