@@ -185,8 +185,11 @@ class Trainer:
         self.policy.load_state_dict(state)
         self.optimizer = self._new_optimizer()
         optimizer_state = load_optimizer_state(latest)
-        if optimizer_state is not None:
-            self.optimizer.load_state_dict(optimizer_state)
+        try:
+            if optimizer_state is not None:
+                self.optimizer.load_state_dict(optimizer_state)
+        except ValueError as exc:  # its groups changed (a critic_lr added to the job)
+            logger.warning("%s: Adam's state does not fit (%s); it starts afresh", latest, exc)
         self.obs_names = meta.obs_names
         self.iteration, self.env_steps = int(meta.iteration or 0), meta.env_steps
         self.curriculum = CurriculumState.from_json(meta.curriculum.model_dump())

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
+from gaitforge.learner.job import Job
 from gaitforge.learner.policy import GaussianPolicy
 from gaitforge.learner.ppo import (
     PPOSettings,
@@ -16,9 +18,12 @@ from gaitforge.learner.ppo import (
     ppo_update,
     set_learning_rates,
 )
+from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.rollout import RolloutWorker
 from gaitforge.workers.scenes import load_scene
+
+from tests.learner.test_trainer import elbow_job
 
 
 def _elbow_factory() -> functools.partial:
@@ -117,3 +122,16 @@ def test_the_critic_may_learn_at_a_rate_of_its_own() -> None:
     moved = {n: (p - before[n]).abs().max().item() for n, p in policy.named_parameters()}
     assert min(v for n, v in moved.items() if "critic" in n) > 1e-3, moved
     assert max(v for n, v in moved.items() if "critic" not in n) < 1e-5, moved
+
+
+def test_a_run_resumes_when_a_critic_rate_is_added(tmp_path: Path) -> None:
+    """A checkpoint's Adam state (one group) does not fit a job that now gives the critic
+    its own rate (two groups): the run resumes with Adam afresh instead of failing."""
+    raw = elbow_job().model_dump()
+    Trainer(Job.model_validate(raw), tmp_path, tensorboard=False).run(max_iterations=2)
+    raw["ppo"]["critic_lr"] = 1e-3
+    resumed = Trainer(Job.model_validate(raw), tmp_path, tensorboard=False)
+    assert resumed.iteration == 2
+    assert [g["name"] for g in resumed.optimizer.param_groups] == ["actor", "critic"]
+    resumed.run(max_iterations=1)
+    assert resumed.iteration == 3
