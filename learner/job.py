@@ -201,20 +201,18 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
         if stage.evaluate is not None and (ref := stage.evaluate.scene) is not None:
             if ref.endswith((".yaml", ".yml")) and not Path(ref).is_absolute():
                 ref = str(base / ref)
-            evaluation_scene(ref, scenes[-1], backend, f"{source}: stages.{i}.evaluate.scene")
+            evaluation_scene(ref, backend, f"{source}: stages.{i}.evaluate.scene")
     return scenes
 
 
-def evaluation_scene(ref: str, stage_scene: Scene, backend: str, where: str) -> Scene:
-    """A stage's evaluation scene (``evaluate.scene``), loaded and resolved for ``backend``;
-    it must take the policy of the stage's scene ``stage_scene`` as it is.
+def evaluation_scene(ref: str, backend: str, where: str) -> Scene:
+    """A stage's evaluation scene (``evaluate.scene``), loaded and resolved for ``backend``
+    (that it takes the stage's policy is checked with the stage's names:
+    ``learner.stage_judge.judged_scene``).
 
     Raises:
-        SpecError: ``where`` (file and field): the scene does not load, runs elsewhere, or
-            observes or actuates other names than the stage's scene.
+        SpecError: ``where`` (file and field): the scene does not load or runs elsewhere.
     """
-    from gaitforge.learner.curriculum import StageIO  # lazy: curriculum imports this module
-
     try:
         scene = load_scene(ref)
     except SpecError as exc:
@@ -222,17 +220,9 @@ def evaluation_scene(ref: str, stage_scene: Scene, backend: str, where: str) -> 
     if backend not in scene.backends:
         raise SpecError(f"{where}: {scene.name!r} runs on {scene.backends}, not on {backend!r}")
     try:
-        scene = scene.resolved()
+        return scene.resolved()
     except ValueError as exc:
         raise SpecError(f"{where}: {exc}") from None
-    judged, trained = StageIO(scene, backend), StageIO(stage_scene, backend)
-    if (judged.obs_names, judged.act_names) != (trained.obs_names, trained.act_names):
-        raise SpecError(
-            f"{where}: {scene.name!r} on {backend} observes or actuates other names than the "
-            f"stage's scene {stage_scene.name!r}; an evaluation scene must take the stage's "
-            "policy as it is"
-        )
-    return scene
 
 
 def check_warm_start(scene: Scene, spec: WarmStartSpec, where: str) -> None:

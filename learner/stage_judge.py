@@ -30,11 +30,13 @@ from gaitforge.learner.checkpoint import (
     save_checkpoint,
 )
 from gaitforge.learner.checkpoint_meta import CheckpointMeta
+from gaitforge.learner.curriculum import StageIO
 from gaitforge.learner.evaluate_episodes import evaluate_policy
 from gaitforge.learner.evaluate_results import ModeResult
 from gaitforge.learner.job import PromotionRule, Stage, StageEvaluation, evaluation_scene
 from gaitforge.learner.policy import ActorCritic, build_policy
 from gaitforge.workers.scenes import Scene
+from gaitforge.workers.spec_io import SpecError
 
 logger = logging.getLogger(__name__)
 
@@ -64,6 +66,29 @@ def score(metrics: dict[str, float], rules: list[PromotionRule]) -> Score:
     return passed, -metrics["eval_fall_rate"], metrics["eval_return"]
 
 
+def judged_scene(stage: Stage, index: int, trained_scene: Scene, backend: str) -> Scene:
+    """The scene stage ``index`` (with ``evaluate``) is judged on: ``evaluate.scene``, or the
+    stage's own scene as trained (``trained_scene``).
+
+    Raises:
+        SpecError: ``stages.<index>.evaluate.scene`` does not load, runs on another backend,
+            or observes or actuates other names than the stage's scene.
+    """
+    assert stage.evaluate is not None
+    if stage.evaluate.scene is None:
+        return trained_scene
+    where = f"stages.{index}.evaluate.scene"
+    scene = evaluation_scene(stage.evaluate.scene, backend, where)
+    judged, trained = StageIO(scene, backend), StageIO(trained_scene, backend)
+    if (judged.obs_names, judged.act_names) != (trained.obs_names, trained.act_names):
+        raise SpecError(
+            f"{where}: {scene.name!r} on {backend} observes or actuates other names than the "
+            f"stage's scene {trained_scene.name!r}; an evaluation scene must take the stage's "
+            "policy as it is"
+        )
+    return scene
+
+
 class StageJudge:
     """The evaluations of stage ``index`` (which has ``stage.evaluate``) of a run.
 
@@ -86,10 +111,7 @@ class StageJudge:
         self.rules = stage.promote
         self.backend = backend
         self.best_dir = best_dir
-        self.scene = trained_scene
-        if self.spec.scene is not None:
-            where = f"stages.{index}.evaluate.scene"
-            self.scene = evaluation_scene(self.spec.scene, trained_scene, backend, where)
+        self.scene = judged_scene(stage, index, trained_scene, backend)
         self.best: Score | None = None
         if (saved := latest_checkpoint(best_dir)) is not None:
             _, meta = load_checkpoint(saved)

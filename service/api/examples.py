@@ -23,6 +23,7 @@ def schema_examples(schemas: dict[str, Any]) -> dict[str, Any]:
         "Scene": load_scene("stand-2d").model_dump(mode="json"),
         "WarmStartSpec": {"excitations": "walk", "env_steps": 8192, "rounds": 2},
         "StagePPO": {"lr": 1e-4, "lr_end": 5e-5},
+        "StageEvaluation": {"scene": "run-2d-clock", "episodes": 100, "every_env_steps": 250000},
         "FaultInjection": {"abort_prob": 0.0, "hang_prob": 0.0, "nan_prob": 0.001},
         "Action": status["actions"][0],
         "Artifact": artifacts["items"][0],

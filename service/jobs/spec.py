@@ -198,6 +198,7 @@ def prepare_submission(
 def _check_loads(spec: dict[str, Any], source: str) -> None:
     """Write ``spec`` into a scratch job folder and load it as the trainer will."""
     from gaitforge.learner.curriculum import StageIO, check_stages  # lazy: heavier imports
+    from gaitforge.learner.stage_judge import judged_scene
 
     with tempfile.TemporaryDirectory(prefix="gaitforge-submit-") as tmp:
         layout = JobLayout(Path(tmp), "check")
@@ -207,6 +208,9 @@ def _check_loads(spec: dict[str, Any], source: str) -> None:
             io = [StageIO(scene, job.stage_backend(i)) for i, scene in enumerate(scenes)]
             mirror = [job.stage_ppo(i).mirror for i in range(len(job.stages))]
             check_stages(io, [scene.name for scene in scenes], mirror)
+            for i, stage in enumerate(job.stages):
+                if stage.evaluate is not None:
+                    judged_scene(stage, i, scenes[i], job.stage_backend(i))
         except (SpecError, ValueError) as exc:
             text = str(exc).replace(f"{job_file}: ", "").replace(f"{layout.dir}{os.sep}", "")
             field, _, problem = text.partition(": ")
