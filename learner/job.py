@@ -59,6 +59,7 @@ __all__ = [
     "evaluation_scene",
     "load_job",
     "resolve_scenes",
+    "with_evaluation_paths",
 ]
 
 
@@ -147,19 +148,28 @@ def load_job(path: Path) -> tuple[Job, list[Scene]]:
                 "meta.json and policy.safetensors, as the trainer writes them)"
             )
         job = job.model_copy(update={"init_from": str(start)})
-    job = _with_evaluation_paths(job, path.parent)
+    job = with_evaluation_paths(job, path.parent)
     return job, resolve_scenes(job, base=path.parent, source=str(path))
 
 
-def _with_evaluation_paths(job: Job, base: Path) -> Job:
-    """``job`` with each stage's ``evaluate.scene`` YAML path made absolute (relative to the
-    job file's directory ``base``), so the trainer finds it from any working directory."""
+def _scene_ref(ref: str, base: Path) -> str:
+    """A scene reference as loadable from here: a relative YAML path taken from ``base``
+    (the job file's directory); a catalogue name or an absolute path as it is."""
+    if ref.endswith((".yaml", ".yml")) and not Path(ref).is_absolute():
+        return str(base / ref)
+    return ref
+
+
+def with_evaluation_paths(job: Job, base: Path) -> Job:
+    """``job`` with each stage's ``evaluate.scene`` YAML path made absolute (relative to
+    ``base``, the job file's directory), so the trainer finds it from any working directory."""
     stages = []
     for stage in job.stages:
-        ref = stage.evaluate.scene if stage.evaluate is not None else None
-        if ref and ref.endswith((".yaml", ".yml")) and not Path(ref).is_absolute():
-            spec = stage.evaluate.model_copy(update={"scene": str((base / ref).resolve())})
-            stage = stage.model_copy(update={"evaluate": spec})
+        if stage.evaluate is not None and stage.evaluate.scene is not None:
+            ref = _scene_ref(stage.evaluate.scene, base.resolve())
+            stage = stage.model_copy(
+                update={"evaluate": stage.evaluate.model_copy(update={"scene": ref})}
+            )
         stages.append(stage)
     return job.model_copy(update={"stages": stages})
 
@@ -170,11 +180,8 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
     so that actors on any node and the checkpoints get the profile chosen here."""
     scenes = []
     for i, stage in enumerate(job.stages):
-        ref = stage.scene
-        if ref.endswith((".yaml", ".yml")) and not Path(ref).is_absolute():
-            ref = str(base / ref)
         try:
-            scene = load_scene(ref)
+            scene = load_scene(_scene_ref(stage.scene, base))
         except SpecError as exc:
             raise SpecError(f"{source}: stages.{i}.scene: {exc}") from None
         backend = job.stage_backend(i)
@@ -198,10 +205,9 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
             raise SpecError(f"{source}: stages.{i}.scene: {exc}") from None
         if stage.warm_start is not None:
             check_warm_start(scenes[-1], stage.warm_start, f"{source}: stages.{i}.warm_start")
-        if stage.evaluate is not None and (ref := stage.evaluate.scene) is not None:
-            if ref.endswith((".yaml", ".yml")) and not Path(ref).is_absolute():
-                ref = str(base / ref)
-            evaluation_scene(ref, backend, f"{source}: stages.{i}.evaluate.scene")
+        if stage.evaluate is not None and stage.evaluate.scene is not None:
+            where = f"{source}: stages.{i}.evaluate.scene"
+            evaluation_scene(_scene_ref(stage.evaluate.scene, base), backend, where)
     return scenes
 
 

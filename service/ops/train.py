@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from gaitforge.learner.job import Job, load_job, resolve_scenes
+from gaitforge.learner.job import Job, load_job, resolve_scenes, with_evaluation_paths
 from gaitforge.workers.spec_io import validate_model
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -113,6 +113,7 @@ def load_request(request: TrainRequest) -> tuple[Job, list[Scene]]:
     else:
         source = "job"
         job = validate_model(request.job or {}, Job, source)
+        job = with_evaluation_paths(job, request.base_dir)
         scenes = resolve_scenes(job, base=request.base_dir, source=source)
     job = apply_overrides(job, request.workers, request.address, request.budget_scale, source)
     return job, scenes
