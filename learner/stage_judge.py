@@ -66,9 +66,10 @@ def score(metrics: dict[str, float], rules: list[PromotionRule]) -> Score:
     return passed, -metrics["eval_fall_rate"], metrics["eval_return"]
 
 
-def judged_scene(stage: Stage, index: int, trained_scene: Scene, backend: str) -> Scene:
+def judged_scene(stage: Stage, index: int, trained_scene: Scene, trained_io: StageIO,
+                 backend: str) -> Scene:  # fmt: skip
     """The scene stage ``index`` (with ``evaluate``) is judged on: ``evaluate.scene``, or the
-    stage's own scene as trained (``trained_scene``).
+    stage's own scene as trained (``trained_scene``, whose names are ``trained_io``).
 
     Raises:
         SpecError: ``stages.<index>.evaluate.scene`` does not load, runs on another backend,
@@ -79,8 +80,8 @@ def judged_scene(stage: Stage, index: int, trained_scene: Scene, backend: str) -
         return trained_scene
     where = f"stages.{index}.evaluate.scene"
     scene = evaluation_scene(stage.evaluate.scene, backend, where)
-    judged, trained = StageIO(scene, backend), StageIO(trained_scene, backend)
-    if (judged.obs_names, judged.act_names) != (trained.obs_names, trained.act_names):
+    judged = StageIO(scene, backend)
+    if (judged.obs_names, judged.act_names) != (trained_io.obs_names, trained_io.act_names):
         raise SpecError(
             f"{where}: {scene.name!r} on {backend} observes or actuates other names than the "
             f"stage's scene {trained_scene.name!r}; an evaluation scene must take the stage's "
@@ -96,6 +97,7 @@ class StageJudge:
         stage: the stage; its ``evaluate`` says what, how often and whether to keep the best.
         index: its index in the job.
         trained_scene: the stage's scene as trained (the evaluation scene by default).
+        trained_io: its observation and muscle names.
         backend: the stage's simulator.
         best_dir: where the best network so far is kept (``run_dir/best/stage-<index>``).
 
@@ -104,14 +106,14 @@ class StageJudge:
             or observes or actuates other names than the stage.
     """
 
-    def __init__(self, stage: Stage, index: int, trained_scene: Scene, backend: str,
-                 best_dir: Path) -> None:  # fmt: skip
+    def __init__(self, stage: Stage, index: int, trained_scene: Scene, trained_io: StageIO,
+                 backend: str, best_dir: Path) -> None:  # fmt: skip
         assert stage.evaluate is not None
         self.spec: StageEvaluation = stage.evaluate
         self.rules = stage.promote
         self.backend = backend
         self.best_dir = best_dir
-        self.scene = judged_scene(stage, index, trained_scene, backend)
+        self.scene = judged_scene(stage, index, trained_scene, trained_io, backend)
         self.best: Score | None = None
         if (saved := latest_checkpoint(best_dir)) is not None:
             _, meta = load_checkpoint(saved)

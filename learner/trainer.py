@@ -120,7 +120,7 @@ class Trainer:
         self._stop = threading.Event()
         self.scalars = ScalarLog(run_dir / "tb", enabled=tensorboard)
         self.judges = {
-            i: StageJudge(stage, i, self.scenes[i], job.stage_backend(i),
+            i: StageJudge(stage, i, self.scenes[i], self.io[i], job.stage_backend(i),
                           run_dir / "best" / f"stage-{i}")
             for i, stage in enumerate(job.stages) if stage.evaluate is not None
         }  # fmt: skip

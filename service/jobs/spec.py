@@ -210,7 +210,7 @@ def _check_loads(spec: dict[str, Any], source: str) -> None:
             check_stages(io, [scene.name for scene in scenes], mirror)
             for i, stage in enumerate(job.stages):
                 if stage.evaluate is not None:
-                    judged_scene(stage, i, scenes[i], job.stage_backend(i))
+                    judged_scene(stage, i, scenes[i], io[i], job.stage_backend(i))
         except (SpecError, ValueError) as exc:
             text = str(exc).replace(f"{job_file}: ", "").replace(f"{layout.dir}{os.sep}", "")
             field, _, problem = text.partition(": ")
