@@ -9,21 +9,13 @@ from __future__ import annotations
 
 import logging
 import threading
-import time
 from typing import Protocol
 
 import torch
 from gaitforge.learner.job import WorkersSpec
-from gaitforge.workers.fragment import Fragment
+from gaitforge.workers.fragment import Fragment, StopRequested
 from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
 from gaitforge.workers.scenes import Scene
-
-STOP_CHECK_S = 1.0
-"""s between looks at a stop request while a fragment is awaited"""
-
-
-class StopRequested(Exception):
-    """A stop was requested while fragments were awaited; the batch is dropped."""
 
 
 class Sampler(Protocol):
@@ -35,7 +27,12 @@ class Sampler(Protocol):
         self, policy_factory: PolicyFactory, weights: dict[str, torch.Tensor]
     ) -> int: ...
 
-    def next_fragment(self, timeout_s: float | None = None) -> tuple[Fragment, int]: ...
+    def next_fragment(
+        self, timeout_s: float | None = None, stop: threading.Event | None = None
+    ) -> tuple[Fragment, int]:
+        """The next fragment and its policy version; raises ``StopRequested`` once ``stop``
+        is set, ``TimeoutError`` when none comes within ``timeout_s``."""
+        ...
 
     def close(self) -> None: ...
 
@@ -60,7 +57,11 @@ class LocalSampler:
         self.worker.set_policy(policy_factory)
         return self.set_weights(weights)
 
-    def next_fragment(self, timeout_s: float | None = None) -> tuple[Fragment, int]:
+    def next_fragment(
+        self, timeout_s: float | None = None, stop: threading.Event | None = None
+    ) -> tuple[Fragment, int]:
+        if stop is not None and stop.is_set():
+            raise StopRequested
         return self.worker.sample(self._weights, self.version), self.version
 
     def close(self) -> None:
@@ -85,24 +86,3 @@ def open_sampler(
         scene, policy_factory, num_workers=workers.num_workers,
         envs_per_worker=workers.envs_per_worker, timeout_s=workers.timeout_s, **kwargs,
     )  # fmt: skip
-
-
-def next_fragment(
-    sampler: Sampler, timeout_s: float, stop: threading.Event
-) -> tuple[Fragment, int]:
-    """``sampler``'s next fragment (and its policy version) within ``timeout_s``, looking at
-    ``stop`` every ``STOP_CHECK_S`` while it waits: a stop does not wait for fragments that
-    may never come (a signal to the process group kills a local Ray head too).
-
-    Raises:
-        StopRequested: ``stop`` was set.
-        TimeoutError: no fragment within ``timeout_s``.
-    """
-    deadline = time.monotonic() + timeout_s
-    while not stop.is_set():
-        try:
-            return sampler.next_fragment(timeout_s=min(STOP_CHECK_S, timeout_s))
-        except TimeoutError:
-            if time.monotonic() >= deadline:
-                raise TimeoutError(f"no fragment within {timeout_s} s") from None
-    raise StopRequested

@@ -47,7 +47,7 @@ from gaitforge.learner.ppo import (
     set_learning_rates,
 )
 from gaitforge.learner.run_log import ScalarLog, batch_stats, record_policy
-from gaitforge.learner.sampling import Sampler, StopRequested, next_fragment, open_sampler
+from gaitforge.learner.sampling import Sampler, open_sampler
 from gaitforge.learner.stage_judge import StageJudge
 from gaitforge.learner.symmetry import add_mirrored
 from gaitforge.learner.transitions import (
@@ -60,7 +60,7 @@ from gaitforge.learner.transitions import (
     ramp_alpha,
     warm_start,
 )
-from gaitforge.workers.fragment import Fragment
+from gaitforge.workers.fragment import Fragment, StopRequested
 from gaitforge.workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
@@ -254,7 +254,7 @@ class Trainer:
         every one counts in the stage's episodes and the run's env steps."""
         fragments: list[Fragment] = []
         while sum(f.steps for f in fragments) < env_steps:
-            fragment, version = next_fragment(sampler, self.job.workers.timeout_s, self._stop)
+            fragment, version = sampler.next_fragment(self.job.workers.timeout_s, self._stop)
             if version < self._min_version:
                 continue  # made before a scene or network switch
             fragments.append(fragment)

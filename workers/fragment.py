@@ -12,6 +12,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
+class StopRequested(Exception):
+    """A stop was requested while a fragment was awaited: the wait ends without one."""
+
+
 @dataclass(frozen=True, kw_only=True, eq=False)
 class Fragment:
     """``T`` control steps of ``K`` envs (``RolloutWorker.sample``). ``t`` indexes time, ``k``

@@ -19,12 +19,13 @@ Failures never end a run; each is counted in :class:`PoolStats`:
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from collections import Counter
 from dataclasses import dataclass, field
 
 import ray
-from gaitforge.workers.fragment import Fragment
+from gaitforge.workers.fragment import Fragment, StopRequested
 from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.scenes.profiles import FidelityProfile
@@ -145,12 +146,25 @@ class WorkerPool:
             slot.actor.set_policy.remote(policy_factory)
         return self.set_weights(weights)
 
-    def next_fragment(self, timeout_s: float | None = None) -> tuple[Fragment, int]:
-        """The first fragment back from any actor, and the policy version that made it."""
+    def next_fragment(
+        self, timeout_s: float | None = None, stop: threading.Event | None = None
+    ) -> tuple[Fragment, int]:
+        """The first fragment back from any actor, and the policy version that made it.
+
+        Once ``stop`` is set no fragment is fetched and no actor replaced (a signal to the
+        process group kills a local Ray head too, and fetching an object from it, or starting
+        an actor on it, can end the driver).
+
+        Raises:
+            StopRequested: ``stop`` was set (looked at every ``POLL_S`` while waiting).
+            TimeoutError: no fragment within ``timeout_s``.
+        """
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         while deadline is None or time.monotonic() < deadline:
             by_ref = {ref: slot for slot in self._slots for ref in slot.requests}
             ready, _ = ray.wait(list(by_ref), num_returns=1, timeout=POLL_S)
+            if stop is not None and stop.is_set():
+                raise StopRequested
             if ready:
                 slot = by_ref[ready[0]]
                 slot.requests.remove(ready[0])

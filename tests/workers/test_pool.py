@@ -4,6 +4,7 @@ actors, and crashing, hanging and NaN-ing simulators never stop the run."""
 from __future__ import annotations
 
 import functools
+import threading
 import time
 from collections.abc import Iterator
 
@@ -11,6 +12,7 @@ import numpy as np
 import pytest
 import ray
 import torch
+from gaitforge.workers.fragment import StopRequested
 from gaitforge.workers.policy_api import UniformExcitationPolicy
 from gaitforge.workers.pool import WorkerPool
 from gaitforge.workers.scenes import Scene, load_scene
@@ -93,6 +95,24 @@ def test_crashing_simulators_are_replaced_and_collection_goes_on() -> None:
         assert pool.stats.actor_deaths >= 1
         assert pool.stats.actors_started == 2 + pool.stats.actor_deaths
         assert pool.stats.reissued >= pool.stats.actor_deaths
+    finally:
+        pool.close()
+
+
+def test_after_a_stop_request_nothing_is_fetched_and_no_actor_replaced() -> None:
+    """A stop (a signal to the process group, which kills a local Ray head too) ends the wait
+    at once: the dead actor's request is neither fetched nor re-issued on a new actor."""
+    pool = WorkerPool(ELBOW, POLICY, num_workers=1, fragment_length=16)
+    stop = threading.Event()
+    try:
+        _collect(pool, 1)
+        ray.kill(pool._slots[0].actor, no_restart=True)
+        stop.set()
+        start = time.monotonic()
+        with pytest.raises(StopRequested):
+            pool.next_fragment(timeout_s=120, stop=stop)
+        assert time.monotonic() - start < 5
+        assert pool.stats.actors_started == 1 and pool.stats.actor_deaths == 0
     finally:
         pool.close()
 
