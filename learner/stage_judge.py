@@ -115,11 +115,23 @@ class StageJudge:
         self.best_dir = best_dir
         self.scene = judged_scene(stage, index, trained_scene, trained_io, backend)
         self.best: Score | None = None
-        if (saved := latest_checkpoint(best_dir)) is not None:
-            _, meta = load_checkpoint(saved)
-            self.best = score(meta.metrics, self.rules)
         self._evaluated_at: int | None = None
         """the number of ``every_env_steps`` intervals of the stage at the last evaluation"""
+
+    def resume(self, run_env_steps: int) -> None:
+        """Take up the best network kept by an earlier process of this run, which resumes at
+        ``run_env_steps`` (0: a fresh start). One kept after that point (the process died
+        before its next checkpoint) is from a past the run no longer has: it is removed."""
+        saved = latest_checkpoint(self.best_dir)
+        if saved is None:
+            return
+        _, meta = load_checkpoint(saved)
+        if meta.env_steps > run_env_steps:
+            logger.warning("%s: kept at %d env steps, after the run's resume point (%d); removed",
+                           saved, meta.env_steps, run_env_steps)  # fmt: skip
+            shutil.rmtree(self.best_dir, ignore_errors=True)
+            return
+        self.best = score(meta.metrics, self.rules)
 
     def due(self, stage_env_steps: int) -> bool:
         """Whether an evaluation is due after the update that brought the stage to

@@ -127,6 +127,8 @@ class Trainer:
         if job.init_from is not None and latest_checkpoint(self.checkpoint_dir) is None:
             self._init_from(Path(job.init_from))
         self._resume()
+        for judge in self.judges.values():
+            judge.resume(self.env_steps)
 
     # ---- set-up ---------------------------------------------------------------------------
 

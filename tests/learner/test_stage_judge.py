@@ -4,6 +4,7 @@ scenes refused before training."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -86,6 +87,22 @@ def test_without_keep_best_the_stage_ends_with_its_last_network(tmp_path: Path) 
             parameter.add_(torch.randn_like(parameter) * 5.0)
     history = trainer.run()
     assert "kept_best_from_env_steps" not in history[-1]
+
+
+def test_a_best_network_from_past_the_resume_point_is_dropped(tmp_path: Path) -> None:
+    """A resumed run keeps the best network of its past; one from after its last checkpoint
+    (here: no checkpoint at all, as when a process dies before its first) is removed, and
+    the stage is evaluated after its first update again."""
+    best_dir = tmp_path / "best" / "stage-0"
+    Trainer(_job(), tmp_path, tensorboard=False).run(max_iterations=2)
+    kept = latest_checkpoint(best_dir)
+    resumed = Trainer(_job(), tmp_path, tensorboard=False)
+    assert resumed.judges[0].best is not None and latest_checkpoint(best_dir) == kept
+    shutil.rmtree(tmp_path / "checkpoints")
+    fresh = Trainer(_job(), tmp_path, tensorboard=False)
+    assert fresh.judges[0].best is None and latest_checkpoint(best_dir) is None
+    history = fresh.run(max_iterations=1)
+    assert "eval_return" in history[0]
 
 
 def test_an_evaluation_scene_must_take_the_stage_policy(tmp_path: Path) -> None:
