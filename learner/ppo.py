@@ -47,10 +47,6 @@ class PPOSettings(BaseModel):
     """the critic's own Adam learning rate, constant over each stage; None: the actor's
     ``lr`` and its schedule (a fine-tune at a low ``lr`` on a new reward otherwise leaves
     the critic far behind the returns, of order 100)"""
-    critic_warmup_env_steps: Annotated[int, Field(ge=0)] = 0
-    """the first updates of each stage, until this many of its env steps, train the critic
-    only (the actor's rate is 0): a policy fine-tuned on a new reward is first judged by a
-    critic fitted to that reward's returns rather than moved by one that is not"""
     epochs: Annotated[int, Field(ge=1, le=100)] = 5
     """passes over each batch"""
     minibatch_size: Annotated[int, Field(ge=1)] = 2048
@@ -149,20 +145,12 @@ def optimizer_groups(policy: GaussianPolicy, critic_apart: bool) -> list[dict]:
     return [{"params": actor, "name": "actor"}, {"params": critic, "name": "critic"}]
 
 
-def set_learning_rates(
-    optimizer: torch.optim.Optimizer, cfg: PPOSettings, actor_frozen: bool = False
-) -> None:
+def set_learning_rates(optimizer: torch.optim.Optimizer, cfg: PPOSettings) -> None:
     """Each parameter group's rate from ``cfg`` (``settings.at(progress)``): the critic's
-    ``critic_lr`` where it has a group of its own and a rate set, else ``lr``; the actor's
-    group at 0 while ``actor_frozen`` (its critic warm-up)."""
+    ``critic_lr`` where it has a group of its own and a rate set, else ``lr``."""
     for group in optimizer.param_groups:
-        name = group.get("name")
-        if name == "actor" and actor_frozen:
-            group["lr"] = 0.0
-        elif name == "critic" and cfg.critic_lr is not None:
-            group["lr"] = cfg.critic_lr
-        else:
-            group["lr"] = cfg.lr
+        critic = group.get("name") == "critic" and cfg.critic_lr is not None
+        group["lr"] = cfg.critic_lr if critic else cfg.lr
 
 
 def ppo_update(

@@ -130,9 +130,6 @@ class StagePPO(StrictSpec):
     """learning rate at the stage's end (linear schedule)"""
     critic_lr: LearningRate | None = None
     """the critic's own learning rate over the stage (``learner.ppo.PPOSettings.critic_lr``)"""
-    critic_warmup_env_steps: Annotated[int, Field(ge=0)] | None = None
-    """env steps at the stage's start that train the critic only
-    (``learner.ppo.PPOSettings.critic_warmup_env_steps``)"""
     mirror: bool | None = None
     """mirror augmentation in this stage (``learner.ppo.PPOSettings.mirror``): a fine-tune
     of a policy with little action noise may do without it"""

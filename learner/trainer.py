@@ -155,10 +155,9 @@ class Trainer:
 
     def _new_optimizer(self) -> torch.optim.Adam:
         """Adam over the policy: the critic in a group of its own where any stage gives it a
-        learning rate or a warm-up of its own (the same groups all run long, so a checkpoint
-        resumes)."""
-        settings = [self.job.stage_ppo(i) for i in range(len(self.job.stages))]
-        apart = any(s.critic_lr is not None or s.critic_warmup_env_steps for s in settings)
+        learning rate of its own (the same groups all run long, so a checkpoint resumes)."""
+        stages = range(len(self.job.stages))
+        apart = any(self.job.stage_ppo(i).critic_lr is not None for i in stages)
         return torch.optim.Adam(optimizer_groups(self.policy, apart), lr=self.job.ppo.lr)
 
     def _policy_factory(self) -> Callable[[], ActorCritic]:
@@ -268,13 +267,12 @@ class Trainer:
     def _iterate(self, sampler: Sampler) -> None:
         stage, ppo = self.stage, self.job.stage_ppo(self.curriculum.stage)
         start = time.perf_counter()
-        actor_frozen = self.curriculum.stage_env_steps < ppo.critic_warmup_env_steps
         fragments = self._gather(sampler, ppo.batch_env_steps)
         gathered_s = time.perf_counter() - start
         obs = np.concatenate([f.flat_obs() for f in fragments])
         progress = min(1.0, self.curriculum.stage_env_steps / stage.env_steps)
         cfg = ppo.at(progress)
-        set_learning_rates(self.optimizer, cfg, actor_frozen)
+        set_learning_rates(self.optimizer, cfg)
         batch = batch_from_fragments(fragments, cfg)
         mirror = self.mirrors[self.curriculum.stage]
         if mirror is not None:
@@ -286,8 +284,7 @@ class Trainer:
         self.iteration += 1
         sampler.set_weights(self.policy.state_dict())
         verdict = self.curriculum.verdict(stage)
-        lr = 0.0 if actor_frozen else cfg.lr
-        metrics = self._metrics(fragments, losses, lr, cfg.entropy_coef, gathered_s, start)
+        metrics = self._metrics(fragments, losses, cfg.lr, cfg.entropy_coef, gathered_s, start)
         metrics["verdict"] = verdict
         judge = self.judges.get(self.curriculum.stage)
         stage_end = verdict is not None

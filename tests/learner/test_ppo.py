@@ -124,31 +124,6 @@ def test_the_critic_may_learn_at_a_rate_of_its_own() -> None:
     assert max(v for n, v in moved.items() if "critic" not in n) < 1e-5, moved
 
 
-def test_a_critic_warm_up_moves_only_the_critic_until_its_env_steps(tmp_path: Path) -> None:
-    """A stage's ``critic_warmup_env_steps`` (400: two batches of 200) leaves the actor as it
-    started for its first two updates (its rate 0, logged as such), then trains both."""
-    raw = elbow_job().model_dump()
-    raw["stages"][0]["ppo"] = {"critic_warmup_env_steps": 400}
-    trainer = Trainer(Job.model_validate(raw), tmp_path, tensorboard=False)
-    assert [g["name"] for g in trainer.optimizer.param_groups] == ["actor", "critic"]
-
-    def params() -> dict[str, torch.Tensor]:
-        return {n: p.detach().clone() for n, p in trainer.policy.named_parameters()}
-
-    def moved(before: dict[str, torch.Tensor], part: str) -> float:
-        now = params()
-        return max((now[n] - v).abs().max().item() for n, v in before.items()
-                   if ("critic" in n) == (part == "critic"))  # fmt: skip
-
-    start = params()
-    trainer.run(max_iterations=2)
-    assert moved(start, "actor") == 0.0 and moved(start, "critic") > 0.0
-    assert [m["lr"] for m in trainer.history] == [0.0, 0.0]
-    warmed = params()
-    trainer.run(max_iterations=1)
-    assert moved(warmed, "actor") > 0.0 and trainer.history[-1]["lr"] > 0.0
-
-
 def test_a_run_resumes_when_a_critic_rate_is_added(tmp_path: Path) -> None:
     """A checkpoint's Adam state (one group) does not fit a job that now gives the critic
     its own rate (two groups): the run resumes with Adam afresh instead of failing."""

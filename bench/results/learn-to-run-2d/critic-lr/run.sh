@@ -1,9 +1,9 @@
 #!/bin/bash
 # Arms of the fine-tune A/Bs on seeds 0-2, seed by seed (one rollout actor + the learner
 # each, one run at a time): bash bench/results/learn-to-run-2d/critic-lr/run.sh OUT_DIR ARM...
-# where an ARM is CRITIC_LR:MIRROR[:WARMUP[:ACTION_STD]], e.g. null:true (the recipe),
-# 3.0e-4:true, null:false, 3.0e-4:true:50000 (the critic alone for the first 50 k env steps),
-# 3.0e-4:true:0:0.035 (the start's action noise reset to 0.035). SEEDS="3 4" runs other seeds.
+# where an ARM is CRITIC_LR:MIRROR[:ACTION_STD], e.g. null:true (the recipe), 3.0e-4:true,
+# null:false, 3.0e-4:true:0.035 (the start's action noise reset to 0.035). SEEDS="3 4" runs
+# other seeds. (The critic warm-up arm, 3.0e-4:true:50000 then, ran at commit ddc3bc9.)
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 out=${1:?OUT_DIR}
@@ -11,15 +11,13 @@ shift
 mkdir -p "$out"
 for seed in ${SEEDS:-0 1 2}; do
   for arm in "$@"; do
-    IFS=: read -r critic_lr mirror warmup std <<< "$arm"
-    warmup=${warmup:-0}
+    IFS=: read -r critic_lr mirror std <<< "$arm"
     std=${std:-null}
     name="seed-$seed-critic-lr-$critic_lr"
     [ "$mirror" = true ] || name="$name-no-mirror"
-    [ "$warmup" = 0 ] || name="$name-warmup-$warmup"
     [ "$std" = null ] || name="$name-std-$std"
     sed -e "s/SEED/$seed/" -e "s/CRITIC_LR/$critic_lr/" -e "s/MIRROR/$mirror/" \
-      -e "s/WARMUP/$warmup/" -e "s/ACTION_STD/$std/" "$here/finetune.yaml.in" > "$here/$name.yaml"
+      -e "s/ACTION_STD/$std/" "$here/finetune.yaml.in" > "$here/$name.yaml"
     gaitforge train "$here/$name.yaml" --run-dir "$out/$name" --log-every 30 > "$out/$name.log" 2>&1
   done
 done
