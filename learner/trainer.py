@@ -282,7 +282,8 @@ class Trainer:
         self.policy.norm.update(torch.from_numpy(obs))
         self._ramp_blend(sampler)
         self.iteration += 1
-        sampler.set_weights(self.policy.state_dict())
+        if not self._stop.is_set():  # stopping: no more rollouts (and a local Ray may be gone)
+            sampler.set_weights(self.policy.state_dict())
         verdict = self.curriculum.verdict(stage)
         metrics = self._metrics(fragments, losses, cfg.lr, cfg.entropy_coef, gathered_s, start)
         metrics["verdict"] = verdict
