@@ -13,7 +13,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
-from gaitforge.learner.job import Stage
+from gaitforge.learner.job import Job, Stage
 from gaitforge.learner.symmetry import MirrorMap
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
@@ -45,15 +45,15 @@ class StageIO:
         self.lateral_axis = lateral_axis(scene.body)
 
 
-def check_stages(
-    io: list[StageIO], scene_names: list[str], mirror: list[bool]
-) -> list[MirrorMap | None]:
-    """What the job file alone cannot tell: the stages' envs fit one policy lineage.
-    Returns each stage's mirror map (None where ``mirror``, one flag per stage, is off).
+def check_stages(job: Job, scenes: list[Scene]) -> tuple[list[StageIO], list[MirrorMap | None]]:
+    """What the job file alone cannot tell: the stages' envs (``scenes``, resolved, one per
+    stage) fit one policy lineage. Returns each stage's :class:`StageIO` and mirror map (None
+    where the stage's ``ppo.mirror`` is off).
 
     Raises:
         SpecError: naming the stage (or ``ppo.mirror``) and what does not fit.
     """
+    io = [StageIO(scene, job.stage_backend(i)) for i, scene in enumerate(scenes)]
     acts = io[0].act_names
     mirrors: list[MirrorMap | None] = []
     for i, stage_io in enumerate(io):
@@ -63,7 +63,7 @@ def check_stages(
         lost = [n for n in previous if n not in stage_io.obs_names]
         if lost:
             raise SpecError(f"stages.{i}: observations of stage {i - 1} missing: {lost[:4]}")
-        if not mirror[i]:
+        if not job.stage_ppo(i).mirror:
             mirrors.append(None)
             continue
         try:
@@ -71,8 +71,8 @@ def check_stages(
                 MirrorMap.from_names(stage_io.obs_names, stage_io.act_names, stage_io.lateral_axis)
             )
         except ValueError as exc:
-            raise SpecError(f"ppo.mirror: stages.{i} ({scene_names[i]}): {exc}") from None
-    return mirrors
+            raise SpecError(f"ppo.mirror: stages.{i} ({scenes[i].name}): {exc}") from None
+    return io, mirrors
 
 
 @dataclass

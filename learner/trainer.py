@@ -93,11 +93,7 @@ class Trainer:
         # resolved here, on the driver: actors and checkpoints get concrete fidelity profiles
         self.scenes = [s.resolved() for s in scenes] if scenes is not None else resolve_scenes(job)
         self.on_iteration = on_iteration
-        self.io = [StageIO(scene, job.stage_backend(i)) for i, scene in enumerate(self.scenes)]
-        self.mirrors = check_stages(
-            self.io, [scene.name for scene in self.scenes],
-            [job.stage_ppo(i).mirror for i in range(len(job.stages))],
-        )  # fmt: skip
+        self.io, self.mirrors = check_stages(job, self.scenes)
         torch.manual_seed(job.seed)
         first = self.io[0]
         self.policy: ActorCritic = GaussianPolicy(

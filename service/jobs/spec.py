@@ -197,7 +197,7 @@ def prepare_submission(
 
 def _check_loads(spec: dict[str, Any], source: str) -> None:
     """Write ``spec`` into a scratch job folder and load it as the trainer will."""
-    from gaitforge.learner.curriculum import StageIO, check_stages  # lazy: heavier imports
+    from gaitforge.learner.curriculum import check_stages  # lazy: heavier imports
     from gaitforge.learner.stage_judge import judged_scene
 
     with tempfile.TemporaryDirectory(prefix="gaitforge-submit-") as tmp:
@@ -205,9 +205,7 @@ def _check_loads(spec: dict[str, Any], source: str) -> None:
         job_file = write_job_files(layout, spec)
         try:
             job, scenes = load_job(job_file)
-            io = [StageIO(scene, job.stage_backend(i)) for i, scene in enumerate(scenes)]
-            mirror = [job.stage_ppo(i).mirror for i in range(len(job.stages))]
-            check_stages(io, [scene.name for scene in scenes], mirror)
+            io, _ = check_stages(job, scenes)
             for i, stage in enumerate(job.stages):
                 if stage.evaluate is not None:
                     judged_scene(stage, i, scenes[i], io[i], job.stage_backend(i))
