@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import logging
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 from gaitforge.learner.checkpoint import (
@@ -110,6 +111,7 @@ class StageJudge:
                  backend: str, best_dir: Path) -> None:  # fmt: skip
         assert stage.evaluate is not None
         self.spec: StageEvaluation = stage.evaluate
+        self.index = index
         self.rules = stage.promote
         self.backend = backend
         self.best_dir = best_dir
@@ -163,6 +165,36 @@ class StageJudge:
             if other != kept:
                 shutil.rmtree(other, ignore_errors=True)
         return True
+
+    def judge(
+        self,
+        policy: ActorCritic,
+        stage_env_steps: int,
+        env_steps: int,
+        metrics: dict,
+        meta_of: Callable[[dict], CheckpointMeta],
+        stage_end: bool,
+    ) -> ActorCritic | None:
+        """Evaluate ``policy`` (the stage at ``stage_env_steps``, the run at ``env_steps``)
+        into its iteration's ``metrics`` and keep it if it is the best so far (its checkpoint
+        meta made by ``meta_of(metrics)``). At the end of a ``keep_best`` stage
+        (``stage_end``) whose last network was not its best, returns the best network to end
+        with (``metrics`` then also name it: ``kept_eval_*``, ``kept_best_from_env_steps``);
+        otherwise None."""
+        metrics.update(self.evaluate(policy, stage_env_steps))
+        kept = self.offer(policy, metrics, meta_of(metrics), env_steps)
+        if not (stage_end and self.spec.keep_best) or kept:
+            return None
+        best = self.best_network()
+        if best is None:
+            return None
+        network, meta = best
+        # eval_* stay the last network's; kept_eval_* are the network the stage ends with
+        metrics.update({f"kept_{k}": v for k, v in meta.metrics.items() if k.startswith("eval_")})
+        metrics["kept_best_from_env_steps"] = meta.env_steps
+        logger.info("stage %d ends with its best evaluated network, from %d env steps",
+                    self.index, meta.env_steps)  # fmt: skip
+        return network
 
     def best_network(self) -> tuple[ActorCritic, CheckpointMeta] | None:
         """The best network kept (and its checkpoint's meta), or None if none was."""

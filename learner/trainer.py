@@ -9,12 +9,11 @@ over (its promotion rule passed or its budget is spent); the next stage's scene 
 the live workers and its transition (``continue``, ``blend``, ``distil``, ``scratch``) builds
 its network (``learner.transitions``); a blend's alpha ramps 0 -> 1 over
 ``blend.ramp_env_steps`` and then collapses to pi_new (a job's ``init_from`` checkpoint is
-the first stage's pi_old). A stage with ``evaluate`` is judged on
-deterministic evaluations too, and may end with its best network (``learner.stage_judge``).
-
-After the transition, a stage with ``warm_start`` clones a motion's recorded excitations into
-the actor's mean (``learner.clone_excitations``), the first stage included. Warm-up
-rollouts count as env steps of the stage, so transitions compare at equal env steps.
+the first stage's pi_old); then a stage with ``warm_start`` clones a motion's recorded
+excitations into the actor's mean, the first stage included. Warm-up rollouts count as env
+steps of the stage, so transitions compare at equal env steps. A stage with ``evaluate`` is
+judged on deterministic evaluations too, and may end with its best network
+(``learner.stage_judge``).
 A checkpoint is written every ``checkpoint.every_iters`` iterations and at each stage end;
 ``Trainer`` resumes from the newest one in ``run_dir/checkpoints``.
 """
@@ -51,14 +50,10 @@ from gaitforge.learner.sampling import Sampler, open_sampler
 from gaitforge.learner.stage_judge import StageJudge
 from gaitforge.learner.symmetry import add_mirrored
 from gaitforge.learner.transitions import (
-    Rollout,
     collapsed,
-    continued,
-    excitation_warm_start,
-    fresh_network,
     network_from_checkpoint,
     ramp_alpha,
-    warm_start,
+    stage_network,
 )
 from gaitforge.workers.fragment import Fragment, StopRequested
 from gaitforge.workers.scenes import Scene
@@ -106,10 +101,7 @@ class Trainer:
         self.iteration = 0
         self.env_steps = 0
         self.blend_start = 0
-        self.lineage: list[dict] = [
-            {"stage": 0, "transition": "initial", "network": self.policy.describe(),
-             "env_steps": 0}
-        ]  # fmt: skip
+        self.lineage: list[dict] = [self._lineage_entry(0, "initial")]
         self.history: list[dict] = []
         self._min_version = 0
         self._checkpointed_at = 0
@@ -156,6 +148,12 @@ class Trainer:
         apart = any(self.job.stage_ppo(i).critic_lr is not None for i in stages)
         return torch.optim.Adam(optimizer_groups(self.policy, apart), lr=self.job.ppo.lr)
 
+    def _lineage_entry(self, stage: int, transition: str) -> dict:
+        """The lineage's record of the current network: made by ``transition`` into
+        ``stage`` at the run's current env steps."""
+        return {"stage": stage, "transition": transition, "network": self.policy.describe(),
+                "env_steps": self.env_steps}  # fmt: skip
+
     def _policy_factory(self) -> Callable[[], ActorCritic]:
         return functools.partial(build_policy, self.policy.describe())
 
@@ -166,10 +164,7 @@ class Trainer:
             path, self.io[0], self.scenes[0].name, self.job.init_from_action_std
         )
         self.optimizer = self._new_optimizer()
-        self.lineage = [
-            {"stage": 0, "transition": "init_from", "network": self.policy.describe(),
-             "env_steps": 0, "source": str(path)}
-        ]  # fmt: skip
+        self.lineage = [{**self._lineage_entry(0, "init_from"), "source": str(path)}]
         logger.info("stage 0 starts from %s (job %s, %d env steps)", path, meta.job,
                     meta.env_steps)  # fmt: skip
 
@@ -309,48 +304,27 @@ class Trainer:
     # ---- stage transitions (the networks: learner/transitions.py) ----------------------
 
     def _enter_stage(self, sampler: Sampler) -> None:
-        """Build the stage's network (if it asks for one) and mark the stage entered."""
+        """Build the stage's network (``learner.transitions.stage_network``), mark the stage
+        entered and, where its transition made one, name the network in the lineage."""
         index, stage = self.curriculum.stage, self.stage
-        io, net = self.io[index], stage.network or self.job.network
+        io = self.io[index]
 
-        def rollout(policy: ActorCritic, env_steps: int) -> list[Fragment]:
+        def switch(policy: ActorCritic) -> None:
             self.policy = policy
             self._switch_policy(sampler, io)
+
+        def rollout(policy: ActorCritic, env_steps: int) -> list[Fragment]:
+            switch(policy)
             return self._gather(sampler, env_steps)
 
-        if index == 0 and stage.transition == "continue":
-            self._clone_excitations(sampler, io, rollout)
-            self.curriculum.entered = True
-            return
-        if stage.transition == "continue":
-            self.policy, changed = continued(
-                self.policy, self.obs_names, io, index, stage.action_std
-            )
-            if changed:
-                self._switch_policy(sampler, io)
-        elif stage.transition == "scratch":
-            self.policy = fresh_network(io, net)
-            self._switch_policy(sampler, io)
-        else:
-            self.policy = warm_start(self.policy, self.obs_names, io, stage, net, self.job.ppo,
-                                     rollout, self.job.seed)  # fmt: skip
-            self._switch_policy(sampler, io)
-        self._clone_excitations(sampler, io, rollout)
+        self.policy = stage_network(self.policy, self.obs_names, index, self.job, io, self.scene,
+                                    switch, rollout)  # fmt: skip
         self.curriculum.entered = True
+        if index == 0 and stage.transition == "continue":
+            return
         self.blend_start = self.curriculum.stage_env_steps
-        self.lineage.append(
-            {"stage": index, "transition": stage.transition, "network": self.policy.describe(),
-             "env_steps": self.env_steps}
-        )  # fmt: skip
+        self.lineage.append(self._lineage_entry(index, stage.transition))
         logger.info("stage %d (%s): %s", index, self.scene.name, stage.transition)
-
-    def _clone_excitations(self, sampler: Sampler, io: StageIO, rollout: Rollout) -> None:
-        """A stage's ``warm_start``: recorded excitations cloned into the actor's mean."""
-        if self.stage.warm_start is not None:
-            self.policy = excitation_warm_start(
-                self.policy, io, self.stage, self.scene, self.job.ppo, rollout, self.job.seed
-            )
-            self._switch_policy(sampler, io)
 
     def _switch_policy(self, sampler: Sampler, io: StageIO) -> None:
         self.obs_names = io.obs_names
@@ -364,22 +338,13 @@ class Trainer:
             self._min_version = sampler.set_policy(self._policy_factory(), self.policy.state_dict())
 
     def _judge(self, judge: StageJudge, sampler: Sampler, metrics: dict, stage_end: bool) -> None:
-        """Evaluate the network (``learner.stage_judge``) into ``metrics``, keep it if it is
-        the stage's best so far; at a ``keep_best`` stage's end, go back to the best."""
-        metrics.update(judge.evaluate(self.policy, self.curriculum.stage_env_steps))
-        kept = judge.offer(self.policy, metrics, self._meta(metrics), self.env_steps)
-        if not (stage_end and judge.spec.keep_best) or kept:
-            return
-        best = judge.best_network()
-        if best is None:
-            return
-        self.policy, meta = best
-        self._switch_policy(sampler, self.io[self.curriculum.stage])
-        # eval_* stay the last network's; kept_eval_* are the network the stage ends with
-        metrics.update({f"kept_{k}": v for k, v in meta.metrics.items() if k.startswith("eval_")})
-        metrics["kept_best_from_env_steps"] = meta.env_steps
-        logger.info("stage %d ends with its best evaluated network, from %d env steps",
-                    self.curriculum.stage, meta.env_steps)  # fmt: skip
+        """Evaluate the network into ``metrics`` and keep it if it is the stage's best so far;
+        at a ``keep_best`` stage's end, go back to the best (``StageJudge.judge``)."""
+        best = judge.judge(self.policy, self.curriculum.stage_env_steps, self.env_steps,
+                           metrics, self._meta, stage_end)  # fmt: skip
+        if best is not None:
+            self.policy = best
+            self._switch_policy(sampler, self.io[self.curriculum.stage])
 
     # ---- metrics and checkpoints ----------------------------------------------------------
 

@@ -12,6 +12,7 @@ stage is entered):
 
 After the transition, a stage with ``warm_start`` clones a motion's recorded excitations into
 the actor's mean (:func:`excitation_warm_start`, ``learner.clone_excitations``).
+:func:`stage_network` runs both for a stage being entered.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from gaitforge.learner.checkpoint_meta import CheckpointMeta
 from gaitforge.learner.clone_excitations import SideGuess, clone_excitations, excitation_table
 from gaitforge.learner.curriculum import StageIO
 from gaitforge.learner.distil import fit_student
-from gaitforge.learner.job import NetworkSpec, Stage
+from gaitforge.learner.job import Job, NetworkSpec, Stage
 from gaitforge.learner.policy import (
     ActorCritic,
     BlendedPolicy,
@@ -44,6 +45,45 @@ logger = logging.getLogger(__name__)
 Rollout = Callable[[ActorCritic, int], list[Fragment]]
 """``rollout(policy, env_steps)``: make ``policy`` the acting one and gather at least
 ``env_steps`` env steps of its fragments (they count in the stage's env steps)."""
+
+Switch = Callable[[ActorCritic], None]
+"""``switch(policy)``: make ``policy`` (a new network, or the same one changed) the acting one
+(a fresh optimizer over it, its weights published to the rollout workers)."""
+
+
+def stage_network(
+    policy: ActorCritic,
+    obs_names: list[str],
+    index: int,
+    job: Job,
+    io: StageIO,
+    scene: Scene,
+    switch: Switch,
+    rollout: Rollout,
+) -> ActorCritic:
+    """The network stage ``index`` of ``job`` starts with, from ``policy`` (observing
+    ``obs_names``): its transition's, then its ``warm_start``'s. Each network that acts in
+    between, and the one returned, is passed to ``switch`` (``rollout`` for the warm starts'
+    own rollouts on the stage's ``scene``). The first stage's ``continue`` keeps ``policy``
+    as built for it (fresh or ``init_from``)."""
+    stage = job.stages[index]
+    net = stage.network or job.network
+    if index == 0 and stage.transition == "continue":
+        pass
+    elif stage.transition == "continue":
+        policy, changed = continued(policy, obs_names, io, index, stage.action_std)
+        if changed:
+            switch(policy)
+    else:
+        if stage.transition == "scratch":
+            policy = fresh_network(io, net)
+        else:
+            policy = warm_start(policy, obs_names, io, stage, net, job.ppo, rollout, job.seed)
+        switch(policy)
+    if stage.warm_start is not None:
+        policy = excitation_warm_start(policy, io, stage, scene, job.ppo, rollout, job.seed)
+        switch(policy)
+    return policy
 
 
 def collapsed(policy: ActorCritic) -> GaussianPolicy:
