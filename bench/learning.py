@@ -28,8 +28,9 @@ reports of the tracking), and the table gives each seed and the median over seed
 Prints a table (target reached in training, i.e. promoted on the stochastic episodes'
 window?, wall-clock and env steps to it, or the last values; target met on the
 deterministic evaluation's means, the issue's judge?),
-writes ``learning.json`` and ``learning.png`` (the rule's first metric against wall-clock
-time, one line per seed) to ``--out``.
+writes ``learning.json`` and ``learning.png`` (each rule's metric and the return against
+wall-clock time, one line per seed; a judged stage's deterministic evaluations, which the
+curve keeps as ``eval_*``, as dots) to ``--out``.
 """
 
 from __future__ import annotations
@@ -72,8 +73,11 @@ def run_gaitforge(
 
     def record(m: dict) -> None:
         means = {r.metric: m[r.metric] for r in rules}
+        # a judged stage's deterministic evaluations (learner.stage_judge), where one ran
+        evaluated = {k: v for k, v in m.items() if k.startswith(("eval_", "kept_"))}
         curve.append({"wall_s": time.monotonic() - start, "env_steps": m["env_steps"],
-                      "stage": m["stage"], "return": m["return"], **means})  # fmt: skip
+                      "stage": m["stage"], "return": m["return"], **means,
+                      **evaluated})  # fmt: skip
         console.log(f"gaitforge {job.name}: {curve[-1]}")
 
     trainer = Trainer(job, out, scenes, on_iteration=record, tensorboard=False)
@@ -193,23 +197,42 @@ def table(results: dict) -> Table:
 
 
 def plot(results: dict, path: Path) -> None:
-    """Per task, two panels against wall-clock minutes: the first promotion rule's metric
-    (with its threshold) and the return, one line per run."""
-    fig, axes = plt.subplots(2, len(results), figsize=(5 * len(results), 6.5), squeeze=False)
+    """Per task, panels against wall-clock minutes: each promotion rule's metric (with its
+    threshold) and the return, one line per run over its training episodes; where a stage
+    was judged on deterministic evaluations (``eval_<metric>``), those as dots of the run's
+    colour."""
+    rows = max(len(_rule_lines(by_task)) for by_task in results.values()) + 1
+    fig, axes = plt.subplots(rows, len(results), figsize=(5 * len(results), 3.2 * rows),
+                             squeeze=False)  # fmt: skip
     for column, (task, by_task) in enumerate(results.items()):
-        rule_ax, return_ax = axes[0][column], axes[1][column]
+        lines = _rule_lines(by_task)
+        panels = [(axes[i][column], metric) for i, (metric, _) in enumerate(lines)]
+        panels.append((axes[rows - 1][column], "return"))
         for name, r in by_task["runs"].items():
             xs = [p["wall_s"] / 60 for p in r["curve"]]
-            for ax, key in ((rule_ax, by_task["metric"]), (return_ax, "return")):
-                ax.plot(xs, [p.get(key, float("nan")) for p in r["curve"]], label=name)
-        rule_ax.axhline(by_task["threshold"], color="grey", linestyle="--", linewidth=1)
-        rule_ax.set_title(task)
-        rule_ax.set_ylabel(by_task["metric"])
-        return_ax.set_ylabel("return (last 100 episodes)")
-        return_ax.set_xlabel("wall-clock min")
-        rule_ax.legend(fontsize="small")
+            for ax, key in panels:
+                (line,) = ax.plot(xs, [p.get(key, float("nan")) for p in r["curve"]], label=name)
+                judged = [(x, p[f"eval_{key}"]) for x, p in zip(xs, r["curve"], strict=True)
+                          if f"eval_{key}" in p]  # fmt: skip
+                if judged:
+                    ax.plot(*zip(*judged, strict=True), "o", color=line.get_color(),
+                            markersize=3, label=f"{name}, deterministic")  # fmt: skip
+        for (ax, metric), (_, threshold) in zip(panels, lines, strict=False):
+            ax.axhline(threshold, color="grey", linestyle="--", linewidth=1)
+            ax.set_ylabel(metric)
+        axes[0][column].set_title(task)
+        axes[0][column].legend(fontsize="small")
+        axes[rows - 1][column].set_ylabel("return (last 100 episodes)")
+        axes[rows - 1][column].set_xlabel("wall-clock min")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+
+
+def _rule_lines(by_task: dict) -> list[tuple[str, float]]:
+    """A task's promotion rules as (metric, threshold); results written before ``rules``
+    was kept name only the first."""
+    rules = by_task.get("rules") or [{"metric": by_task["metric"], "value": by_task["threshold"]}]
+    return [(rule["metric"], rule["value"]) for rule in rules]
 
 
 def merge(paths: list[Path]) -> dict:
@@ -291,6 +314,7 @@ def main() -> None:
             "minutes": budget,
             "metric": rules[0].metric,
             "threshold": rules[0].value,
+            "rules": [{"metric": r.metric, "value": r.value} for r in rules],
             "runs": runs,
         }
         args.out.mkdir(parents=True, exist_ok=True)
