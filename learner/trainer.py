@@ -308,10 +308,7 @@ class Trainer:
         entered and, where its transition made one, name the network in the lineage."""
         index, stage = self.curriculum.stage, self.stage
         io = self.io[index]
-
-        def switch(policy: ActorCritic) -> None:
-            self.policy = policy
-            self._switch_policy(sampler, io)
+        switch = functools.partial(self._switch_policy, sampler, io)
 
         def rollout(policy: ActorCritic, env_steps: int) -> list[Fragment]:
             switch(policy)
@@ -326,7 +323,10 @@ class Trainer:
         self.lineage.append(self._lineage_entry(index, stage.transition))
         logger.info("stage %d (%s): %s", index, self.scene.name, stage.transition)
 
-    def _switch_policy(self, sampler: Sampler, io: StageIO) -> None:
+    def _switch_policy(self, sampler: Sampler, io: StageIO, policy: ActorCritic) -> None:
+        """Make ``policy`` (observing ``io``'s names) the acting one: a fresh optimizer over
+        it, its weights published to the rollout workers."""
+        self.policy = policy
         self.obs_names = io.obs_names
         self.optimizer = self._new_optimizer()
         self._min_version = sampler.set_policy(self._policy_factory(), self.policy.state_dict())
@@ -343,8 +343,7 @@ class Trainer:
         best = judge.judge(self.policy, self.curriculum.stage_env_steps, self.env_steps,
                            metrics, self._meta, stage_end)  # fmt: skip
         if best is not None:
-            self.policy = best
-            self._switch_policy(sampler, self.io[self.curriculum.stage])
+            self._switch_policy(sampler, self.io[self.curriculum.stage], best)
 
     # ---- metrics and checkpoints ----------------------------------------------------------
 

@@ -68,12 +68,11 @@ def stage_network(
     as built for it (fresh or ``init_from``)."""
     stage = job.stages[index]
     net = stage.network or job.network
-    if index == 0 and stage.transition == "continue":
-        pass
-    elif stage.transition == "continue":
-        policy, changed = continued(policy, obs_names, io, index, stage.action_std)
-        if changed:
-            switch(policy)
+    if stage.transition == "continue":
+        if index > 0:
+            policy, changed = continued(policy, obs_names, io, index, stage.action_std)
+            if changed:
+                switch(policy)
     else:
         if stage.transition == "scratch":
             policy = fresh_network(io, net)
