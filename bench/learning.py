@@ -58,7 +58,8 @@ from rich.console import Console
 from rich.table import Table
 from rllib_runner import run_rllib  # bench/rllib_runner.py (this script's folder is on sys.path)
 
-console = Console()
+# off a terminal (a log file) wide enough for the table rather than rich's 80 columns
+console = Console(width=None if Console().is_terminal else 160)
 EXAMPLES = Path(__file__).parents[1] / "examples"
 DEFAULT_MINUTES = {"elbow-reach": 3.0, "stand-2d": 5.0, "walk-2d": 30.0}
 
@@ -150,8 +151,9 @@ def _yes_no(value: bool | None) -> str:
     return "-" if value is None else ("yes" if value else "no")
 
 
-def _rounded(values: dict) -> dict:
-    return {k: (round(v, 3) if isinstance(v, float) else v) for k, v in values.items()}
+def _cell(values: dict) -> str:
+    """One ``name value`` line per figure (floats to 3 decimals), for a table cell."""
+    return "\n".join(f"{k} {round(v, 3) if isinstance(v, float) else v}" for k, v in values.items())
 
 
 def median_evaluation(runs: dict[str, dict]) -> dict[str, float]:
@@ -172,7 +174,12 @@ def table(results: dict) -> Table:
         out.add_column(col, overflow="fold")
     for task, by_task in results.items():
         for name, r in by_task["runs"].items():
-            last = {k: v for k, v in r["last"].items() if k not in ("wall_s", "env_steps")}
+            # the training figures; the judges' (eval_*, kept_*) are the plot's dots
+            last = {
+                k: v
+                for k, v in r["last"].items()
+                if k not in ("wall_s", "env_steps") and not k.startswith(("eval_", "kept_"))
+            }
             evaluation = _headline(r["evaluation"]) if "evaluation" in r else {}
             out.add_row(
                 task,
@@ -181,9 +188,9 @@ def table(results: dict) -> Table:
                 _yes_no(r["reached"]),
                 f"{r['wall_s'] or 0:.0f}",
                 f"{r['env_steps'] or 0:,}",
-                str(_rounded(last)),
+                _cell(last),
                 _yes_no(r.get("met")),
-                str(_rounded(evaluation)),
+                _cell(evaluation),
             )
         gaitforge = {n: r for n, r in by_task["runs"].items() if n.startswith("gaitforge")}
         if len(gaitforge) > 1:
@@ -192,7 +199,7 @@ def table(results: dict) -> Table:
             out.add_row(task, f"gaitforge median of {len(gaitforge)}", by_task["target"],
                         f"{reached}/{len(gaitforge)}", "", "", "",
                         f"{sum(judged)}/{len(judged)}" if judged else "-",
-                        str(_rounded(median_evaluation(gaitforge))))  # fmt: skip
+                        _cell(median_evaluation(gaitforge)))  # fmt: skip
     return out
 
 
