@@ -1,0 +1,159 @@
+"""Arms of a learning A/B: one job file, changed per arm, trained on each seed one run after
+another (``gaitforge train``), each end network judged again on fresh deterministic episodes
+(``gaitforge evaluate``, seeds 0..N-1, not the 1,000,000 + i the runs watched), and a table
+of falls and mean speed per arm and seed with the median over seeds.
+
+Usage:
+    python bench/job_arms.py JOB.yaml --out DIR --arm NAME [KEY=VALUE ...] [--arm ...]
+        [--seeds 0 1 2] [--scene run-2d-clock] [--episodes 200]
+
+An arm is a name and dotted overrides of the job file, values read as YAML:
+``--arm gamma-0.99 ppo.gamma=0.99``, ``--arm short stages.0.scene=short.yaml``; an arm with
+no override is the job as it is (the control). Relative paths in the job (``init_from``, a
+stage's scene or evaluation scene given as a YAML file) stay relative to the job file's
+directory. Writes ``DIR/ARM/seed-S.yaml``, ``.log``, the run under ``DIR/ARM/seed-S/``, its
+judgement ``DIR/ARM/seed-S.json`` and ``.txt``, and ``DIR/arms.json``; a seed already judged
+is not run again, so a stopped A/B goes on where it was.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import statistics
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import yaml
+from rich.console import Console
+from rich.logging import RichHandler
+from rich.table import Table
+
+logger = logging.getLogger("job_arms")
+
+
+def parse_arm(words: list[str]) -> tuple[str, dict[str, Any]]:
+    """``[NAME, KEY=VALUE, ...]`` -> (name, {dotted key: value read as YAML})."""
+    name, *pairs = words
+    overrides = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            raise SystemExit(f"--arm {name}: {pair!r} is not KEY=VALUE (e.g. ppo.gamma=0.99)")
+        overrides[key] = yaml.safe_load(value)
+    return name, overrides
+
+
+def set_dotted(data: dict[str, Any], key: str, value: Any) -> None:
+    """Set ``data[a][b]...`` for ``key`` "a.b..." (a number indexes a list: stages.0.scene);
+    missing mappings on the way are made."""
+    *path, last = key.split(".")
+    node: Any = data
+    for part in path:
+        node = node[int(part)] if isinstance(node, list) else node.setdefault(part, {})
+    if isinstance(node, list):
+        node[int(last)] = value
+    else:
+        node[last] = value
+
+
+def _absolute(ref: Any, base: Path) -> Any:
+    """A relative path (a checkpoint directory, or a YAML file) made absolute from ``base``;
+    anything else (a catalogue scene's name, None) as it is."""
+    if not isinstance(ref, str) or Path(ref).is_absolute():
+        return ref
+    candidate = base / ref
+    return str(candidate.resolve()) if candidate.exists() else ref
+
+
+def arm_job(template: Path, seed: int, overrides: dict[str, Any]) -> dict[str, Any]:
+    """The job file's data with the seed and the arm's overrides set and its relative paths
+    made absolute (so the filled job can live anywhere)."""
+    data = yaml.safe_load(template.read_text())
+    data["seed"] = seed
+    for key, value in overrides.items():
+        set_dotted(data, key, value)
+    base = template.parent
+    data["init_from"] = _absolute(data.get("init_from"), base)
+    for stage in data.get("stages", []):
+        stage["scene"] = _absolute(stage.get("scene"), base)
+        if isinstance(stage.get("evaluate"), dict) and "scene" in stage["evaluate"]:
+            stage["evaluate"]["scene"] = _absolute(stage["evaluate"]["scene"], base)
+    return data
+
+
+def judged(json_path: Path) -> dict[str, float]:
+    """Falls (fraction) and mean speed (m/s) of a ``gaitforge evaluate --json-out`` file's
+    deterministic mode."""
+    report = json.loads(json_path.read_text())
+    mode = report["results"]["deterministic"]
+    return {"fall_rate": mode["fall_rate"]["value"], "speed": mode["mean_speed_m_s"]["mean"]}
+
+
+def run_seed(job: dict[str, Any], where: Path, scene: str, episodes: int) -> dict[str, float]:
+    """Train ``job`` into ``where`` (a run directory) unless judged already; judge its end
+    network on ``episodes`` episodes of ``scene``."""
+    verdict = where.with_suffix(".json")
+    if not verdict.exists():
+        job_file = where.with_suffix(".yaml")
+        job_file.write_text(yaml.safe_dump(job, sort_keys=False))
+        logger.info("training %s", where)
+        with where.with_suffix(".log").open("w") as log:
+            subprocess.run(["gaitforge", "train", str(job_file), "--run-dir", str(where),
+                            "--log-every", "30"], stdout=log, stderr=subprocess.STDOUT,
+                           check=True)  # fmt: skip
+        logger.info("judging %s on %d episodes of %s", where, episodes, scene)
+        with where.with_suffix(".txt").open("w") as table:
+            subprocess.run(["gaitforge", "evaluate", str(where), "--scene", scene, "--episodes",
+                            str(episodes), "--seed", "0", "--json-out", str(verdict)],
+                           stdout=table, stderr=subprocess.STDOUT, check=True)  # fmt: skip
+    return judged(verdict)
+
+
+def summary_table(results: dict[str, dict[int, dict[str, float]]], seeds: list[int]) -> Table:
+    table = Table(title="falls and mean speed of the end networks (deterministic)")
+    table.add_column("arm")
+    for seed in seeds:
+        table.add_column(f"seed {seed}", justify="right")
+    table.add_column("median", justify="right")
+    for arm, by_seed in results.items():
+        cells = [f"{100 * r['fall_rate']:.0f} % at {r['speed']:.2f}" for r in by_seed.values()]
+        falls = statistics.median(r["fall_rate"] for r in by_seed.values())
+        speed = statistics.median(r["speed"] for r in by_seed.values())
+        table.add_row(arm, *cells, f"{100 * falls:.0f} % at {speed:.2f} m/s")
+    return table
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("job", type=Path, help="the job file every arm changes")
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--arm", nargs="+", action="append", required=True,
+                        metavar="WORD", help="an arm: NAME [KEY=VALUE ...]")  # fmt: skip
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--scene", default="run-2d-clock", help="the scene judged on")
+    parser.add_argument("--episodes", type=int, default=200)
+    args = parser.parse_args()
+    logging.basicConfig(level=logging.INFO, format="%(message)s", handlers=[RichHandler()])
+    if not args.job.is_file():
+        raise SystemExit(f"{args.job}: no such job file")
+    arms = dict(parse_arm(words) for words in args.arm)
+    results: dict[str, dict[int, dict[str, float]]] = {arm: {} for arm in arms}
+    for seed in args.seeds:  # seed by seed, so a stopped A/B has every arm on the first seeds
+        for arm, overrides in arms.items():
+            where = args.out.resolve() / arm / f"seed-{seed}"
+            where.parent.mkdir(parents=True, exist_ok=True)
+            job = arm_job(args.job.resolve(), seed, overrides)
+            results[arm][seed] = run_seed(job, where, args.scene, args.episodes)
+            logger.info("%s seed %d: %s", arm, seed, results[arm][seed])
+    (args.out / "arms.json").write_text(json.dumps(
+        {"job": str(args.job), "scene": args.scene, "episodes": args.episodes,
+         "arms": {arm: {"overrides": arms[arm], "seeds": results[arm]} for arm in arms}},
+        indent=2))  # fmt: skip
+    Console(width=160).print(summary_table(results, args.seeds))
+
+
+if __name__ == "__main__":
+    main()
