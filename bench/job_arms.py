@@ -9,11 +9,12 @@ Usage:
 
 An arm is a name and dotted overrides of the job file, values read as YAML:
 ``--arm gamma-0.99 ppo.gamma=0.99``, ``--arm short stages.0.scene=short.yaml``; an arm with
-no override is the job as it is (the control). Relative paths in the job (``init_from``, a
-stage's scene or evaluation scene given as a YAML file) stay relative to the job file's
-directory. Writes ``DIR/ARM/seed-S.yaml``, ``.log``, the run under ``DIR/ARM/seed-S/``, its
-judgement ``DIR/ARM/seed-S.json`` and ``.txt``, and ``DIR/arms.json``; a seed already judged
-is not run again, so a stopped A/B goes on where it was.
+no override is the job as it is (the control). Relative paths in the job and in the overrides
+(``init_from``, a stage's scene or evaluation scene given as a YAML file) are taken from the
+job file's directory. Writes ``DIR/ARM/seed-S.yaml``, ``.log``, the run under
+``DIR/ARM/seed-S/``, its judgement ``DIR/ARM/seed-S.json`` and ``.txt``, and
+``DIR/arms.json``; a seed already judged is not run again, so a stopped A/B goes on where it
+was.
 """
 
 from __future__ import annotations

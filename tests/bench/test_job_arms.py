@@ -1,0 +1,71 @@
+"""bench/job_arms.py: an arm's job is the job file with its overrides, loadable from anywhere."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+import yaml
+from gaitforge.learner.job import load_job
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _job_arms():
+    spec = importlib.util.spec_from_file_location("job_arms", REPO / "bench" / "job_arms.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+job_arms = _job_arms()
+
+JOB = """
+name: arms-test
+seed: 7
+backend: mujoco
+init_from: policies/walk-2d
+ppo: {gamma: 0.95}
+stages:
+  - scene: walk-2d-clock
+    env_steps: 1000
+    evaluate: {scene: walk-2d, episodes: 2, every_env_steps: 1000}
+"""
+
+
+def test_parse_arm_reads_values_as_yaml_and_names_a_bad_pair():
+    assert job_arms.parse_arm(["g", "ppo.gamma=0.99", "init_from_action_std=null"]) == (
+        "g", {"ppo.gamma": 0.99, "init_from_action_std": None},
+    )  # fmt: skip
+    with pytest.raises(SystemExit, match="'gamma' is not KEY=VALUE"):
+        job_arms.parse_arm(["g", "gamma"])
+
+
+def test_set_dotted_walks_mappings_and_list_indices():
+    data = {"stages": [{"scene": "a"}, {"scene": "b"}]}
+    job_arms.set_dotted(data, "stages.1.scene", "c")
+    job_arms.set_dotted(data, "ppo.critic_lr", 3e-4)
+    assert data == {"stages": [{"scene": "a"}, {"scene": "c"}], "ppo": {"critic_lr": 3e-4}}
+
+
+def test_arm_job_sets_seed_and_overrides_and_loads_from_elsewhere(tmp_path):
+    walker = REPO / "examples" / "policies" / "walk-2d"
+    (tmp_path / "policies").mkdir()
+    (tmp_path / "policies" / "walk-2d").symlink_to(walker)  # the job's relative init_from
+    template = tmp_path / "job.yaml"
+    template.write_text(JOB)
+    data = yaml.safe_load((REPO / "workers/scenes/catalogue/walk-2d-clock.yaml").read_text())
+    (tmp_path / "short.yaml").write_text(
+        yaml.safe_dump({**data, "name": "walk-2d-clock-2s", "episode_s": 2})
+    )
+    job = job_arms.arm_job(template, 3, {"ppo.gamma": 0.99, "stages.0.scene": "short.yaml"})
+    assert job["seed"] == 3 and job["ppo"]["gamma"] == 0.99
+    assert job["init_from"] == str(walker.resolve())
+    filled = tmp_path / "elsewhere" / "seed-3.yaml"
+    filled.parent.mkdir()
+    filled.write_text(yaml.safe_dump(job))
+    loaded, scenes = load_job(filled)
+    assert loaded.seed == 3 and loaded.ppo.gamma == 0.99
+    assert [s.name for s in scenes] == ["walk-2d-clock-2s"] and scenes[0].episode_s == 2
