@@ -4,7 +4,7 @@ from the reset, per time bin, over deterministic episodes of a scene (the median
 asks for there (a clock's, with ``speed_target_from_clock``), and where the falls come.
 
 Usage: python bench/speed_profile.py CHECKPOINT [CHECKPOINT ...] [--scene run-2d-clock]
-           [--episodes 30] [--seed 0] [--bin-s 0.5] [--labels A B ...] [--out profile.png]
+           [--episodes 30] [--seed 0] [--bin-s 0.4] [--labels A B ...] [--out profile.png]
 """
 
 from __future__ import annotations
@@ -132,7 +132,7 @@ def main() -> None:
     parser.add_argument("--scene", default="run-2d-clock")
     parser.add_argument("--episodes", type=int, default=30)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--bin-s", type=float, default=0.5)
+    parser.add_argument("--bin-s", type=float, default=0.4, help="s; whole control steps")
     parser.add_argument("--labels", nargs="+")
     parser.add_argument("--out", type=Path, help="a PNG (and the figures as JSON beside it)")
     args = parser.parse_args()
