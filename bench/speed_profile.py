@@ -17,11 +17,13 @@ from typing import Any
 
 import matplotlib
 import numpy as np
-from gaitforge.learner.checkpoint import load_policy
+from gaitforge.learner.checkpoint import CheckpointError, load_policy
+from gaitforge.learner.eval_observers import EvaluationError
 from gaitforge.learner.evaluate import resolve_checkpoint
 from gaitforge.learner.evaluate_episodes import make_runner, policy_act
 from gaitforge.workers.episode import Observer
 from gaitforge.workers.scenes import load_scene
+from gaitforge.workers.spec_io import SpecError
 from rich.console import Console
 from rich.table import Table
 
@@ -142,7 +144,10 @@ def main() -> None:
     profiles = []
     for checkpoint in args.checkpoints:
         console.log(f"{checkpoint}: {args.episodes} episodes of {args.scene}")
-        profiles.append(profile(checkpoint, args.scene, args.episodes, args.seed, args.bin_s))
+        try:
+            profiles.append(profile(checkpoint, args.scene, args.episodes, args.seed, args.bin_s))
+        except (EvaluationError, CheckpointError, SpecError) as exc:
+            raise SystemExit(str(exc)) from None
     console.print(table(labels, profiles))
     if args.out is not None:
         plot(labels, profiles, args.scene, args.out)
