@@ -39,17 +39,11 @@ class DistanceLog(Observer):
 
     def on_reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
         self.distance, self.target, self.fell = [0.0], [], False
-        self._task_target = env.scene.task.target_speed
-        self._steps = 0
 
     def on_step(self, env: Any, action: np.ndarray, obs: np.ndarray, reward: float,
                 terminated: bool, truncated: bool, info: dict[str, Any]) -> None:  # fmt: skip
-        self._steps += 1
         self.distance.append(float(info["distance"]))
-        target = self._task_target
-        if env.imitation is not None:
-            target = env.imitation.target_speed(self._steps, target)
-        self.target.append(target)
+        self.target.append(env.target_speed())
         self.fell = self.fell or terminated
 
 

@@ -141,7 +141,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             dt=self.dt,
             forward_axis=self.sim.forward_axis,
             up_axis=self.sim.up_axis,
-            target_speed=self._target_speed(),
+            target_speed=self.target_speed(),
             reach_index=self._reach_index,
             reach_target=self._reach_target,
         )
@@ -182,8 +182,9 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         self.reflex.set_targets(action, base, speeds)
         return self.sim.step_reflex(self.reflex, self.dt, self.scene.reflex_chunks)
 
-    def _target_speed(self) -> float | None:
-        """The target_speed term's target (m/s) for the step just taken."""
+    def target_speed(self) -> float | None:
+        """The target_speed term's target (m/s) for the step just taken (the scene's, or with
+        ``speed_target_from_clock`` the imitation clock's; None without one)."""
         target = self.scene.task.target_speed
         if self.imitation is None:
             return target
