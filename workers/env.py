@@ -148,7 +148,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         terms = weighted(reward_terms(state, ctx), self.scene.task.reward)
         kept = True
         if self.imitation is not None:
-            tracking = self.imitation.track(state, self._state, self.sim, self._steps)
+            travelled = float(state.pelvis_pos[self.sim.forward_axis]) - self._start_forward
+            tracking = self.imitation.track(state, self._state, self.sim, self._steps, travelled)
             terms.update(self.imitation.weighted(tracking.kernels))
             kept = self._imitation_info["kept"] and self.imitation.kept(tracking.pose_error_rad)
             self._imitation_info = {

@@ -19,14 +19,19 @@ clock reads ``start_s`` plus the time since (reference state initialisation alon
 
 Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imitate.weights``:
 
-| term                  | error                                                       | unit     |
-|-----------------------|-------------------------------------------------------------|----------|
-| imitate_pose          | sum over tracked joints of (angle - reference)^2            | rad^2    |
-| imitate_joint_speed   | sum over tracked joints of (speed - reference)^2            | (rad/s)^2|
-| imitate_feet          | sum over feet of |foot - pelvis - reference|^2, heading-aligned | m^2  |
-| imitate_pelvis_height | (pelvis height - reference)^2                               | m^2      |
-| imitate_pelvis_pitch  | (pitch - reference)^2 + (list - reference)^2 (OpenSim's)    | rad^2    |
-| imitate_pelvis_speed  | (forward speed over the step - reference at its end)^2      | (m/s)^2  |
+| term                    | error                                                    | unit      |
+|-------------------------|----------------------------------------------------------|-----------|
+| imitate_pose            | sum over tracked joints of (angle - reference)^2         | rad^2     |
+| imitate_joint_speed     | sum over tracked joints of (speed - reference)^2         | (rad/s)^2 |
+| imitate_feet            | sum over feet of |foot - pelvis - ref.|^2, in heading    | m^2       |
+| imitate_pelvis_height   | (pelvis height - reference)^2                            | m^2       |
+| imitate_pelvis_pitch    | (pitch - reference)^2 + (list - reference)^2 (OpenSim's) | rad^2     |
+| imitate_pelvis_speed    | (forward speed over the step - reference at its end)^2   | (m/s)^2   |
+| imitate_pelvis_position | (forward distance since the reset - the reference's)^2   | m^2       |
+
+The reference's distance is its forward speed times :meth:`Imitation.ramp`, summed over the
+episode's control steps (the motions record no position): a body that lags the clock, as one
+getting going from standing does, loses this term until it catches up.
 
 The tracked joints are the motion's joints that the scene keeps. The episode ends early
 (``terminated``, ``info["imitation"]["kept"]`` False) when the RMS pose error over them passes
@@ -98,6 +103,8 @@ class Imitation:
         self.start_s = 0.0
         """s along the lead-in at which this episode started (0 unless it started inside it)"""
         self._last_reference: tuple[tuple, MotionState] | None = None
+        self._reference_distance_m = [0.0]
+        """[steps + 1] m the reference has gone forward after each control step so far"""
 
     # ---- phase and reference ----------------------------------------------------------
 
@@ -150,6 +157,17 @@ class Imitation:
             return task_target
         return min(task_target, self.reference(steps).forward_speed * self.ramp(steps))
 
+    def reference_distance(self, steps: int) -> float:
+        """m the reference has gone forward after ``steps`` control steps of this episode: the
+        sum over steps 1..``steps`` of its forward speed (m/s) times :meth:`ramp` times the
+        control period (s)."""
+        distances = self._reference_distance_m
+        while len(distances) <= steps:
+            k = len(distances)
+            speed = self.reference(k).forward_speed * self.ramp(k)
+            distances.append(distances[-1] + speed * self.dt)
+        return distances[steps]
+
     def target_base(
         self, steps: int, dofs: Sequence[str], standing: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -179,6 +197,7 @@ class Imitation:
         mixed_standing = fraction > 0.0 and bool(rng.uniform() < fraction)
         self.standing_start = init.start == "standing" or mixed_standing
         self.start_s = 0.0
+        self._reference_distance_m = [0.0]
         # of the episodes not standing, a share lead_in_fraction / (1 - fraction) starts
         # inside the lead-in: lead_in_fraction of all
         inside_lead_in = not self.standing_start and init.lead_in_fraction > 0.0
@@ -225,8 +244,11 @@ class Imitation:
         angles = np.array([ref.joints[j] for j in self.joints])
         return state.dof_pos[self._index] - (self._standing + ramp * (angles - self._standing))
 
-    def track(self, state: SimState, previous: SimState, sim: Simulator, steps: int) -> Tracking:
-        """The tracking kernels of the state after step ``steps`` (see the module table)."""
+    def track(
+        self, state: SimState, previous: SimState, sim: Simulator, steps: int, travelled_m: float
+    ) -> Tracking:
+        """The tracking kernels of the state after step ``steps`` (see the module table);
+        ``travelled_m`` is the pelvis's forward distance since the reset (m)."""
         ref = self.reference(steps)
         scales = self.spec.scales
         pose = self.pose_error(state, ref, self.ramp(steps))
@@ -241,6 +263,7 @@ class Imitation:
             "pelvis_height": height**2,
             "pelvis_pitch": (pitch - ref.pelvis_pitch) ** 2 + (list_ - ref.pelvis_list) ** 2,
             "pelvis_speed": (forward / self.dt - ref.forward_speed) ** 2,
+            "pelvis_position": (travelled_m - self.reference_distance(steps)) ** 2,
         }
         kernels = {
             f"imitate_{name}": float(np.exp(-getattr(scales, name) * err))

@@ -33,6 +33,7 @@ class ImitationWeights(_Strict):
     pelvis_height: NonNegative = 0.1
     pelvis_pitch: NonNegative = 0.05
     pelvis_speed: NonNegative = 0.1
+    pelvis_position: NonNegative = 0.0
 
 
 class ImitationScales(_Strict):
@@ -45,6 +46,9 @@ class ImitationScales(_Strict):
     pelvis_height: Positive = Field(default=50.0, description="1/m^2")
     pelvis_pitch: Positive = Field(default=10.0, description="1/rad^2; pitch (and list) error")
     pelvis_speed: Positive = Field(default=2.0, description="s^2/m^2; forward speed error")
+    pelvis_position: Positive = Field(
+        default=0.5, description="1/m^2; forward distance since the reset minus the reference's"
+    )
 
 
 class ImitationInit(_Strict):
