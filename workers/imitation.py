@@ -28,10 +28,12 @@ Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imita
 | imitate_pelvis_pitch    | (pitch - reference)^2 + (list - reference)^2 (OpenSim's) | rad^2     |
 | imitate_pelvis_speed    | (forward speed over the step - reference at its end)^2   | (m/s)^2   |
 | imitate_pelvis_position | (forward distance since the reset - the reference's)^2   | m^2       |
+| imitate_pelvis_lag      | max(0, the reference's distance - the pelvis's)^2        | m^2       |
 
 The reference's distance is its forward speed times :meth:`Imitation.ramp`, summed over the
 episode's control steps (the motions record no position): a body that lags the clock, as one
-getting going from standing does, loses this term until it catches up.
+getting going from standing does, loses these terms until it catches up; ``pelvis_lag`` is 1
+for a body level with or ahead of the reference (going faster costs nothing).
 
 The tracked joints are the motion's joints that the scene keeps. The episode ends early
 (``terminated``, ``info["imitation"]["kept"]`` False) when the RMS pose error over them passes
@@ -264,6 +266,7 @@ class Imitation:
             "pelvis_pitch": (pitch - ref.pelvis_pitch) ** 2 + (list_ - ref.pelvis_list) ** 2,
             "pelvis_speed": (forward / self.dt - ref.forward_speed) ** 2,
             "pelvis_position": (travelled_m - self.reference_distance(steps)) ** 2,
+            "pelvis_lag": max(0.0, self.reference_distance(steps) - travelled_m) ** 2,
         }
         kernels = {
             f"imitate_{name}": float(np.exp(-getattr(scales, name) * err))

@@ -172,12 +172,14 @@ def test_bad_lead_ins_name_the_field(tmp_path: Path, base: str, edit, fragments)
     _fails(_write(tmp_path, base, lambda raw: edit(raw["task"]["imitate"])), *fragments)
 
 
-def test_the_position_term_charges_a_body_for_lagging_the_clock() -> None:
+def test_the_position_and_lag_terms_charge_a_body_for_lagging_the_clock() -> None:
     scene = load_scene("imitate-run-2d-start")
     imitate = scene.task.imitate
     imitate = imitate.model_copy(
         update={
-            "weights": imitate.weights.model_copy(update={"pelvis_position": 0.2}),
+            "weights": imitate.weights.model_copy(
+                update={"pelvis_position": 0.2, "pelvis_lag": 0.3}
+            ),
             "init": imitate.init.model_copy(
                 update={"standing_fraction": 1.0, "lead_in_fraction": 0.0}
             ),
@@ -199,11 +201,17 @@ def test_the_position_term_charges_a_body_for_lagging_the_clock() -> None:
             assert imitation.reference_distance(step) == pytest.approx(expected_distance)
             travelled = float(env.sim.state().pelvis_pos[env.sim.forward_axis]) - start
             kernel = np.exp(-0.5 * (travelled - expected_distance) ** 2)
-            term = info["reward_terms"]["imitate_pelvis_position"]
-            assert term == pytest.approx(0.2 * kernel)
+            terms = info["reward_terms"]
+            assert terms["imitate_pelvis_position"] == pytest.approx(0.2 * kernel)
+            lag = max(0.0, expected_distance - travelled)
+            assert terms["imitate_pelvis_lag"] == pytest.approx(0.3 * np.exp(-0.1 * lag**2))
             kernels.append(kernel)
             if terminated or truncated:
                 break
         # the body does not walk under neutral actions (it sinks back): it falls behind the walk
         assert step > 10 and expected_distance > 0.8
         assert kernels[0] > 0.99 and kernels[-1] < 0.5
+        # ahead of the reference: the position term charges for it, the lag term does not
+        state = env.sim.state()
+        ahead = imitation.track(state, state, env.sim, step, expected_distance + 1.0).kernels
+        assert ahead["imitate_pelvis_lag"] == 1.0 and ahead["imitate_pelvis_position"] < 0.7

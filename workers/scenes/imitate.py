@@ -34,6 +34,7 @@ class ImitationWeights(_Strict):
     pelvis_pitch: NonNegative = 0.05
     pelvis_speed: NonNegative = 0.1
     pelvis_position: NonNegative = 0.0
+    pelvis_lag: NonNegative = 0.0
 
 
 class ImitationScales(_Strict):
@@ -48,6 +49,9 @@ class ImitationScales(_Strict):
     pelvis_speed: Positive = Field(default=2.0, description="s^2/m^2; forward speed error")
     pelvis_position: Positive = Field(
         default=0.5, description="1/m^2; forward distance since the reset minus the reference's"
+    )
+    pelvis_lag: Positive = Field(
+        default=0.1, description="1/m^2; how far the pelvis is behind the reference's distance"
     )
 
 
