@@ -258,6 +258,7 @@ class Imitation:
         pitch, list_ = pelvis_pitch_list(state.pelvis_up, self.up, self.forward)
         height = float(state.pelvis_pos[self.up]) - ref.pelvis_height
         forward = float(state.pelvis_pos[self.forward] - previous.pelvis_pos[self.forward])
+        behind = self.reference_distance(steps) - travelled_m
         errors = {
             "pose": float(pose @ pose),
             "joint_speed": float(speed @ speed),
@@ -265,8 +266,8 @@ class Imitation:
             "pelvis_height": height**2,
             "pelvis_pitch": (pitch - ref.pelvis_pitch) ** 2 + (list_ - ref.pelvis_list) ** 2,
             "pelvis_speed": (forward / self.dt - ref.forward_speed) ** 2,
-            "pelvis_position": (travelled_m - self.reference_distance(steps)) ** 2,
-            "pelvis_lag": max(0.0, self.reference_distance(steps) - travelled_m) ** 2,
+            "pelvis_position": behind**2,
+            "pelvis_lag": max(0.0, behind) ** 2,
         }
         kernels = {
             f"imitate_{name}": float(np.exp(-getattr(scales, name) * err))
