@@ -148,7 +148,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         terms = weighted(reward_terms(state, ctx), self.scene.task.reward)
         kept = True
         if self.imitation is not None:
-            travelled = float(state.pelvis_pos[self.sim.forward_axis]) - self._start_forward
+            travelled = self._distance(state)
             tracking = self.imitation.track(state, self._state, self.sim, self._steps, travelled)
             terms.update(self.imitation.weighted(tracking.kernels))
             kept = self._imitation_info["kept"] and self.imitation.kept(tracking.pose_error_rad)
@@ -236,9 +236,13 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         limit = self.scene.task.min_pelvis_height
         return limit is not None and float(s.pelvis_pos[self.sim.up_axis]) < limit
 
+    def _distance(self, s: SimState) -> float:
+        """m the pelvis has gone forward since the reset."""
+        return float(s.pelvis_pos[self.sim.forward_axis]) - self._start_forward
+
     def _episode_info(self, s: SimState) -> dict:
         return {
-            "distance": float(s.pelvis_pos[self.sim.forward_axis]) - self._start_forward,
+            "distance": self._distance(s),
             "sim_time": s.time,
             "step": self._steps,
         }
