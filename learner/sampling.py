@@ -7,7 +7,6 @@ scene or network switch (requests already queued finish on the old ones).
 
 from __future__ import annotations
 
-import logging
 import threading
 from typing import Protocol
 
@@ -79,9 +78,10 @@ def open_sampler(
         return LocalSampler(scene, policy_factory, num_envs=workers.envs_per_worker, **kwargs)
     import ray  # lazy: the in-process mode needs no Ray
     from gaitforge.workers.pool import WorkerPool
+    from gaitforge.workers.ray_start import start_ray
 
     if not ray.is_initialized() and workers.ray_address is not None:
-        ray.init(address=workers.ray_address, logging_level=logging.WARNING)
+        start_ray(workers.ray_address)
     return WorkerPool(
         scene, policy_factory, num_workers=workers.num_workers,
         envs_per_worker=workers.envs_per_worker, timeout_s=workers.timeout_s, **kwargs,

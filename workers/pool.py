@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import ray
 from gaitforge.workers.fragment import Fragment, StopRequested
+from gaitforge.workers.ray_start import start_ray
 from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.scenes.profiles import FidelityProfile
@@ -97,7 +98,7 @@ class WorkerPool:
     ) -> None:
         self.scene = scene.require_resolved("WorkerPool")
         if not ray.is_initialized():
-            ray.init(include_dashboard=False, logging_level=logging.WARNING)
+            start_ray()
         self.backend = backend
         self.timeout_s = timeout_s
         self.max_worker_steps = max_worker_steps
@@ -151,9 +152,10 @@ class WorkerPool:
     ) -> tuple[Fragment, int]:
         """The first fragment back from any actor, and the policy version that made it.
 
-        Once ``stop`` is set no fragment is fetched and no actor replaced (a signal to the
-        process group kills a local Ray head too, and fetching an object from it, or starting
-        an actor on it, can end the driver).
+        Once ``stop`` is set no fragment is fetched and no actor replaced (the signal that
+        stopped the driver may have stopped its node too, where Ray was not started by
+        :func:`start_ray`, and fetching an object from it, or starting an actor on it, can
+        end the driver).
 
         Raises:
             StopRequested: ``stop`` was set (looked at every ``POLL_S`` while waiting).

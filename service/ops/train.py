@@ -153,14 +153,11 @@ class Training:
         if not self.uses_ray:
             return False
         import ray  # lazy: in-process training needs no Ray
+        from gaitforge.workers.ray_start import start_ray
 
         if ray.is_initialized():
             return False
-        address = self.job.workers.ray_address
-        if address is None:
-            ray.init(include_dashboard=False, logging_level=logging.WARNING)
-        else:
-            ray.init(address=address, logging_level=logging.WARNING)
+        start_ray(self.job.workers.ray_address)
         self._started_ray = True
         return True
 

@@ -1,8 +1,8 @@
 """SIGTERM and SIGINT stop ``gaitforge train`` cleanly: a real ``gaitforge train`` process
 gets SIGTERM once it iterates, checkpoints its last update, exits 0 naming it, and a second
 run resumes from that checkpoint; so it does when the whole process group gets it (as from
-GNU ``timeout``), which kills the local Ray head's processes under it. Off a terminal it logs
-status lines."""
+GNU ``timeout``: the local Ray it started runs in a group of its own, ``workers/ray_start.py``).
+Off a terminal it logs status lines."""
 
 from __future__ import annotations
 

@@ -100,8 +100,8 @@ def test_crashing_simulators_are_replaced_and_collection_goes_on() -> None:
 
 
 def test_after_a_stop_request_nothing_is_fetched_and_no_actor_replaced() -> None:
-    """A stop (a signal to the process group, which kills a local Ray head too) ends the wait
-    at once: the dead actor's request is neither fetched nor re-issued on a new actor."""
+    """A stop (a signal, which may have killed the local node too) ends the wait at once: the
+    dead actor's request is neither fetched nor re-issued on a new actor."""
     pool = WorkerPool(ELBOW, POLICY, num_workers=1, fragment_length=16)
     stop = threading.Event()
     try:

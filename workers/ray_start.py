@@ -1,0 +1,69 @@
+"""Start Ray for a driver, or join a running cluster.
+
+    start_ray()                       # a local Ray, its daemons in a process group of their own
+    start_ray("10.0.0.5:6379")        # join a cluster
+
+A local Ray's daemons (GCS, raylet, and the workers the raylet starts) are children of the
+driver. By default they share its process group, so a signal to the group (GNU ``timeout``,
+``kill -- -PGID``) stops them together with the driver: the driver, asked to stop with a
+checkpoint, then finds its node gone, and Ray's core worker, recovering the driver's own
+objects from the dead node's object store, ends the process (status 1, no checkpoint). Ray
+already keeps the daemons out of terminal Ctrl-C (it blocks SIGINT in them) and, on Windows,
+starts them in a process group of their own where the kernel shares their fate with the
+driver; :func:`start_ray` does the same on Linux, where Ray's daemons die with the driver
+(``PR_SET_PDEATHSIG``): a group signal reaches the driver only, and the driver shuts them
+down after its checkpoint.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import sys
+from collections.abc import Iterator
+
+import ray
+
+logger = logging.getLogger(__name__)
+
+
+def start_ray(address: str | None = None, **init_kwargs) -> None:
+    """``ray.init`` joining ``address``, or starting a local Ray (without its dashboard) whose
+    daemons run in a process group of their own (see the module docstring); ``init_kwargs``
+    go to ``ray.init``."""
+    init_kwargs.setdefault("logging_level", logging.WARNING)
+    if address is not None:
+        ray.init(address=address, **init_kwargs)
+        return
+    init_kwargs.setdefault("include_dashboard", False)
+    with _daemons_in_their_own_process_group():
+        ray.init(**init_kwargs)
+
+
+@contextlib.contextmanager
+def _daemons_in_their_own_process_group() -> Iterator[None]:
+    """While open, the processes Ray starts (``ray._private.services.ConsolePopen``) begin a
+    process group of their own, where the kernel kills them with the driver; elsewhere (no
+    such fate sharing, or a Ray without that class) nothing changes."""
+    from ray._private import services, utils
+
+    popen = getattr(services, "ConsolePopen", None)
+    linux = sys.platform.startswith("linux")
+    if popen is None or not linux or not utils.detect_fate_sharing_support():
+        logger.debug("Ray's daemons share the driver's process group")
+        yield
+        return
+
+    class OwnGroupPopen(popen):
+        def __init__(self, *args, **kwargs) -> None:
+            kwargs.setdefault("process_group", 0)
+            super().__init__(*args, **kwargs)
+
+    services.ConsolePopen = OwnGroupPopen
+    try:
+        yield
+    finally:
+        services.ConsolePopen = popen
+
+
+__all__ = ["start_ray"]
