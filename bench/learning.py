@@ -53,6 +53,7 @@ import ray
 from gaitforge.learner.evaluate import evaluate_checkpoint
 from gaitforge.learner.job import Job, PromotionRule, load_job
 from gaitforge.learner.trainer import Trainer
+from gaitforge.workers.ray_start import start_ray
 from gaitforge.workers.scenes import Scene
 from rich.console import Console
 from rich.table import Table
@@ -286,7 +287,7 @@ def main() -> None:
     if len(minutes) != len(args.tasks):
         parser.error("--minutes: one value per task")
     logging.basicConfig(level=logging.WARNING)
-    ray.init(include_dashboard=False, logging_level=logging.WARNING)
+    start_ray()
     workers = args.workers or max(1, int(ray.cluster_resources()["CPU"]) - 1)
     results: dict = {}
     for task_arg, budget in zip(args.tasks, minutes, strict=True):

@@ -33,6 +33,7 @@ import ray
 from gaitforge.learner.evaluate import evaluate_checkpoint
 from gaitforge.learner.job import Job, load_job, resolve_scenes
 from gaitforge.learner.trainer import Trainer
+from gaitforge.workers.ray_start import start_ray
 from rich.console import Console
 from rich.table import Table
 
@@ -143,7 +144,7 @@ def main() -> None:
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING)
     logging.getLogger("gaitforge.learner.transitions").setLevel(logging.INFO)
-    ray.init(include_dashboard=False, logging_level=logging.WARNING)
+    start_ray()
     workers = args.workers or max(1, int(ray.cluster_resources()["CPU"]) - 1)
     job, base = base_job(args.job)
     results: dict = {
