@@ -21,6 +21,7 @@ from gaitforge.workers.scenes.profiles import (
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 NonNegative = Annotated[float, Field(ge=0)]
+Timeconst = Annotated[float, Field(gt=0, le=1)]
 
 
 class _Strict(BaseModel):
@@ -164,6 +165,12 @@ class Scene(_Strict):
     tendon: Literal["rigid", "compliant"] = Field(
         default="rigid", description="OpenSim muscles' tendons (MuJoCo's are always rigid)"
     )
+    contact_timeconst_s: Timeconst | tuple[Timeconst, Timeconst] | None = Field(
+        default=None,
+        description="MuJoCo: the contacts' time constant (solref[0], s; larger is softer), or "
+        "a [low, high] range drawn anew each episode; None keeps MuJoCo's 0.02 s. About 0.12 "
+        "sinks gait2d's feet as deep as OpenSim's Hunt-Crossley spheres (OpenSim: ignored)",
+    )
     rebuild_every: Annotated[int, Field(ge=1)] = Field(
         default=100, description="OpenSim: episodes between model rebuilds (a memory bound)"
     )
@@ -189,6 +196,9 @@ class Scene(_Strict):
                 )
         if self.action.targets:
             self._check_reflex()
+        timeconst = self.contact_timeconst_s
+        if isinstance(timeconst, tuple) and timeconst[0] > timeconst[1]:
+            raise ValueError(f"contact_timeconst_s: low {timeconst[0]} > high {timeconst[1]}")
         return self
 
     def _check_reflex(self) -> None:

@@ -95,6 +95,8 @@ class MujocoSimulator:
         self._lift_adr = self._root_slide_along(self.up_axis)
         self._stand_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, STAND_KEY)
         self._rng = np.random.default_rng(0)
+        self._contact_timeconst = float("nan")
+        self._set_contact_timeconst(self._rng)
         self._locked = set(self.report.plan.locked_dofs)
         self._foot_geoms = [
             np.flatnonzero(self._geom_foot == k) for k in range(len(self.foot_names))
@@ -112,6 +114,7 @@ class MujocoSimulator:
     def reset(self, seed: int) -> None:
         m, d = self.model, self.data
         self._rng = np.random.default_rng(seed)
+        self._set_contact_timeconst(self._rng)
         if self._stand_key >= 0:
             mujoco.mj_resetDataKeyframe(m, d, self._stand_key)
         else:
@@ -237,11 +240,13 @@ class MujocoSimulator:
             "physics": physics,
             "obstacle_pos": m.geom_pos[self._obstacle_ids].copy(),
             "obstacle_radius": m.geom_size[self._obstacle_ids, 0].copy(),
+            "contact_timeconst": np.array([self._contact_timeconst]),
         }
 
     def set_state(self, state: dict[str, np.ndarray]) -> None:
         m, d = self.model, self.data
         self._set_obstacles(state["obstacle_pos"], state["obstacle_radius"])
+        self._apply_contact_timeconst(float(state["contact_timeconst"][0]))
         mujoco.mj_setState(m, d, state["physics"], mujoco.mjtState.mjSTATE_INTEGRATION)
         mujoco.mj_forward(m, d)
 
@@ -319,6 +324,22 @@ class MujocoSimulator:
             ):
                 return int(m.jnt_qposadr[j])
         return -1
+
+    def _set_contact_timeconst(self, rng: np.random.Generator) -> None:
+        """The contacts' time constant (s) from ``scene.contact_timeconst_s``: the value, or
+        one drawn from the range with ``rng``; nothing if it is None (MuJoCo's own)."""
+        timeconst = self.scene.contact_timeconst_s
+        if timeconst is not None:
+            drawn = rng.uniform(*timeconst) if isinstance(timeconst, tuple) else timeconst
+            self._apply_contact_timeconst(float(drawn))
+
+    def _apply_contact_timeconst(self, timeconst: float) -> None:
+        """Every geom's and explicit pair's ``solref`` time constant (a contact mixes its two
+        geoms' ``solref``, so all alike make it ``timeconst``); nan: leave them."""
+        if np.isfinite(timeconst):
+            self.model.geom_solref[:, 0] = timeconst
+            self.model.pair_solref[:, 0] = timeconst
+            self._contact_timeconst = timeconst
 
     def _touch_floor(self) -> None:
         """Raise or lower the body so its lowest contact sphere just touches the floor."""

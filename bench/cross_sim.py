@@ -1,0 +1,127 @@
+"""One policy on both simulators, side by side: deterministic episodes of a scene on MuJoCo
+and on OpenSim from the same reset seeds, and where they part: the pelvis's height, forward
+distance from the reset and pitch, and each foot's normal ground force, against time (the
+median over the episodes still up). Where the policy is the same and the body is the same,
+what differs is the simulators' own modelling (contact above all: MuJoCo's soft constraints
+against the reference's Hunt-Crossley spheres).
+
+Usage: python bench/cross_sim.py CHECKPOINT [--scene walk-2d-clock] [--episodes 5]
+           [--seed 0] [--every-s 0.2] [--out cross-sim.png]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+import numpy as np
+from gaitforge.learner.checkpoint import load_policy
+from gaitforge.learner.evaluate import resolve_checkpoint
+from gaitforge.learner.evaluate_episodes import make_runner, policy_act
+from gaitforge.workers.episode import Observer
+from gaitforge.workers.scenes import load_scene
+from rich.console import Console
+from rich.table import Table
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+console = Console(width=160)
+BACKENDS = ("mujoco", "opensim")
+SERIES = ("height", "forward", "pitch", "foot_r", "foot_l")
+"""pelvis height (m), forward distance from the reset (m), pitch (rad, forward lean > 0),
+the right and left foot's normal ground force (body weights)"""
+
+
+class BodyLog(Observer):
+    """After each step: the series of :data:`SERIES`, one row per step."""
+
+    def on_reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
+        self.rows: list[list[float]] = []
+        state = env.sim.state()
+        self._start = float(state.pelvis_pos[env.sim.forward_axis])
+        self._weight = env.sim.report.mass * 9.81
+
+    def on_step(self, env: Any, action: np.ndarray, obs: np.ndarray, reward: float,
+                terminated: bool, truncated: bool, info: dict[str, Any]) -> None:  # fmt: skip
+        s, up, fwd = env.sim.state(), env.sim.up_axis, env.sim.forward_axis
+        pitch = float(np.arctan2(s.pelvis_up[fwd], s.pelvis_up[up]))
+        feet = (s.foot_forces / self._weight).tolist() + [float("nan")] * 2
+        self.rows.append([float(s.pelvis_pos[up]), float(s.pelvis_pos[fwd]) - self._start,
+                          pitch, feet[0], feet[1]])  # fmt: skip
+
+
+def run(checkpoint: Path, scene_ref: str, backend: str, episodes: int, seed: int) -> np.ndarray:
+    """[episodes, steps, len(SERIES)], nan after an episode's end."""
+    policy, _ = load_policy(resolve_checkpoint(checkpoint))
+    scene = load_scene(scene_ref).resolved()
+    out = np.full((episodes, scene.steps_per_episode, len(SERIES)), np.nan)
+    with make_runner(policy, scene, backend) as runner:
+        for i in range(episodes):
+            log = BodyLog()
+            runner.run(policy_act(policy, "deterministic", seed + i), seed + i, [log])
+            rows = np.array(log.rows)
+            out[i, : len(rows)] = rows
+            console.log(f"{backend} episode {i}: {len(rows)} steps")
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("checkpoint", type=Path)
+    parser.add_argument("--scene", default="walk-2d-clock")
+    parser.add_argument("--episodes", type=int, default=5)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--every-s", type=float, default=0.2)
+    parser.add_argument("--out", type=Path, default=Path("cross-sim.png"))
+    args = parser.parse_args()
+    scene = load_scene(args.scene).resolved()
+    dt = 1.0 / scene.control_hz
+    logs = {b: run(args.checkpoint, args.scene, b, args.episodes, args.seed) for b in BACKENDS}
+    median = {b: np.nanmedian(v, axis=0) if np.isfinite(v).any() else v[0] for b, v in logs.items()}
+    up = {b: np.isfinite(v[:, :, 0]).sum(axis=0) for b, v in logs.items()}
+    table = Table(title=f"{args.checkpoint} on {scene.name}: median over the episodes still up")
+    table.add_column("t s", justify="right")
+    for b in BACKENDS:
+        for name in ("up", "height m", "forward m", "pitch rad", "feet r/l BW"):
+            table.add_column(f"{b[:2]} {name}", justify="right")
+    every = max(1, round(args.every_s / dt))
+    for k in range(every - 1, scene.steps_per_episode, every):
+        cells = [f"{(k + 1) * dt:.2f}"]
+        for b in BACKENDS:
+            h, x, p, fr, fl = median[b][k]
+            cells += [str(up[b][k]), f"{h:.3f}", f"{x:+.2f}", f"{p:+.2f}", f"{fr:.2f}/{fl:.2f}"]
+        table.add_row(*cells)
+        if not any(up[b][k] for b in BACKENDS):
+            break
+    console.print(table)
+    t = (np.arange(scene.steps_per_episode) + 1) * dt
+    fig, axes = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
+    labels = ("pelvis height m", "forward m", "pitch rad")
+    for j, (ax, label) in enumerate(zip(axes, labels, strict=True)):
+        for b, color in zip(BACKENDS, ("tab:blue", "tab:red"), strict=True):
+            for episode in logs[b]:
+                ax.plot(t, episode[:, j], color=color, alpha=0.3, lw=0.8)
+            ax.plot(t, median[b][:, j], color=color, lw=2, label=b)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend()
+    axes[-1].set_xlabel("time from the reset, s")
+    last = max(int(np.max(np.nonzero(up[b])[0], initial=0)) for b in BACKENDS)
+    axes[-1].set_xlim(0, min(t[-1], (last + 1) * dt + 0.5))
+    fig.suptitle(f"{args.checkpoint.name} on {scene.name}, {args.episodes} deterministic episodes")
+    fig.tight_layout()
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(args.out, dpi=110)
+    data = {b: {"series": list(SERIES), "dt_s": dt, "episodes_up": up[b].tolist(),
+                "median": np.where(np.isfinite(median[b]), median[b], None).tolist()}
+            for b in BACKENDS}  # fmt: skip
+    args.out.with_suffix(".json").write_text(json.dumps(data))
+    console.log(f"wrote {args.out} and {args.out.with_suffix('.json')}")
+
+
+if __name__ == "__main__":
+    main()
