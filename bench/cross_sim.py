@@ -6,13 +6,14 @@ what differs is the simulators' own modelling (contact above all: MuJoCo's soft 
 against the reference's Hunt-Crossley spheres).
 
 Usage: python bench/cross_sim.py CHECKPOINT [--scene walk-2d-clock] [--episodes 5]
-           [--seed 0] [--every-s 0.2] [--out cross-sim.png]
+           [--seed 0] [--every-s 0.2] [--until-s 3] [--out cross-sim.png]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -75,13 +76,19 @@ def main() -> None:
     parser.add_argument("--scene", default="walk-2d-clock")
     parser.add_argument("--episodes", type=int, default=5)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--every-s", type=float, default=0.2)
+    parser.add_argument("--every-s", type=float, default=0.2, help="table rows every so many s")
+    parser.add_argument("--until-s", type=float, default=None, help="table and plot end (s)")
     parser.add_argument("--out", type=Path, default=Path("cross-sim.png"))
     args = parser.parse_args()
     scene = load_scene(args.scene).resolved()
     dt = 1.0 / scene.control_hz
     logs = {b: run(args.checkpoint, args.scene, b, args.episodes, args.seed) for b in BACKENDS}
-    median = {b: np.nanmedian(v, axis=0) if np.isfinite(v).any() else v[0] for b, v in logs.items()}
+    with warnings.catch_warnings():  # a time where no episode is up: nan, said by "up" = 0
+        warnings.simplefilter("ignore", RuntimeWarning)
+        median = {b: np.nanmedian(v, axis=0) for b, v in logs.items()}
+    steps = scene.steps_per_episode
+    if args.until_s is not None:
+        steps = min(steps, max(1, round(args.until_s / dt)))
     up = {b: np.isfinite(v[:, :, 0]).sum(axis=0) for b, v in logs.items()}
     table = Table(title=f"{args.checkpoint} on {scene.name}: median over the episodes still up")
     table.add_column("t s", justify="right")
@@ -89,14 +96,12 @@ def main() -> None:
         for name in ("up", "height m", "forward m", "pitch rad", "feet r/l BW"):
             table.add_column(f"{b[:2]} {name}", justify="right")
     every = max(1, round(args.every_s / dt))
-    for k in range(every - 1, scene.steps_per_episode, every):
+    for k in range(every - 1, steps, every):
         cells = [f"{(k + 1) * dt:.2f}"]
         for b in BACKENDS:
             h, x, p, fr, fl = median[b][k]
             cells += [str(up[b][k]), f"{h:.3f}", f"{x:+.2f}", f"{p:+.2f}", f"{fr:.2f}/{fl:.2f}"]
         table.add_row(*cells)
-        if not any(up[b][k] for b in BACKENDS):
-            break
     console.print(table)
     t = (np.arange(scene.steps_per_episode) + 1) * dt
     fig, axes = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
@@ -110,8 +115,7 @@ def main() -> None:
         ax.grid(alpha=0.3)
     axes[0].legend()
     axes[-1].set_xlabel("time from the reset, s")
-    last = max(int(np.max(np.nonzero(up[b])[0], initial=0)) for b in BACKENDS)
-    axes[-1].set_xlim(0, min(t[-1], (last + 1) * dt + 0.5))
+    axes[-1].set_xlim(0, steps * dt)
     fig.suptitle(f"{args.checkpoint.name} on {scene.name}, {args.episodes} deterministic episodes")
     fig.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)
