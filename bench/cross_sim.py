@@ -22,8 +22,11 @@ import numpy as np
 from gaitforge.learner.checkpoint import load_policy
 from gaitforge.learner.evaluate import resolve_checkpoint
 from gaitforge.learner.evaluate_episodes import make_runner, policy_act
+from gaitforge.learner.policy import ActorCritic
+from gaitforge.workers.env import GRAVITY
 from gaitforge.workers.episode import Observer
-from gaitforge.workers.scenes import load_scene
+from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.sim.pose import pelvis_pitch_list
 from rich.console import Console
 from rich.table import Table
 
@@ -44,21 +47,19 @@ class BodyLog(Observer):
         self.rows: list[list[float]] = []
         state = env.sim.state()
         self._start = float(state.pelvis_pos[env.sim.forward_axis])
-        self._weight = env.sim.report.mass * 9.81
+        self._weight = env.sim.report.mass * GRAVITY
 
     def on_step(self, env: Any, action: np.ndarray, obs: np.ndarray, reward: float,
                 terminated: bool, truncated: bool, info: dict[str, Any]) -> None:  # fmt: skip
         s, up, fwd = env.sim.state(), env.sim.up_axis, env.sim.forward_axis
-        pitch = float(np.arctan2(s.pelvis_up[fwd], s.pelvis_up[up]))
+        pitch = -pelvis_pitch_list(s.pelvis_up, up, fwd)[0]  # OpenSim's tilt, lean forward > 0
         feet = (s.foot_forces / self._weight).tolist() + [float("nan")] * 2
         self.rows.append([float(s.pelvis_pos[up]), float(s.pelvis_pos[fwd]) - self._start,
                           pitch, feet[0], feet[1]])  # fmt: skip
 
 
-def run(checkpoint: Path, scene_ref: str, backend: str, episodes: int, seed: int) -> np.ndarray:
+def run(policy: ActorCritic, scene: Scene, backend: str, episodes: int, seed: int) -> np.ndarray:
     """[episodes, steps, len(SERIES)], nan after an episode's end."""
-    policy, _ = load_policy(resolve_checkpoint(checkpoint))
-    scene = load_scene(scene_ref).resolved()
     out = np.full((episodes, scene.steps_per_episode, len(SERIES)), np.nan)
     with make_runner(policy, scene, backend) as runner:
         for i in range(episodes):
@@ -80,9 +81,10 @@ def main() -> None:
     parser.add_argument("--until-s", type=float, default=None, help="table and plot end (s)")
     parser.add_argument("--out", type=Path, default=Path("cross-sim.png"))
     args = parser.parse_args()
+    policy, _ = load_policy(resolve_checkpoint(args.checkpoint))
     scene = load_scene(args.scene).resolved()
     dt = 1.0 / scene.control_hz
-    logs = {b: run(args.checkpoint, args.scene, b, args.episodes, args.seed) for b in BACKENDS}
+    logs = {b: run(policy, scene, b, args.episodes, args.seed) for b in BACKENDS}
     with warnings.catch_warnings():  # a time where no episode is up: nan, said by "up" = 0
         warnings.simplefilter("ignore", RuntimeWarning)
         median = {b: np.nanmedian(v, axis=0) for b, v in logs.items()}
