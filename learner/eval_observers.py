@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from gaitforge.learner.evaluate_results import EpisodeResult
 from gaitforge.workers.episode import EpisodeObserver, EpisodeSummary, Observer
+from gaitforge.workers.scenes.io_names import paces_clock
 
 if TYPE_CHECKING:
     from gaitforge.workers.env import MuscleEnv
@@ -35,7 +36,8 @@ class EpisodeMetrics(Observer):
 
     def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
         self.result, self._effort_sum, self._terms = None, 0.0, {}
-        self._n_muscles = int(env.action_space.shape[0])
+        # the action's entries but a clock_rate, the clock's pace rather than an effort
+        self._n_muscles = int(env.action_space.shape[0]) - int(paces_clock(env.scene))
         self._pose_sq, self._pose_steps, self._kept = 0.0, 0, True
 
     def on_step(
@@ -48,7 +50,7 @@ class EpisodeMetrics(Observer):
         truncated: bool,
         info: dict[str, Any],
     ) -> None:
-        self._effort_sum += float(np.sum(action**2))
+        self._effort_sum += float(np.sum(action[: self._n_muscles] ** 2))
         for name, value in info.get("reward_terms", {}).items():
             self._terms[name] = self._terms.get(name, 0.0) + float(value)
         imitation = info.get("imitation")

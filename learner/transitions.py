@@ -34,11 +34,13 @@ from gaitforge.learner.policy import (
     BlendedPolicy,
     GaussianPolicy,
     release_constant_inputs,
+    widen_actions,
     widen_inputs,
 )
 from gaitforge.learner.ppo import PPOSettings, batch_from_fragments
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes.io_names import CLOCK_RATE_ACTION
 
 logger = logging.getLogger(__name__)
 
@@ -132,19 +134,27 @@ def fresh_network(io: StageIO, net: NetworkSpec) -> GaussianPolicy:
 
 
 def network_from_checkpoint(
-    path: Path, io: StageIO, scene_name: str, action_std: float | None = None
+    path: Path,
+    io: StageIO,
+    scene_name: str,
+    action_std: float | None = None,
+    clock_rate_std: float = 0.3,
 ) -> tuple[GaussianPolicy, CheckpointMeta]:
     """A job's ``init_from``: checkpoint ``path``'s network (collapsed to one) with its
     observation statistics, widened if the first stage (``io``, scene ``scene_name``)
     observes more, its constant inputs released, its action noise reset to ``action_std``
-    (every action entry; None: kept); in training mode. Returns it and the checkpoint's
-    metadata.
+    (every action entry; None: kept); and, if the stage's policy paces its clock and the
+    checkpoint's did not, its ``clock_rate`` entry added (:func:`with_clock_rate`, noise
+    ``clock_rate_std``); in training mode. Returns it and the checkpoint's metadata.
 
     Raises:
         ValueError: the checkpoint acts on other entries, or observes what the stage does not.
     """
     loaded, meta = load_policy(path)
     policy = collapsed(loaded)
+    if action_std is not None:
+        reset_action_std(policy, action_std)
+    policy = with_clock_rate(policy, io.act_names, clock_rate_std)
     if policy.act_dim != len(io.act_names):
         raise ValueError(
             f"init_from: {path} acts on {policy.act_dim} entries; stage 0's scene "
@@ -160,10 +170,18 @@ def network_from_checkpoint(
             )
         policy = widen_inputs(policy, names, io.obs_names)
     release_constant_inputs(policy)
-    if action_std is not None:
-        reset_action_std(policy, action_std)
     policy.train()
     return policy, meta
+
+
+def with_clock_rate(policy: GaussianPolicy, act_names: list[str], std: float) -> GaussianPolicy:
+    """``policy`` with a ``clock_rate`` entry added (``learner.policy.widen_actions``: 0.5,
+    the clock at its own rate, until training moves it; noise ``std``) if ``act_names`` (a
+    scene's whose policy paces its clock) are its entries and that one; else unchanged."""
+    if act_names[-1:] != [CLOCK_RATE_ACTION] or policy.act_dim != len(act_names) - 1:
+        return policy
+    logger.info("the network paces its clock from now on: a clock_rate entry added (std %g)", std)
+    return widen_actions(policy, act_names[:-1], act_names, std)
 
 
 def warm_start(

@@ -12,7 +12,9 @@ Observation (float32, names in ``env.obs_names``), in this order:
 Action (``env.act_names``): excitations [n_muscles] in [0, 1]; or, with ``action.kind:
 joint_targets``, targets [n_dofs] in [0, 1] around a base pose that the reflex layer
 (``workers.reflex``) turns into excitations (``prev_exc`` then holds the step's mean
-excitations, and the effort terms use them).
+excitations, and the effort terms use them). A scene whose policy paces the imitation clock
+(``task.imitate.clock_rate_span``) has one more entry last, ``clock_rate`` in [0, 1]: the
+clock plays at ``1 + span * (2 a - 1)`` times its rate for the step.
 
 Imitation scenes (``workers.imitation``) start each episode in the motion, add the tracking
 terms to the reward, end the episode when the pose error passes the scene's bound, and
@@ -73,6 +75,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         targets = self.scene.action.targets
         self.reflex = ReflexLayer(self.scene.action, self.sim) if targets else None
         self.act_names = action_layout(self.scene, self.sim.dof_names, self.sim.muscle_names)
+        self._paced = self.imitation is not None and self.imitation.paced
         self.action_space = gym.spaces.Box(0.0, 1.0, (len(self.act_names),), dtype=np.float32)
         defaults = topology_for(self.scene.body).dof_defaults
         self._default_pose = np.array([defaults.get(d, 0.0) for d in self.sim.dof_names])
@@ -117,6 +120,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             raise RuntimeError("call reset() before step()")
         self._steps += 1
         truncated = self._steps >= self.scene.steps_per_episode
+        if self._paced:
+            action = self._pace_clock(action)
         if self.reflex is None:
             excitation = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64)), 0.0, 1.0)
             health = self.sim.step(excitation, self.dt)
@@ -170,6 +175,16 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             info["lost_track"] = not kept
             ended = fell or not kept
         return self._obs.copy(), float(sum(terms.values())), ended, truncated and not ended, info
+
+    def _pace_clock(self, action: np.ndarray) -> np.ndarray:
+        """Hand the action's last entry (``clock_rate`` in [0, 1], clipped) to the imitation
+        clock as this step's rate; the rest of the action [n_act - 1]."""
+        assert self.imitation is not None
+        action = np.asarray(action, dtype=np.float64)
+        pace = float(np.clip(np.nan_to_num(action[-1], nan=0.5), 0.0, 1.0))
+        span = self.scene.task.imitate.clock_rate_span  # type: ignore[union-attr]
+        self.imitation.advance(1.0 + span * (2.0 * pace - 1.0))
+        return action[:-1]
 
     def _step_reflex(self, action: np.ndarray) -> tuple[np.ndarray, Health]:
         """One control step through the reflex layer: the targets' base is the motion's pose

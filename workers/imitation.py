@@ -17,6 +17,12 @@ In a fraction ``init.lead_in_fraction`` of episodes the body starts part way alo
 in, in the faded reference state at a random time ``start_s`` past the ramp, and the episode's
 clock reads ``start_s`` plus the time since (reference state initialisation along the fade).
 
+With ``imitate.clock_rate_span`` the policy paces the clock: the env hands each step's rate
+(``1 + span * (2 a - 1)`` for the action's ``clock_rate`` entry ``a``) to :meth:`Imitation.advance`
+before anything reads the step's reference, and the clock then reads ``start_s`` plus the
+control periods played, each times its rate (``t`` above); the step's reference is played at
+that rate (its speeds times the rate, as ``tempo`` does). Without it every rate is 1.
+
 Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imitate.weights``:
 
 | term                    | error                                                    | unit      |
@@ -104,6 +110,12 @@ class Imitation:
         self.standing_start = False
         self.start_s = 0.0
         """s along the lead-in at which this episode started (0 unless it started inside it)"""
+        self.paced = imitate.clock_rate_span is not None
+        """the policy paces the clock (:meth:`advance`)"""
+        self._rates = [1.0]
+        """[steps + 1] the clock's rate in each control step so far (1 at the reset)"""
+        self._played = [0.0]
+        """[steps + 1] control periods the clock has played after each step (sum of rates)"""
         self._last_reference: tuple[tuple, MotionState] | None = None
         self._reference_distance_m = [0.0]
         """[steps + 1] m the reference has gone forward after each control step so far"""
@@ -115,20 +127,37 @@ class Imitation:
         inside the lead-in)."""
         return self.crossfade if self.standing_start or self.start_s > 0.0 else None
 
+    def advance(self, rate: float) -> None:
+        """The clock's rate (> 0) in the next control step, chosen by the policy (only in a
+        paced scene, once per step, before the step's reference is read)."""
+        if not self.paced:
+            raise RuntimeError("advance: this scene's clock runs with the env's time")
+        self._rates.append(rate)
+        self._played.append(self._played[-1] + rate)
+
+    def _periods(self, steps: int) -> float:
+        """Control periods the clock has played after ``steps`` control steps."""
+        return self._played[steps] if self.paced else float(steps)
+
     def _clock_s(self, steps: int) -> float:
         """s on the episode's clock after ``steps`` control steps (from ``start_s``)."""
-        return self.start_s + steps * self.dt
+        return self.start_s + self._periods(steps) * self.dt
+
+    def clock_rate(self, steps: int) -> float:
+        """The clock's rate in control step ``steps`` (1 unless the policy paces it)."""
+        return self._rates[steps] if self.paced else 1.0
 
     def phase(self, steps: int) -> float:
         """Phase in [0, 1) after ``steps`` control steps of this episode."""
         if fade := self._fading():
             return (self.phase0 + fade.cycles(self._clock_s(steps))) % 1.0
-        return (self.phase0 + steps * self.dt * self.spec.tempo / self.motion.period_s) % 1.0
+        played_s = self._periods(steps) * self.dt
+        return (self.phase0 + played_s * self.spec.tempo / self.motion.period_s) % 1.0
 
     def reference(self, steps: int) -> MotionState:
         """The reference after ``steps`` control steps (mirrored if the episode is; speeds
-        times ``tempo``; cross-faded from the lead-in after a standing start or a start inside
-        the lead-in). A step asks
+        times ``tempo`` and the step's clock rate; cross-faded from the lead-in after a
+        standing start or a start inside the lead-in). A step asks
         for it twice (the targets' base, then tracking): the last one is kept."""
         key = (steps, self.phase0, self.mirrored, self.standing_start, self.start_s)
         if self._last_reference is not None and self._last_reference[0] == key:
@@ -137,6 +166,7 @@ class Imitation:
             state = fade.at(self._clock_s(steps), self.phase0)
         else:
             state = faster(self.motion.at(self.phase(steps)), self.spec.tempo)
+        state = faster(state, self.clock_rate(steps))
         if self.mirrored:
             state = self.motion.mirrored_state(state)
         self._last_reference = (key, state)
@@ -199,6 +229,7 @@ class Imitation:
         mixed_standing = fraction > 0.0 and bool(rng.uniform() < fraction)
         self.standing_start = init.start == "standing" or mixed_standing
         self.start_s = 0.0
+        self._rates, self._played = [1.0], [0.0]
         self._reference_distance_m = [0.0]
         # of the episodes not standing, a share lead_in_fraction / (1 - fraction) starts
         # inside the lead-in: lead_in_fraction of all

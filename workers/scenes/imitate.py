@@ -153,6 +153,15 @@ class Imitate(_Strict):
         "task.target_speed",
     )
 
+    clock_rate_span: Annotated[float, Field(gt=0, le=0.9)] | None = Field(
+        default=None,
+        description="the policy sets the clock's pace: one more action entry, clock_rate "
+        "a in [0, 1], plays the clock (phase, lead-in, standing ramp and the reference with "
+        "its speeds, so the joint targets' base and the clock's target speed too) at "
+        "1 + span * (2 a - 1) times its rate for that step (a = 0.5: as without it); "
+        "none: the clock runs with the env's time",
+    )
+
     @model_validator(mode="after")
     def _lead_in_needs_standing_starts(self) -> Imitate:
         init = self.init

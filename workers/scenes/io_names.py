@@ -48,10 +48,25 @@ def observation_layout(
     return names
 
 
+CLOCK_RATE_ACTION = "clock_rate"
+"""The last action entry of a scene whose imitation clock the policy paces
+(``task.imitate.clock_rate_span``)."""
+
+
 def action_layout(scene: Scene, dofs: Sequence[str], muscles: Sequence[str]) -> list[str]:
     """The action's entry names, in order, for ``scene`` and the given kept dofs and muscles:
-    the muscles [n_muscles]; with ``action.kind: joint_targets``, ``target:<dof>`` [n_dofs]."""
-    return [f"target:{d}" for d in dofs] if scene.action.targets else list(muscles)
+    the muscles [n_muscles]; with ``action.kind: joint_targets``, ``target:<dof>`` [n_dofs];
+    then, with ``task.imitate.clock_rate_span``, ``clock_rate``."""
+    names = [f"target:{d}" for d in dofs] if scene.action.targets else list(muscles)
+    if paces_clock(scene):
+        names.append(CLOCK_RATE_ACTION)
+    return names
+
+
+def paces_clock(scene: Scene) -> bool:
+    """Whether the policy paces ``scene``'s imitation clock (one more action entry)."""
+    imitate = scene.task.imitate
+    return imitate is not None and imitate.clock_rate_span is not None
 
 
 def needs_planar_muscles(scene: Scene, backend: str) -> bool:
