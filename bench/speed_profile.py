@@ -1,7 +1,8 @@
 """Where a policy's speed goes within an episode: the pelvis's forward speed against time
 from the reset, per time bin, over deterministic episodes of a scene (the median and the
 10th-90th percentiles over the episodes still up in that bin), the target speed the reward
-asks for there (a clock's, with ``speed_target_from_clock``), and where the falls come.
+asks for there (a clock's, with ``speed_target_from_clock``), and where the falls come; in a
+scene whose policy paces its clock (``clock_rate_span``), the clock's rate per bin too.
 
 Usage: python bench/speed_profile.py CHECKPOINT [CHECKPOINT ...] [--scene run-2d-clock]
            [--episodes 30] [--seed 0] [--bin-s 0.4] [--labels A B ...] [--out profile.png]
@@ -35,28 +36,37 @@ console = Console(width=160)
 
 class DistanceLog(Observer):
     """The pelvis's forward distance from the reset (m) after each step, the target speed
-    (m/s, None without one) the step was rewarded against, and whether the episode fell."""
+    (m/s, None without one) the step was rewarded against, the imitation clock's rate in the
+    step (1 without one), and whether the episode fell."""
 
     def on_reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
-        self.distance, self.target, self.fell = [0.0], [], False
+        self.distance, self.target, self.rate, self.fell = [0.0], [], [], False
 
     def on_step(self, env: Any, action: np.ndarray, obs: np.ndarray, reward: float,
                 terminated: bool, truncated: bool, info: dict[str, Any]) -> None:  # fmt: skip
         self.distance.append(float(info["distance"]))
         self.target.append(env.target_speed())
+        self.rate.append(float(info.get("imitation", {}).get("clock_rate", 1.0)))
         self.fell = self.fell or terminated
 
 
 @dataclass
 class Profile:
-    """Per bin (``bin_s`` seconds): speeds [episodes up in the bin] (m/s), the target (m/s or
-    nan) and the falls that came in it."""
+    """Per bin (``bin_s`` seconds): speeds [episodes up in the bin] (m/s), the clock's mean
+    rate in the bin [episodes up in it], the target (m/s or nan) and the falls that came in
+    it."""
 
     bin_s: float
     speeds: list[list[float]] = field(default_factory=list)
+    rates: list[list[float]] = field(default_factory=list)
     target: list[float] = field(default_factory=list)
     falls: list[int] = field(default_factory=list)
     episodes: int = 0
+
+    @property
+    def paced(self) -> bool:
+        """The clock's rate moved from 1 in some bin (the policy paces it)."""
+        return any(r != 1.0 for rates in self.rates for r in rates)
 
 
 def profile(checkpoint: Path, scene_ref: str, episodes: int, seed: int, bin_s: float) -> Profile:
@@ -65,7 +75,8 @@ def profile(checkpoint: Path, scene_ref: str, episodes: int, seed: int, bin_s: f
     per_bin = max(1, round(bin_s * scene.control_hz))
     bins = scene.steps_per_episode // per_bin
     out = Profile(bin_s=per_bin / scene.control_hz, speeds=[[] for _ in range(bins)],
-                  target=[float("nan")] * bins, falls=[0] * bins, episodes=episodes)  # fmt: skip
+                  rates=[[] for _ in range(bins)], target=[float("nan")] * bins,
+                  falls=[0] * bins, episodes=episodes)  # fmt: skip
     with make_runner(policy, scene, "mujoco") as runner:
         for i in range(episodes):
             log = DistanceLog()
@@ -74,6 +85,7 @@ def profile(checkpoint: Path, scene_ref: str, episodes: int, seed: int, bin_s: f
             for b in range(min(bins, steps // per_bin)):
                 ahead = log.distance[(b + 1) * per_bin] - log.distance[b * per_bin]
                 out.speeds[b].append(ahead / out.bin_s)
+                out.rates[b].append(float(np.mean(log.rate[b * per_bin : (b + 1) * per_bin])))
                 target = log.target[(b + 1) * per_bin - 1]
                 out.target[b] = float("nan") if target is None else target
             if log.fell:
@@ -97,13 +109,18 @@ def table(labels: list[str], profiles: list[Profile]) -> Table:
                 if v.size == 0
                 else (f"{np.median(v):.2f} ({np.percentile(v, 10):.2f}-{np.percentile(v, 90):.2f})")
             )
+            if p.paced and v.size:
+                cell += f"; rate {np.median(p.rates[b]):.2f}"
             cells.append(cell + (f"; {p.falls[b]} fell" if p.falls[b] else ""))
         result.add_row(f"{(b + 1) * first.bin_s:.1f}", f"{first.target[b]:.2f}", *cells)
     return result
 
 
 def plot(labels: list[str], profiles: list[Profile], scene: str, out: Path) -> None:
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    paced = any(p.paced for p in profiles)
+    fig, axes = plt.subplots(2 if paced else 1, 1, figsize=(8, 7 if paced else 4.5), sharex=True,
+                             squeeze=False, height_ratios=[2, 1] if paced else None)  # fmt: skip
+    ax = axes[0, 0]
     for label, p in zip(labels, profiles, strict=True):
         t = (np.arange(len(p.speeds)) + 0.5) * p.bin_s
         up = [np.array(s) if s else np.array([np.nan]) for s in p.speeds]
@@ -113,11 +130,18 @@ def plot(labels: list[str], profiles: list[Profile], scene: str, out: Path) -> N
                         alpha=0.2)  # fmt: skip
     t = (np.arange(len(profiles[0].target)) + 0.5) * profiles[0].bin_s
     ax.plot(t, profiles[0].target, "k--", label="target speed")
-    ax.set_xlabel("time from standing (s)")
     ax.set_ylabel("pelvis forward speed (m/s)")
     ax.set_title(f"{scene}: deterministic episodes, median and 10-90 %")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
+    if paced:
+        ax = axes[1, 0]
+        for label, p in zip(labels, profiles, strict=True):
+            t = (np.arange(len(p.rates)) + 0.5) * p.bin_s
+            ax.plot(t, [np.median(r) if r else np.nan for r in p.rates], marker=".", label=label)
+        ax.set_ylabel("clock rate (median)")
+        ax.grid(alpha=0.3)
+    ax.set_xlabel("time from standing (s)")
     fig.tight_layout()
     fig.savefig(out, dpi=110)
 

@@ -72,7 +72,9 @@ def stage_network(
     net = stage.network or job.network
     if stage.transition == "continue":
         if index > 0:
-            policy, changed = continued(policy, obs_names, io, index, stage.action_std)
+            policy, changed = continued(
+                policy, obs_names, io, index, stage.action_std, clock_rate_std=net.init_std
+            )
             if changed:
                 switch(policy)
     else:
@@ -101,14 +103,18 @@ def continued(
     io: StageIO,
     index: int,
     action_std: float | None = None,
+    clock_rate_std: float = 0.3,
 ) -> tuple[ActorCritic, bool]:
     """The ``continue`` transition into stage ``index``: ``policy`` (observing ``obs_names``)
     widened with zero weights if the stage observes more, its inputs that were constant
-    so far released (``release_constant_inputs``) and, if ``action_std`` is given, its action
-    noise started anew there (:func:`reset_action_std`); True if the network changed."""
+    so far released (``release_constant_inputs``), if ``action_std`` is given its action
+    noise started anew there (:func:`reset_action_std`), and if the stage's policy starts
+    pacing its clock a ``clock_rate`` entry added (:func:`with_clock_rate`, noise
+    ``clock_rate_std``); True if the network changed."""
     widen = io.obs_names != obs_names
     if widen:
         policy = widen_inputs(collapsed(policy), obs_names, io.obs_names)
+    paces = len(io.act_names) > collapsed(policy).act_dim
     released = release_constant_inputs(policy) if isinstance(policy, GaussianPolicy) else []
     if released:
         logger.info("stage %d: inputs constant so far, released: %s", index,
@@ -116,7 +122,9 @@ def continued(
     if action_std is not None:
         reset_action_std(policy, action_std)
         logger.info("stage %d: action noise started anew at std %g", index, action_std)
-    return policy, bool(widen or released or action_std is not None)
+    if paces:
+        policy = with_clock_rate(collapsed(policy), io.act_names, clock_rate_std)
+    return policy, bool(widen or released or action_std is not None or paces)
 
 
 def reset_action_std(policy: ActorCritic, action_std: float) -> None:

@@ -18,8 +18,9 @@ clock plays at ``1 + span * (2 a - 1)`` times its rate for the step.
 
 Imitation scenes (``workers.imitation``) start each episode in the motion, add the tracking
 terms to the reward, end the episode when the pose error passes the scene's bound, and
-report ``info["imitation"] = {"phase", "pose_error_rad", "kept", "mirrored"}`` on reset and
-every step; ``reference_state()`` is the reference at the current phase.
+report ``info["imitation"] = {"phase", "pose_error_rad", "kept", "mirrored", "clock_rate"}``
+on reset and every step (``clock_rate``: the clock's rate in that step, 1 unless the policy
+paces it); ``reference_state()`` is the reference at the current phase.
 
 A simulator failure never raises and never reaches the observation: the step is
 ``terminated`` with ``info["health"]`` naming the cause, reward 0, and the last healthy
@@ -110,6 +111,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
                 "pose_error_rad": float(np.sqrt(np.mean(error**2))),
                 "kept": True,
                 "mirrored": self.imitation.mirrored,
+                "clock_rate": 1.0,
             }
         self._start_forward = float(self._state.pelvis_pos[self.sim.forward_axis])
         self._obs = self._observe(self._state)
@@ -162,6 +164,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
                 "pose_error_rad": tracking.pose_error_rad,
                 "kept": kept,
                 "mirrored": self.imitation.mirrored,
+                "clock_rate": self.imitation.clock_rate(self._steps),
             }
         self._prev_excitation = excitation
         self._state = state
