@@ -21,7 +21,9 @@ With ``imitate.clock_rate_span`` the policy paces the clock: the env hands each 
 (``1 + span * (2 a - 1)`` for the action's ``clock_rate`` entry ``a``) to :meth:`Imitation.advance`
 before anything reads the step's reference, and the clock then reads ``start_s`` plus the
 control periods played, each times its rate (``t`` above); the step's reference is played at
-that rate (its speeds times the rate, as ``tempo`` does). Without it every rate is 1.
+that rate (its speeds times the rate, as ``tempo`` does). The target speed the clock sets
+(``speed_target_from_clock``) keeps the env's time: the task does not slow down with the
+clock. Without pacing every rate is 1.
 
 Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imitate.weights``:
 
@@ -147,12 +149,29 @@ class Imitation:
         """The clock's rate in control step ``steps`` (1 unless the policy paces it)."""
         return self._rates[steps] if self.paced else 1.0
 
+    def _phase_at(self, clock_s: float) -> float:
+        """Phase in [0, 1) at ``clock_s`` s on the episode's clock."""
+        if fade := self._fading():
+            return (self.phase0 + fade.cycles(clock_s)) % 1.0
+        # start_s is 0 unless the lead-in fades: the clock reads the time played
+        return (self.phase0 + clock_s * self.spec.tempo / self.motion.period_s) % 1.0
+
+    def _motion_at(self, clock_s: float) -> MotionState:
+        """The motion (faded from the lead-in, at ``tempo``, not mirrored) at ``clock_s``."""
+        if fade := self._fading():
+            return fade.at(clock_s, self.phase0)
+        return faster(self.motion.at(self._phase_at(clock_s)), self.spec.tempo)
+
+    def _ramp_at(self, clock_s: float) -> float:
+        """:meth:`ramp` at ``clock_s`` s on the episode's clock."""
+        ramp_s = self.spec.init.ramp_s
+        if not self.standing_start or ramp_s <= 0.0:
+            return 1.0
+        return min(1.0, clock_s / ramp_s)
+
     def phase(self, steps: int) -> float:
         """Phase in [0, 1) after ``steps`` control steps of this episode."""
-        if fade := self._fading():
-            return (self.phase0 + fade.cycles(self._clock_s(steps))) % 1.0
-        played_s = self._periods(steps) * self.dt
-        return (self.phase0 + played_s * self.spec.tempo / self.motion.period_s) % 1.0
+        return self._phase_at(self._clock_s(steps))
 
     def reference(self, steps: int) -> MotionState:
         """The reference after ``steps`` control steps (mirrored if the episode is; speeds
@@ -162,11 +181,7 @@ class Imitation:
         key = (steps, self.phase0, self.mirrored, self.standing_start, self.start_s)
         if self._last_reference is not None and self._last_reference[0] == key:
             return self._last_reference[1]
-        if fade := self._fading():
-            state = fade.at(self._clock_s(steps), self.phase0)
-        else:
-            state = faster(self.motion.at(self.phase(steps)), self.spec.tempo)
-        state = faster(state, self.clock_rate(steps))
+        state = faster(self._motion_at(self._clock_s(steps)), self.clock_rate(steps))
         if self.mirrored:
             state = self.motion.mirrored_state(state)
         self._last_reference = (key, state)
@@ -176,18 +191,19 @@ class Imitation:
         """How far (0..1) the joint targets' base has blended from the standing pose into the
         motion's after ``steps`` control steps: 1 unless this episode started standing and
         ``init.ramp_s`` has not yet passed (a start inside the lead-in is past it)."""
-        ramp_s = self.spec.init.ramp_s
-        if not self.standing_start or ramp_s <= 0.0:
-            return 1.0
-        return min(1.0, self._clock_s(steps) / ramp_s)
+        return self._ramp_at(self._clock_s(steps))
 
     def target_speed(self, steps: int, task_target: float | None) -> float | None:
         """The ``target_speed`` term's target (m/s) after ``steps`` steps: ``task_target``, or
         with ``speed_target_from_clock`` the smaller of it and the reference's forward speed
-        times :meth:`ramp` (from standing into the motion, faded from the lead-in)."""
+        times :meth:`ramp` (from standing into the motion, faded from the lead-in) on the
+        clock at its own rate: a policy that paces the clock changes the pose it is asked
+        for, not the task's speed."""
         if task_target is None or not self.spec.speed_target_from_clock:
             return task_target
-        return min(task_target, self.reference(steps).forward_speed * self.ramp(steps))
+        own_clock_s = self.start_s + steps * self.dt
+        speed = self._motion_at(own_clock_s).forward_speed * self._ramp_at(own_clock_s)
+        return min(task_target, speed)
 
     def reference_distance(self, steps: int) -> float:
         """m the reference has gone forward after ``steps`` control steps of this episode: the

@@ -157,9 +157,10 @@ class Imitate(_Strict):
         default=None,
         description="the policy sets the clock's pace: one more action entry, clock_rate "
         "a in [0, 1], plays the clock (phase, lead-in, standing ramp and the reference with "
-        "its speeds, so the joint targets' base and the clock's target speed too) at "
-        "1 + span * (2 a - 1) times its rate for that step (a = 0.5: as without it); "
-        "none: the clock runs with the env's time",
+        "its speeds, so the joint targets' base) at 1 + span * (2 a - 1) times its rate for "
+        "that step (a = 0.5: as without it); the target speed from the clock "
+        "(speed_target_from_clock) keeps the env's time; none: the clock runs with the "
+        "env's time",
     )
 
     @model_validator(mode="after")
