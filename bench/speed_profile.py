@@ -20,7 +20,7 @@ import matplotlib
 import numpy as np
 from gaitforge.learner.checkpoint import CheckpointError, load_policy
 from gaitforge.learner.eval_observers import EvaluationError
-from gaitforge.learner.evaluate import resolve_checkpoint
+from gaitforge.learner.evaluate import fitted_to_scene, resolve_checkpoint
 from gaitforge.learner.evaluate_episodes import make_runner, policy_act
 from gaitforge.workers.episode import Observer
 from gaitforge.workers.scenes import load_scene
@@ -70,8 +70,10 @@ class Profile:
 
 
 def profile(checkpoint: Path, scene_ref: str, episodes: int, seed: int, bin_s: float) -> Profile:
-    policy, _ = load_policy(resolve_checkpoint(checkpoint))
+    policy, meta = load_policy(resolve_checkpoint(checkpoint))
     scene = load_scene(scene_ref).resolved()
+    # a runner on the obstacles it never saw, or on a clock it never paced (kept at its rate)
+    policy, _ = fitted_to_scene(policy, meta.obs_names, scene, "mujoco")
     per_bin = max(1, round(bin_s * scene.control_hz))
     bins = scene.steps_per_episode // per_bin
     out = Profile(bin_s=per_bin / scene.control_hz, speeds=[[] for _ in range(bins)],
