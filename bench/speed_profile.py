@@ -170,7 +170,7 @@ def main() -> None:
             raise SystemExit(str(exc)) from None
     console.print(table(labels, profiles))
     if args.out is not None:
-        plot(labels, profiles, args.scene, args.out)
+        plot(labels, profiles, Path(args.scene).stem, args.out)  # a file: its name
         args.out.with_suffix(".json").write_text(json.dumps(
             {"scene": args.scene, "seed": args.seed,
              "profiles": {label: p.__dict__ for label, p in zip(labels, profiles, strict=True)}},
