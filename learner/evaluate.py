@@ -132,7 +132,8 @@ def fitted_to_scene(
     """``policy`` (observing ``obs_names``) widened with zero weights for the inputs
     ``scene`` observes besides (as ``init_from`` does), so a runner can be evaluated on the
     obstacles it has not yet learned to see, and with a ``clock_rate`` entry at 0.5 (its clock
-    at its own rate) if the scene's policy paces its clock and this one did not; and the
+    at its own rate; noise 0.3 in stochastic episodes) if the scene's policy paces its clock
+    and this one did not; and the
     names it now observes. Unchanged if the scene observes nothing new or something the
     policy did not observe (then the sizes are checked as before)."""
     if not obs_names or backend not in scene.backends:
