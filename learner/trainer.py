@@ -161,12 +161,9 @@ class Trainer:
         """The first network from checkpoint ``path`` (``job.init_from``; see
         :func:`network_from_checkpoint`), with a fresh optimizer and the lineage naming it."""
         self.policy, meta = network_from_checkpoint(
-            path,
-            self.io[0],
-            self.scenes[0].name,
-            self.job.init_from_action_std,
+            path, self.io[0], self.scenes[0].name, self.job.init_from_action_std,
             clock_rate_std=self.job.network.init_std,
-        )
+        )  # fmt: skip
         self.optimizer = self._new_optimizer()
         self.lineage = [{**self._lineage_entry(0, "init_from"), "source": str(path)}]
         logger.info("stage 0 starts from %s (job %s, %d env steps)", path, meta.job,

@@ -180,13 +180,11 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._obs.copy(), float(sum(terms.values())), ended, truncated and not ended, info
 
     def _pace_clock(self, action: np.ndarray) -> np.ndarray:
-        """Hand the action's last entry (``clock_rate`` in [0, 1], clipped) to the imitation
-        clock as this step's rate; the rest of the action [n_act - 1]."""
+        """Hand the action's last entry (``clock_rate`` in [0, 1], clipped; NaN: 0.5) to the
+        imitation clock for this step; the rest of the action [n_act - 1]."""
         assert self.imitation is not None
         action = np.asarray(action, dtype=np.float64)
-        pace = float(np.clip(np.nan_to_num(action[-1], nan=0.5), 0.0, 1.0))
-        span = self.scene.task.imitate.clock_rate_span  # type: ignore[union-attr]
-        self.imitation.advance(1.0 + span * (2.0 * pace - 1.0))
+        self.imitation.advance(float(np.clip(np.nan_to_num(action[-1], nan=0.5), 0.0, 1.0)))
         return action[:-1]
 
     def _step_reflex(self, action: np.ndarray) -> tuple[np.ndarray, Health]:

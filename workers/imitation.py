@@ -17,13 +17,13 @@ In a fraction ``init.lead_in_fraction`` of episodes the body starts part way alo
 in, in the faded reference state at a random time ``start_s`` past the ramp, and the episode's
 clock reads ``start_s`` plus the time since (reference state initialisation along the fade).
 
-With ``imitate.clock_rate_span`` the policy paces the clock: the env hands each step's rate
-(``1 + span * (2 a - 1)`` for the action's ``clock_rate`` entry ``a``) to :meth:`Imitation.advance`
-before anything reads the step's reference, and the clock then reads ``start_s`` plus the
-control periods played, each times its rate (``t`` above); the step's reference is played at
-that rate (its speeds times the rate, as ``tempo`` does). The target speed the clock sets
-(``speed_target_from_clock``) keeps the env's time: the task does not slow down with the
-clock. Without pacing every rate is 1.
+With ``imitate.clock_rate_span`` the policy paces the clock: the env hands each step's
+``clock_rate`` action entry ``a`` to :meth:`Imitation.advance` before anything reads the
+step's reference, the step's rate is ``1 + span * (2 a - 1)``, and the clock then reads
+``start_s`` plus the control periods played, each times its rate (``t`` above); the step's
+reference is played at that rate (its speeds times the rate, as ``tempo`` does). The target
+speed the clock sets (``speed_target_from_clock``) keeps the env's time: the task does not
+slow down with the clock. Without pacing every rate is 1.
 
 Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imitate.weights``:
 
@@ -129,11 +129,14 @@ class Imitation:
         inside the lead-in)."""
         return self.crossfade if self.standing_start or self.start_s > 0.0 else None
 
-    def advance(self, rate: float) -> None:
-        """The clock's rate (> 0) in the next control step, chosen by the policy (only in a
-        paced scene, once per step, before the step's reference is read)."""
-        if not self.paced:
+    def advance(self, pace: float) -> None:
+        """The policy's ``clock_rate`` entry ``pace`` in [0, 1] for the next control step: the
+        clock plays at ``1 + span * (2 pace - 1)`` times its rate there (only in a paced
+        scene, once per step, before the step's reference is read)."""
+        span = self.spec.clock_rate_span
+        if span is None:
             raise RuntimeError("advance: this scene's clock runs with the env's time")
+        rate = 1.0 + span * (2.0 * pace - 1.0)
         self._rates.append(rate)
         self._played.append(self._played[-1] + rate)
 

@@ -94,9 +94,9 @@ def test_a_slower_clock_holds_the_standing_ramp_longer(tmp_path: Path) -> None:
     assert env.imitation.clock_rate(19) == 0.5 and env.imitation.clock_rate(20) == 1.0
 
 
-def test_an_unpaced_clock_refuses_a_rate() -> None:
+def test_an_unpaced_clock_refuses_a_pace() -> None:
     env = MuscleEnv("run-2d-clock")
     env.reset(seed=0)
     assert env.imitation is not None and not env.imitation.paced
     with pytest.raises(RuntimeError, match="env's time"):
-        env.imitation.advance(1.2)
+        env.imitation.advance(0.8)
