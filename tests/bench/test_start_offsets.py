@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from gaitforge.workers.episode import Observer
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "bench"))
@@ -23,8 +24,6 @@ from start_offsets import (  # noqa: E402
     summary,
     with_offsets,
 )
-
-from gaitforge.workers.episode import Observer  # noqa: E402
 
 NAMES = ["target:hip_flexion_r", "target:knee_angle_r", "target:hip_flexion_l",
          "target:knee_angle_l", "clock_rate"]  # fmt: skip
