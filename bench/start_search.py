@@ -141,9 +141,11 @@ def main() -> None:
                     "offsets": values.tolist(),
                     "history": history,
                     "summaries": summaries,
-                    "distances": {k: [d for d, _ in runs] for k, runs in judged.items()},
+                    "distances": {
+                        k: [[round(x, 3) for x in d] for d, _ in runs] for k, runs in judged.items()
+                    },
                 },
-                indent=1,
+                indent=None,  # one line: the distances are long
             )
         )
         plot_speeds(
