@@ -96,6 +96,11 @@ def main() -> None:
     args = parser.parse_args()
     found = json.loads((args.search / "start-search.json").read_text())
     checkpoint, scene_ref = found["args"]["checkpoint"], found["args"]["scene"]
+    if found["args"].get("range_rad") is not None:
+        raise SystemExit(
+            f"{args.search}: searched with --range-rad, which a network of the "
+            "scene cannot act out; distil a search at the scene's own range"
+        )
     knots = tuple(found["knots_s"])
     teacher, runner, meta = open_runner(checkpoint, scene_ref)
     scene = runner.scene

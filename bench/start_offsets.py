@@ -112,24 +112,48 @@ class Distances(Observer):
         self.fell = self.fell or terminated
 
 
-def open_runner(checkpoint: str | Path, scene_ref: str) -> tuple[Any, EpisodeRunner, Any]:
+def open_runner(
+    checkpoint: str | Path, scene_ref: str, range_rad: float | None = None
+) -> tuple[Any, EpisodeRunner, Any]:
     """The checkpoint's policy fitted to the scene (as ``gaitforge evaluate`` fits it), a
-    runner of the scene on MuJoCo, and the checkpoint's meta."""
+    runner of the scene on MuJoCo, and the checkpoint's meta; with ``range_rad``, the scene's
+    joint targets span that (rad) either side of their base instead (see
+    :func:`same_targets`)."""
     policy, meta = load_policy(resolve_checkpoint(Path(checkpoint)))
     scene = load_scene(scene_ref).resolved()
     policy, _ = fitted_to_scene(policy, meta.obs_names, scene, "mujoco")
+    if range_rad is not None:
+        action = scene.action.model_copy(update={"range_rad": range_rad})
+        scene = scene.model_copy(update={"action": action})
     return policy, make_runner(policy, scene, "mujoco"), meta
 
 
+def same_targets(act: Callable[[np.ndarray], np.ndarray], scale: float) -> Callable:
+    """``act``'s actions for a scene whose targets span ``1 / scale`` times as far: ``0.5 +
+    (a - 0.5) scale``, the same target angles (so offsets may reach further than the policy's
+    own range, and the policy acts as it was trained)."""
+    if scale == 1.0:
+        return act
+    return lambda obs: 0.5 + (act(obs) - 0.5) * scale
+
+
 _worker: dict[str, Any] = {}
-"""a pool process's policy and runner (:func:`open_worker`)"""
+"""a pool process's policy, runner, knots, leg swap and action scale (:func:`open_worker`)"""
 
 
-def open_worker(checkpoint: str, scene_ref: str, knots_s: tuple[float, ...]) -> None:
-    """A pool's initializer: this process's policy and runner, and the knots."""
-    policy, runner, _ = open_runner(checkpoint, scene_ref)
+def open_worker(
+    checkpoint: str, scene_ref: str, knots_s: tuple[float, ...], range_rad: float | None = None
+) -> None:
+    """A pool's initializer: this process's policy and runner, and the knots; with
+    ``range_rad``, the targets' span changed and the policy's actions rescaled to it."""
+    policy, runner, _ = open_runner(checkpoint, scene_ref, range_rad)
+    native = load_scene(scene_ref).resolved().action.range_rad
     _worker.update(
-        policy=policy, runner=runner, knots_s=knots_s, swap=mirrored_order(runner.act_names)
+        policy=policy,
+        runner=runner,
+        knots_s=knots_s,
+        swap=mirrored_order(runner.act_names),
+        scale=1.0 if range_rad is None else native / range_rad,
     )
 
 
@@ -144,7 +168,8 @@ def worker_episode(
     if values is not None:
         swap = _worker["swap"]
         offsets = StartOffsets(_worker["knots_s"], np.asarray(values).reshape(-1, len(swap)), swap)
-    act = with_offsets(policy_act(_worker["policy"], "deterministic", seed), offsets, runner)
+    policy = same_targets(policy_act(_worker["policy"], "deterministic", seed), _worker["scale"])
+    act = with_offsets(policy, offsets, runner)
     log = Distances()
     runner.run(act, seed, [log], None if max_s is None else round(max_s * runner.scene.control_hz))
     return log.distance, log.fell

@@ -78,6 +78,13 @@ def main() -> None:
     parser.add_argument("--generations", type=int, default=40)
     parser.add_argument("--sigma", type=float, default=0.1, help="in action units ([0, 1])")
     parser.add_argument("--cma-seed", type=int, default=1)
+    parser.add_argument(
+        "--range-rad",
+        type=float,
+        help="rad; the joint targets' span either "
+        "side of their base instead of the scene's (the policy's actions "
+        "rescaled to the same targets), so the offsets may reach further",
+    )
     parser.add_argument("--judge", type=int, default=50, help="whole episodes, seeds from 1000")
     parser.add_argument("--processes", type=int, default=2)
     parser.add_argument("--out", type=Path)
@@ -87,7 +94,7 @@ def main() -> None:
     knots = (0.0, *args.knots_s)
     if any(b <= a for a, b in itertools.pairwise(knots)):
         raise SystemExit(f"--knots-s {args.knots_s}: ascending times above 0 are needed")
-    _, runner, _ = open_runner(args.checkpoint, args.scene)
+    _, runner, _ = open_runner(args.checkpoint, args.scene, args.range_rad)
     scene, n_act = runner.scene, len(runner.act_names)
     runner.close()
     es = cma.CMAEvolutionStrategy(
@@ -95,7 +102,7 @@ def main() -> None:
     )
     seeds, history, started = tuple(args.seeds), [], time.monotonic()
     with mp.get_context("spawn").Pool(
-        args.processes, open_worker, (args.checkpoint, args.scene, knots)
+        args.processes, open_worker, (args.checkpoint, args.scene, knots, args.range_rad)
     ) as pool:
         alone = pool.map(score, [(None, seeds, args.horizon_s)])[0]
         console.log(

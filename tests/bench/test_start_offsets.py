@@ -15,6 +15,7 @@ from gaitforge.workers.episode import Observer
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "bench"))
 import start_distil  # noqa: E402
+import start_offsets  # noqa: E402
 from start_offsets import (  # noqa: E402
     MIRROR_OBS,
     StartOffsets,
@@ -111,3 +112,17 @@ def test_distil_labels_are_the_teachers_actions_with_the_offsets(runner_and_poli
     np.testing.assert_allclose(labels[0], np.clip(first + 0.05, 0, 1), atol=1e-6)
     np.testing.assert_allclose(labels[10], start_distil.mean_action(policy, obs[10]), atol=1e-6)
     assert np.all((labels >= 0) & (labels <= 1))
+
+
+def test_a_wider_target_span_leaves_the_policy_alone_as_it_was():
+    """``--range-rad``: the policy's actions rescaled to the wider span give the same targets,
+    so the same episode."""
+    distances = {}
+    for range_rad in (None, 1.2):
+        runner_ckpt = str(REPO / "examples/policies/run-2d")
+        start_offsets.open_worker(runner_ckpt, "run-2d-clock", (0.0, 0.4), range_rad)
+        assert start_offsets._worker["runner"].scene.action.range_rad == (range_rad or 0.6)
+        distances[range_rad], _ = start_offsets.worker_episode(None, 3, 1.0)
+        start_offsets._worker["runner"].close()
+    assert len(distances[None]) == 26
+    np.testing.assert_allclose(distances[1.2], distances[None], atol=1e-9)
