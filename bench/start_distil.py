@@ -29,11 +29,9 @@ from gaitforge.learner.distil import fit_student
 from gaitforge.learner.policy import ActorCritic
 from gaitforge.workers.episode import EpisodeRunner
 from rich.console import Console
-from rich.table import Table
 
 sys.path.insert(0, str(Path(__file__).parent))
 from start_offsets import (
-    COLUMNS,
     StartOffsets,
     judge_episode,
     mirrored_order,
@@ -41,7 +39,7 @@ from start_offsets import (
     open_worker,
     plot_speeds,
     summary,
-    summary_row,
+    summary_table,
     with_offsets,
 )
 
@@ -161,12 +159,9 @@ def main() -> None:
             judged[label] = pool.map(judge_episode, [(values, s) for s in judge_seeds])
         console.log(f"{label}: judged")
     summaries = {k: summary(runs, scene.control_hz, scene.episode_s) for k, runs in judged.items()}
-    report = Table(title=f"{scene_ref}: {args.judge} deterministic episodes (seeds 10000-)")
-    for column in COLUMNS:
-        report.add_column(column, justify="right")
-    for label, s in summaries.items():
-        report.add_row(*summary_row(label, s))
-    console.print(report)
+    console.print(
+        summary_table(f"{scene_ref}: {args.judge} deterministic episodes (seeds 10000-)", summaries)
+    )
     (args.out / "start-distil.json").write_text(
         json.dumps(
             {

@@ -17,19 +17,10 @@ from gaitforge.learner.evaluate import fitted_to_scene, resolve_checkpoint
 from gaitforge.learner.evaluate_episodes import make_runner, policy_act
 from gaitforge.workers.episode import EpisodeRunner, Observer
 from gaitforge.workers.scenes import load_scene
+from rich.table import Table
 
 MIRROR_OBS = "phase_mirror"
 """the observation entry that is +1 in a mirrored episode (left and right legs swapped)"""
-
-COLUMNS = (
-    "",
-    "falls",
-    "mean speed (m/s)",
-    "survivors' (m/s)",
-    "median m by 1.2 s",
-    "by 2 s",
-    "by 4 s",
-)
 
 
 def mirrored_order(names: list[str]) -> list[int]:
@@ -212,17 +203,30 @@ def summary(runs: list[tuple[list[float], bool]], hz: float, episode_s: float) -
     }
 
 
-def summary_row(label: str, s: dict[str, float]) -> list[str]:
-    """A table row of :data:`COLUMNS` for ``summary``'s figures."""
-    return [
-        label,
-        f"{s['fall_rate']:.1%}",
-        f"{s['mean_speed']:.2f}",
-        f"{s['survivor_speed']:.2f}",
-        f"{s['distance_1.2s']:.2f}",
-        f"{s['distance_2s']:.2f}",
-        f"{s['distance_4s']:.2f}",
-    ]
+def summary_table(title: str, summaries: dict[str, dict[str, float]]) -> Table:
+    """A table of :func:`summary`'s figures, one row per label."""
+    table = Table(title=title)
+    for column in (
+        "",
+        "falls",
+        "mean speed (m/s)",
+        "survivors' (m/s)",
+        "median m by 1.2 s",
+        "by 2 s",
+        "by 4 s",
+    ):
+        table.add_column(column, justify="right")
+    for label, s in summaries.items():
+        table.add_row(
+            label,
+            f"{s['fall_rate']:.1%}",
+            f"{s['mean_speed']:.2f}",
+            f"{s['survivor_speed']:.2f}",
+            f"{s['distance_1.2s']:.2f}",
+            f"{s['distance_2s']:.2f}",
+            f"{s['distance_4s']:.2f}",
+        )
+    return table
 
 
 def plot_speeds(

@@ -29,18 +29,16 @@ from pathlib import Path
 
 import numpy as np
 from rich.console import Console
-from rich.table import Table
 
 sys.path.insert(0, str(Path(__file__).parent))
 from start_offsets import (
-    COLUMNS,
     distance_by,
     judge_episode,
     open_runner,
     open_worker,
     plot_speeds,
     summary,
-    summary_row,
+    summary_table,
     worker_control_hz,
     worker_episode,
 )
@@ -127,12 +125,9 @@ def main() -> None:
             for label, v in (("policy", None), ("policy + offsets", values))
         }
     summaries = {k: summary(runs, scene.control_hz, scene.episode_s) for k, runs in judged.items()}
-    report = Table(title=f"{args.scene}: {args.judge} deterministic episodes (seeds 1000-)")
-    for column in COLUMNS:
-        report.add_column(column, justify="right")
-    for label, s in summaries.items():
-        report.add_row(*summary_row(label, s))
-    console.print(report)
+    console.print(
+        summary_table(f"{args.scene}: {args.judge} deterministic episodes (seeds 1000-)", summaries)
+    )
     console.print(
         f"offsets (action units) at {knots[:-1]} s:\n{np.array2string(values, precision=3)}"
     )
