@@ -83,11 +83,10 @@ def with_offsets(
 
 
 class Distances(Observer):
-    """The pelvis's forward distance from the reset (m) after each step, and whether the
-    episode fell."""
+    """The pelvis's forward distance from the reset (m) after each step."""
 
     def on_reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
-        self.distance, self.fell = [0.0], False
+        self.distance = [0.0]
 
     def on_step(
         self,
@@ -100,7 +99,6 @@ class Distances(Observer):
         info: dict[str, Any],
     ) -> None:
         self.distance.append(float(info["distance"]))
-        self.fell = self.fell or terminated
 
 
 def open_runner(
@@ -153,7 +151,8 @@ def worker_episode(
 ) -> tuple[list[float], bool]:
     """In a pool process: one deterministic episode of seed ``seed`` with offsets ``values``
     (flat or [n_knots - 1, n_act]; None: the policy alone), for at most ``max_s`` s: the
-    distances after each step (m) and whether it fell."""
+    distances after each step (m) and whether it fell (the env ended it: the episode
+    summary's ``terminated``)."""
     runner: EpisodeRunner = _worker["runner"]
     offsets = None
     if values is not None:
@@ -162,8 +161,9 @@ def worker_episode(
     policy = same_targets(policy_act(_worker["policy"], "deterministic", seed), _worker["scale"])
     act = with_offsets(policy, offsets, runner)
     log = Distances()
-    runner.run(act, seed, [log], None if max_s is None else round(max_s * runner.scene.control_hz))
-    return log.distance, log.fell
+    max_steps = None if max_s is None else round(max_s * runner.scene.control_hz)
+    ended = runner.run(act, seed, [log], max_steps)
+    return log.distance, ended.terminated
 
 
 def worker_control_hz() -> float:
