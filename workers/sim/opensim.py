@@ -4,8 +4,12 @@ A control step sets the excitation controller's constants and integrates one con
 with a new ``Manager`` (``Manager.initialize`` cannot be called twice) started from the
 current state under the scene's fidelity profile. A Manager per step rather than per
 episode makes a step depend on the state alone, not on the integrator's step-size history,
-so a pickled env continues bit for bit; it cost nothing measurable (100 steps of walk-2d:
-1.36-1.83 s with a Manager per step, 1.64-1.69 s with one per episode, same machine).
+so a pickled env continues bit for bit. The reflex layer's updates within one control step
+share that step's Manager (the first update makes it): each sets the constants and
+integrates on to its end time, and its excitations act from its start. At a fixed step this
+is the same state bit for bit as a new Manager per update; with error control it is as close
+to a converged reference, the difference between the two scaling with the accuracy asked;
+and it saves ``Manager.initialize`` each update (``bench/opensim_reflex_manager.py``).
 
 Every SimTK exception ("Integrator step failed", "Unable to advance time", ...), a step
 slower than ``scene.step_wall_limit_s`` and a non-finite state end in a named
@@ -191,44 +195,53 @@ class OpenSimSimulator:
         return manager
 
     def step(self, excitations: np.ndarray, duration: float) -> Health:
-        excitations = np.clip(np.nan_to_num(excitations, nan=0.0), 0.0, 1.0)
-        for control, value in zip(self._controls, excitations, strict=True):
-            control.setValue(float(value))
-        start = time.perf_counter()
-        end_time = self.osim_state.getTime() + duration
-        try:
-            manager = self._manager()
-            state = manager.integrate(end_time)
-        except RuntimeError as exc:
-            logger.info("opensim integration failed: %s", str(exc).strip().splitlines()[-1])
-            return Health("opensim_integrator_failed")
-        # integrate() returns a reference into its Manager: the previous Manager, and the
-        # state it owned, are freed only here, once nothing reads that state any more.
-        self._stepper, self.osim_state = manager, state
-        if time.perf_counter() - start > self.scene.step_wall_limit_s:
-            return Health("opensim_wall_time")
-        y = self.osim_state.getY().to_numpy()
-        if not np.isfinite(y).all():
-            return Health("nan_state")
-        if np.abs(self.osim_state.getU().to_numpy()).max(initial=0.0) > MAX_SPEED:
-            return Health("diverged_speed")
-        return Health(HEALTHY)
+        health, _ = self._integrate(excitations, duration, None)
+        return health
 
     def step_reflex(
         self, reflex: Reflex, duration: float, updates: int
     ) -> tuple[np.ndarray, Health]:
         total = np.zeros(len(self._muscles))
-        health, done = Health(HEALTHY), 0
+        health, done, manager = Health(HEALTHY), 0, None
         for done in range(1, updates + 1):  # noqa: B007 (the count is read after the loop)
             state = self.osim_state
             q = np.array([c.getValue(state) for c in self._kept])
             qd = np.array([c.getSpeedValue(state) for c in self._kept])
             excitation = reflex(q, qd)
             total += excitation
-            health = self.step(excitation, duration / updates)
+            health, manager = self._integrate(excitation, duration / updates, manager)
             if not health.ok:
                 break
         return total / done, health
+
+    def _integrate(
+        self, excitations: np.ndarray, duration: float, manager: opensim.Manager | None
+    ) -> tuple[Health, opensim.Manager | None]:
+        """Set the excitations (n_muscles,), clipped to [0, 1], and integrate ``duration`` s
+        on: with ``manager`` where one is going on in this control step, else with a new one
+        from the current state. Returns the health and the Manager to go on with."""
+        excitations = np.clip(np.nan_to_num(excitations, nan=0.0), 0.0, 1.0)
+        for control, value in zip(self._controls, excitations, strict=True):
+            control.setValue(float(value))
+        start = time.perf_counter()
+        end_time = self.osim_state.getTime() + duration
+        try:
+            manager = manager or self._manager()
+            state = manager.integrate(end_time)
+        except RuntimeError as exc:
+            logger.info("opensim integration failed: %s", str(exc).strip().splitlines()[-1])
+            return Health("opensim_integrator_failed"), manager
+        # integrate() returns a reference into its Manager: the previous Manager, and the
+        # state it owned, are freed only here, once nothing reads that state any more.
+        self._stepper, self.osim_state = manager, state
+        if time.perf_counter() - start > self.scene.step_wall_limit_s:
+            return Health("opensim_wall_time"), manager
+        y = self.osim_state.getY().to_numpy()
+        if not np.isfinite(y).all():
+            return Health("nan_state"), manager
+        if np.abs(self.osim_state.getU().to_numpy()).max(initial=0.0) > MAX_SPEED:
+            return Health("diverged_speed"), manager
+        return Health(HEALTHY), manager
 
     def moment_arms(self) -> np.ndarray:
         state = self.osim_state
