@@ -117,7 +117,7 @@ def main() -> None:
         errors = {old: np.abs(state_after(env) - reference).max() for old, env in envs.items()}
         table.add_row(label, f"{old_rate:.1f}", f"{new_rate:.1f}", f"{new_rate / old_rate:.2f}",
                       f"{errors[True]:.1e}", f"{errors[False]:.1e}")  # fmt: skip
-    Console().print(table)
+    Console(width=150).print(table)
 
 
 if __name__ == "__main__":
