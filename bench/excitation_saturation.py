@@ -7,8 +7,9 @@ Runs the policy's mean action on deterministic episodes (seeds 0..N-1) of a scen
 joint-target actions and records, from ``--after-s`` seconds on (the steady gait, past the
 start), every reflex update's excitations [n_muscles] and every action [n_dofs]. Prints, per
 muscle, the share of updates at full excitation (> 0.99), and per dof the share of actions at
-a bound of the targets' span (< 0.02 or > 0.98). A muscle that is fully excited much of the
-cycle cannot give more: a faster gait then needs another body, not another policy.
+a bound of the targets' span (< 0.02 or > 0.98). A muscle fully excited can give no more
+there; but the reflex layer's gains saturate muscles at any pace (the walker's too), so read
+the shares against another policy's, not alone.
 """
 
 from __future__ import annotations
