@@ -25,7 +25,7 @@ import numpy as np
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.scenes.profiles import FidelityProfile
-from gaitforge.workers.sim.base import HEALTHY, Health, Reflex
+from gaitforge.workers.sim.base import Health, Reflex
 from rich.console import Console
 from rich.table import Table
 
@@ -44,24 +44,20 @@ def on_opensim(scene: Scene, profile: FidelityProfile | str) -> Scene:
 
 
 def new_manager_per_update(env: MuscleEnv) -> None:
-    """Make ``env``'s simulator integrate each reflex update with its own Manager (its
-    ``step``), as before."""
-    sim = env.sim
+    """Make ``env``'s simulator integrate each reflex update with its own Manager (one
+    ``step_reflex`` of a single update each), as before."""
+    one_manager_a_step = env.sim.step_reflex
 
     def step_reflex(reflex: Reflex, duration: float, updates: int) -> tuple[np.ndarray, Health]:
-        total, done, health = np.zeros(len(sim.muscle_names)), 0, Health(HEALTHY)
+        total, done = 0.0, 0
         for done in range(1, updates + 1):  # noqa: B007
-            state = sim.osim_state
-            q = np.array([c.getValue(state) for c in sim._kept])
-            qd = np.array([c.getSpeedValue(state) for c in sim._kept])
-            excitation = reflex(q, qd)
-            total += excitation
-            health = sim.step(excitation, duration / updates)
+            excitation, health = one_manager_a_step(reflex, duration / updates, 1)
+            total = total + excitation
             if not health.ok:
                 break
         return total / done, health
 
-    sim.step_reflex = step_reflex
+    env.sim.step_reflex = step_reflex
 
 
 def steps_per_s(env: MuscleEnv, seconds: float, seed: int) -> float:

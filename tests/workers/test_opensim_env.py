@@ -129,7 +129,7 @@ def _clock_scene(profile: FidelityProfile) -> Scene:
 def _reflex_states(env: MuscleEnv, one_manager_a_step: bool, steps: int) -> np.ndarray:
     """OpenSim's state vector after each of ``steps`` reflex control steps from seed 0 under
     fixed random joint targets: through ``step_reflex`` (one Manager a control step), or
-    through one ``step`` (a new Manager) per reflex update."""
+    through one ``step_reflex`` of a single update (a new Manager) per reflex update."""
     env.reset(seed=0)
     sim, reflex, rng = env.sim, env.reflex, np.random.default_rng(3)
     pose = np.array([env.sim.coordinates()[d] for d in sim.dof_names])
@@ -141,10 +141,7 @@ def _reflex_states(env: MuscleEnv, one_manager_a_step: bool, steps: int) -> np.n
             sim.step_reflex(reflex, env.dt, updates)
         else:
             for _ in range(updates):
-                state = sim.osim_state
-                q = np.array([c.getValue(state) for c in sim._kept])
-                qd = np.array([c.getSpeedValue(state) for c in sim._kept])
-                sim.step(reflex(q, qd), env.dt / updates)
+                sim.step_reflex(reflex, env.dt / updates, 1)
         states.append(sim.osim_state.getY().to_numpy().copy())
     return np.array(states)
 
