@@ -42,7 +42,6 @@ from gaitforge.workers.sim.base import (
     check_pose_names,
 )
 from gaitforge.workers.sim.opensim_build import (
-    INTEGRATORS,
     PARKED,
     build_model,
     quiet_opensim_log,
@@ -53,6 +52,7 @@ from gaitforge.workers.sim.opensim_drawing import (
     muscle_paths,
     vec3,
 )
+from gaitforge.workers.sim.opensim_manager import new_manager
 from gaitforge.workers.sim.opensim_size import full_plan, model_size
 
 logger = logging.getLogger(__name__)
@@ -180,20 +180,6 @@ class OpenSimSimulator:
         self.model.equilibrateMuscles(state)
         self.osim_state = state
 
-    def _manager(self) -> opensim.Manager:
-        """A Manager for one control step, started from the current state."""
-        manager = opensim.Manager(self.model)
-        manager.setWriteToStorage(False)  # no states table or analyses: nothing reads them
-        manager.setPerformAnalyses(False)
-        manager.setIntegratorMethod(INTEGRATORS[self.profile.integrator])
-        if self.profile.fixed_step:
-            manager.setIntegratorFixedStepSize(self.profile.timestep)
-        else:
-            manager.setIntegratorAccuracy(self.profile.accuracy or 1e-3)
-            manager.setIntegratorMaximumStepSize(self.profile.timestep)
-        manager.initialize(self.osim_state)
-        return manager
-
     def step(self, excitations: np.ndarray, duration: float) -> Health:
         health, _ = self._integrate(excitations, duration, None)
         return health
@@ -226,7 +212,7 @@ class OpenSimSimulator:
         start = time.perf_counter()
         end_time = self.osim_state.getTime() + duration
         try:
-            manager = manager or self._manager()
+            manager = manager or new_manager(self.model, self.profile, self.osim_state)
             state = manager.integrate(end_time)
         except RuntimeError as exc:
             logger.info("opensim integration failed: %s", str(exc).strip().splitlines()[-1])

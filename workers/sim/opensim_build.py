@@ -55,17 +55,6 @@ def quiet_opensim_log() -> None:
 
 quiet_opensim_log()
 
-INTEGRATORS = {  # a fidelity profile's integrator name -> OpenSim's
-    "rk-merson": opensim.Manager.IntegratorMethod_RungeKuttaMerson,
-    "rk-feldberg": opensim.Manager.IntegratorMethod_RungeKuttaFeldberg,
-    "rk2": opensim.Manager.IntegratorMethod_RungeKutta2,
-    "rk3": opensim.Manager.IntegratorMethod_RungeKutta3,
-    "semi-explicit-euler2": opensim.Manager.IntegratorMethod_SemiExplicitEuler2,
-    "explicit-euler": opensim.Manager.IntegratorMethod_ExplicitEuler,
-    "verlet": opensim.Manager.IntegratorMethod_Verlet,
-    "cpodes": opensim.Manager.IntegratorMethod_CPodes,
-}
-
 FLOOR = "floor"
 OBSTACLE_PREFIX = "obstacle_"
 PARKED = -100.0
