@@ -6,6 +6,7 @@ of falls and mean speed per arm and seed with the median over seeds.
 Usage:
     python bench/job_arms.py JOB.yaml --out DIR --arm NAME [KEY=VALUE ...] [--arm ...]
         [--seeds 0 1 2] [--scene run-2d-clock] [--episodes 200]
+        [--side-by-side N] [--train-minutes M]
 
 An arm is a name and dotted overrides of the job file, values read as YAML:
 ``--arm gamma-0.99 ppo.gamma=0.99``, ``--arm short stages.0.scene=short.yaml``; an arm with
@@ -15,6 +16,12 @@ job file's directory. Writes ``DIR/ARM/seed-S.yaml``, ``.log``, the run under
 ``DIR/ARM/seed-S/``, its judgement ``DIR/ARM/seed-S.json`` and ``.txt``, and
 ``DIR/arms.json``; a seed already judged is not run again, so a stopped A/B goes on where it
 was.
+
+On a machine with many cores, ``--side-by-side N`` trains and judges up to N runs at once
+(each its own ``gaitforge train``; give each run its share of the cores with
+``workers.num_workers``, 0 for in-process rollouts, and torch one thread: the runs start with
+``OMP_NUM_THREADS=1`` unless it is set), and ``--train-minutes M`` ends each training after M
+minutes of wall clock (``gaitforge train --max-minutes``), the stage's budget otherwise.
 """
 
 from __future__ import annotations
@@ -22,8 +29,10 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import statistics
 import subprocess
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -93,17 +102,21 @@ def judged(json_path: Path) -> dict[str, float]:
     return {"fall_rate": mode["fall_rate"]["value"], "speed": mode["mean_speed_m_s"]["mean"]}
 
 
-def run_seed(job: dict[str, Any], where: Path, scene: str, episodes: int) -> dict[str, float]:
-    """Train ``job`` into ``where`` (a run directory) unless judged already; judge its end
-    network on ``episodes`` episodes of ``scene``."""
+def run_seed(
+    job: dict[str, Any], where: Path, scene: str, episodes: int, train_minutes: float | None = None
+) -> dict[str, float]:
+    """Train ``job`` into ``where`` (a run directory) unless judged already, for at most
+    ``train_minutes`` of wall clock if given; judge its end network on ``episodes`` episodes of
+    ``scene``."""
     verdict = where.with_suffix(".json")
     if not verdict.exists():
         job_file = where.with_suffix(".yaml")
         job_file.write_text(yaml.safe_dump(job, sort_keys=False))
         logger.info("training %s", where)
+        limit = [] if train_minutes is None else ["--max-minutes", str(train_minutes)]
         with where.with_suffix(".log").open("w") as log:
             subprocess.run(["gaitforge", "train", str(job_file), "--run-dir", str(where),
-                            "--log-every", "30"], stdout=log, stderr=subprocess.STDOUT,
+                            "--log-every", "30", *limit], stdout=log, stderr=subprocess.STDOUT,
                            check=True)  # fmt: skip
         logger.info("judging %s on %d episodes of %s", where, episodes, scene)
         with where.with_suffix(".txt").open("w") as table:
@@ -136,21 +149,40 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--scene", default="run-2d-clock", help="the scene judged on")
     parser.add_argument("--episodes", type=int, default=200)
+    parser.add_argument("--side-by-side", type=int, default=1, metavar="N",
+                        help="train and judge up to N runs at once")  # fmt: skip
+    parser.add_argument("--train-minutes", type=float, default=None, metavar="M",
+                        help="end each training after M minutes (default: its budget)")  # fmt: skip
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s", handlers=[RichHandler()])
     if not args.job.is_file():
         raise SystemExit(f"{args.job}: no such job file")
+    if args.side_by_side < 1:
+        raise SystemExit(f"--side-by-side: {args.side_by_side} is not a number of runs >= 1")
+    if args.train_minutes is not None and args.train_minutes <= 0:
+        raise SystemExit(f"--train-minutes: {args.train_minutes} is not a positive duration")
+    if args.side_by_side > 1:
+        os.environ.setdefault("OMP_NUM_THREADS", "1")
     arms = dict(parse_arm(words) for words in args.arm)
+    # seed by seed, so a stopped A/B has every arm on the first seeds
+    runs = [(arm, seed) for seed in args.seeds for arm in arms]
+
+    def run(arm: str, seed: int) -> dict[str, float]:
+        where = args.out.resolve() / arm / f"seed-{seed}"
+        where.parent.mkdir(parents=True, exist_ok=True)
+        job = arm_job(args.job.resolve(), seed, arms[arm])
+        verdict = run_seed(job, where, args.scene, args.episodes, args.train_minutes)
+        logger.info("%s seed %d: %s", arm, seed, verdict)
+        return verdict
+
+    with ThreadPoolExecutor(max_workers=args.side_by_side) as pool:
+        verdicts = list(pool.map(run, *zip(*runs, strict=True)))
     results: dict[str, dict[int, dict[str, float]]] = {arm: {} for arm in arms}
-    for seed in args.seeds:  # seed by seed, so a stopped A/B has every arm on the first seeds
-        for arm, overrides in arms.items():
-            where = args.out.resolve() / arm / f"seed-{seed}"
-            where.parent.mkdir(parents=True, exist_ok=True)
-            job = arm_job(args.job.resolve(), seed, overrides)
-            results[arm][seed] = run_seed(job, where, args.scene, args.episodes)
-            logger.info("%s seed %d: %s", arm, seed, results[arm][seed])
+    for (arm, seed), verdict in zip(runs, verdicts, strict=True):
+        results[arm][seed] = verdict
     (args.out / "arms.json").write_text(json.dumps(
         {"job": str(args.job), "scene": args.scene, "episodes": args.episodes,
+         "train_minutes": args.train_minutes,
          "arms": {arm: {"overrides": arms[arm], "seeds": results[arm]} for arm in arms}},
         indent=2))  # fmt: skip
     Console(width=160).print(summary_table(results, args.seeds))

@@ -106,6 +106,10 @@ def train(
     max_iterations: Annotated[
         int | None, typer.Option(min=1, help="stop after this many PPO updates")
     ] = None,
+    max_minutes: Annotated[
+        float | None,
+        typer.Option(min=1e-3, help="stop (with a checkpoint) after this many minutes of training"),
+    ] = None,
     tensorboard: Annotated[bool, typer.Option(help="write TensorBoard scalars")] = True,
     log_every: Annotated[
         float, typer.Option(min=0.0, help="s between status lines off a terminal (0: each)")
@@ -131,7 +135,7 @@ def train(
                 if training.start_ray():
                     signals.install()  # Ray's driver put in its own handlers: take them back
                 signals.on_stop(training.request_stop)
-                result = _run(training, max_iterations, log_every)
+                result = _run(training, max_iterations, max_minutes, log_every)
             finally:
                 training.close()
     except KeyboardInterrupt:  # a second signal, or Ctrl-C before the handlers were in
@@ -152,13 +156,16 @@ def train(
               soft_wrap=True, highlight=False)  # fmt: skip
 
 
-def _run(training: ops.Training, max_iterations: int | None, log_every: float) -> ops.TrainResult:
+def _run(
+    training: ops.Training, max_iterations: int | None, max_minutes: float | None, log_every: float
+) -> ops.TrainResult:
     """Train with a live display on a terminal, else with status lines (and the display's
     last state printed at the end)."""
+    max_seconds = None if max_minutes is None else 60.0 * max_minutes
     display = TrainDisplay(training.job, training.stage_progress())
     if err.is_terminal:
         with Live(display, console=err, refresh_per_second=4):
-            return training.run(max_iterations, on_iteration=display.update)
+            return training.run(max_iterations, max_seconds, on_iteration=display.update)
     log = ops.ProgressLog(every_s=log_every)
     ops.logger.info("%s", ops.start_line(training))
 
@@ -166,6 +173,6 @@ def _run(training: ops.Training, max_iterations: int | None, log_every: float) -
         display.update(metrics)
         log(metrics)
 
-    result = training.run(max_iterations, on_iteration=on_iteration)
+    result = training.run(max_iterations, max_seconds, on_iteration=on_iteration)
     out.print(display)
     return result

@@ -170,14 +170,16 @@ class Training:
     def run(
         self,
         max_iterations: int | None = None,
+        max_seconds: float | None = None,
         on_iteration: Callable[[dict], None] | None = None,
     ) -> TrainResult:
-        """Train until every stage is over, ``max_iterations`` more updates or
-        :meth:`request_stop`; ``on_iteration`` sees each iteration's metrics."""
+        """Train until every stage is over, ``max_iterations`` more updates, ``max_seconds`` of
+        wall-clock time (checked between updates) or :meth:`request_stop`; the last update is
+        checkpointed; ``on_iteration`` sees each iteration's metrics."""
         trainer = self.trainer
         trainer.on_iteration = on_iteration
         start = trainer.iteration
-        trainer.run(max_iterations=max_iterations)
+        trainer.run(max_iterations=max_iterations, max_seconds=max_seconds)
         return TrainResult(
             run_dir=self.run_dir, checkpoint=newest_checkpoint(self.run_dir),
             iterations=trainer.iteration - start, iteration=trainer.iteration,

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import importlib.util
+import json
+import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -69,3 +72,30 @@ def test_arm_job_sets_seed_and_overrides_and_loads_from_elsewhere(tmp_path):
     loaded, scenes = load_job(filled)
     assert loaded.seed == 3 and loaded.ppo.gamma == 0.99
     assert [s.name for s in scenes] == ["walk-2d-clock-2s"] and scenes[0].episode_s == 2
+
+
+def test_arms_run_side_by_side_for_minutes_and_are_judged(tmp_path, monkeypatch):
+    """Two arms trained at once, each stopped by --train-minutes long before its budget,
+    each judged, both in arms.json."""
+    job = tmp_path / "job.yaml"
+    job.write_text(
+        "name: tiny\nppo: {batch_env_steps: 256, minibatch_size: 128, epochs: 1}\n"
+        "workers: {num_workers: 0}\nstages:\n  - scene: elbow-reach\n    env_steps: 1000000\n"
+    )
+    monkeypatch.setenv("PATH", f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
+    monkeypatch.setattr(sys, "argv", [
+        "job_arms", str(job), "--out", str(tmp_path / "out"), "--seeds", "0",
+        "--scene", "elbow-reach", "--episodes", "2", "--side-by-side", "2",
+        "--train-minutes", "0.001", "--arm", "control", "--arm", "lr", "ppo.lr=0.0001",
+    ])  # fmt: skip
+    job_arms.main()
+    report = json.loads((tmp_path / "out" / "arms.json").read_text())
+    assert report["train_minutes"] == 0.001 and set(report["arms"]) == {"control", "lr"}
+    for arm in ("control", "lr"):
+        assert set(report["arms"][arm]["seeds"]["0"]) == {"fall_rate", "speed"}
+        run = tmp_path / "out" / arm / "seed-0"
+        assert "iteration 1," in (run.with_suffix(".log")).read_text()
+        assert len(list((run / "checkpoints").iterdir())) == 1, "stopped after one update"
+    assert (
+        yaml.safe_load((tmp_path / "out" / "lr" / "seed-0.yaml").read_text())["ppo"]["lr"] == 1e-4
+    )

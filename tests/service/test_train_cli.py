@@ -34,6 +34,19 @@ def test_train_runs_a_job_and_resumes_from_its_run_dir(tmp_path: Path) -> None:
     assert meta.iteration == 4, "the second run went on from the first one's checkpoint"
 
 
+def test_max_minutes_stops_training_with_a_checkpoint(tmp_path: Path) -> None:
+    """The wall-clock limit is checked between updates: a limit shorter than one update ends
+    the run after its first, checkpointed, long before the stage's budget."""
+    job = tmp_path / "job.yaml"
+    job.write_text(JOB)
+    args = ["train", str(job), "--workers", "0", "--run-dir", str(tmp_path / "run"),
+            "--max-minutes", "0.001", "--no-tensorboard"]  # fmt: skip
+    result = runner.invoke(app, args, env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    _, meta = load_checkpoint(latest_checkpoint(tmp_path / "run" / "checkpoints"))
+    assert meta.iteration == 1 and meta.env_steps < 100_000
+
+
 @pytest.mark.parametrize(
     ("job", "message"),
     [
