@@ -6,6 +6,7 @@ import importlib.util
 import json
 import os
 import sys
+from datetime import datetime
 from pathlib import Path
 
 import pytest
@@ -75,8 +76,8 @@ def test_arm_job_sets_seed_and_overrides_and_loads_from_elsewhere(tmp_path):
 
 
 def test_arms_run_side_by_side_for_minutes_and_are_judged(tmp_path, monkeypatch):
-    """Two arms trained at once, each stopped by --train-minutes long before its budget,
-    each judged, both in arms.json."""
+    """Two arms trained at once (their trainings overlap in time), each stopped by
+    --train-minutes long before its budget, each judged, both in arms.json."""
     job = tmp_path / "job.yaml"
     job.write_text(
         "name: tiny\nppo: {batch_env_steps: 256, minibatch_size: 128, epochs: 1}\n"
@@ -91,11 +92,18 @@ def test_arms_run_side_by_side_for_minutes_and_are_judged(tmp_path, monkeypatch)
     job_arms.main()
     report = json.loads((tmp_path / "out" / "arms.json").read_text())
     assert report["train_minutes"] == 0.001 and set(report["arms"]) == {"control", "lr"}
+    spans = []
     for arm in ("control", "lr"):
         assert set(report["arms"][arm]["seeds"]["0"]) == {"fall_rate", "speed"}
         run = tmp_path / "out" / arm / "seed-0"
-        assert "iteration 1," in (run.with_suffix(".log")).read_text()
+        log = run.with_suffix(".log").read_text()
+        assert "iteration 1," in log
         assert len(list((run / "checkpoints").iterdir())) == 1, "stopped after one update"
+        stamps = [datetime.strptime(line[:23], "%Y-%m-%d %H:%M:%S,%f")
+                  for line in log.splitlines() if line[:4].isdigit()]  # fmt: skip
+        spans.append((min(stamps), max(stamps)))
+    (first_start, first_end), (second_start, second_end) = spans
+    assert first_start < second_end and second_start < first_end, "trained one after the other"
     assert (
         yaml.safe_load((tmp_path / "out" / "lr" / "seed-0.yaml").read_text())["ppo"]["lr"] == 1e-4
     )
