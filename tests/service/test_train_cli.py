@@ -18,32 +18,37 @@ stages:
 """
 
 
-def test_train_runs_a_job_and_resumes_from_its_run_dir(tmp_path: Path) -> None:
+def _train_args(tmp_path: Path, *limit: str) -> list[str]:
+    """``gaitforge train`` of the tiny job in-process into ``tmp_path/run``, with ``limit``."""
     job = tmp_path / "job.yaml"
     job.write_text(JOB)
-    args = ["train", str(job), "--workers", "0", "--run-dir", str(tmp_path / "run"),
-            "--max-iterations", "2", "--no-tensorboard"]  # fmt: skip
+    return ["train", str(job), "--workers", "0", "--run-dir", str(tmp_path / "run"),
+            *limit, "--no-tensorboard"]  # fmt: skip
+
+
+def _newest_meta(tmp_path: Path):
+    return load_checkpoint(latest_checkpoint(tmp_path / "run" / "checkpoints"))[1]
+
+
+def test_train_runs_a_job_and_resumes_from_its_run_dir(tmp_path: Path) -> None:
+    args = _train_args(tmp_path, "--max-iterations", "2")
     result = runner.invoke(app, args, env={"COLUMNS": "200"})
     assert result.exit_code == 0, result.output
     assert "stage 0 elbow-reach" in result.output
-    _, meta = load_checkpoint(latest_checkpoint(tmp_path / "run" / "checkpoints"))
+    meta = _newest_meta(tmp_path)
     assert meta.iteration == 2 and meta.stage.index == 0
     again = runner.invoke(app, args, env={"COLUMNS": "200"})
     assert again.exit_code == 0, again.output
-    _, meta = load_checkpoint(latest_checkpoint(tmp_path / "run" / "checkpoints"))
-    assert meta.iteration == 4, "the second run went on from the first one's checkpoint"
+    assert _newest_meta(tmp_path).iteration == 4, "the second run went on from the first's"
 
 
 def test_max_minutes_stops_training_with_a_checkpoint(tmp_path: Path) -> None:
     """The wall-clock limit is checked between updates: a limit shorter than one update ends
     the run after its first, checkpointed, long before the stage's budget."""
-    job = tmp_path / "job.yaml"
-    job.write_text(JOB)
-    args = ["train", str(job), "--workers", "0", "--run-dir", str(tmp_path / "run"),
-            "--max-minutes", "0.001", "--no-tensorboard"]  # fmt: skip
-    result = runner.invoke(app, args, env={"COLUMNS": "200"})
+    result = runner.invoke(app, _train_args(tmp_path, "--max-minutes", "0.001"),
+                           env={"COLUMNS": "200"})  # fmt: skip
     assert result.exit_code == 0, result.output
-    _, meta = load_checkpoint(latest_checkpoint(tmp_path / "run" / "checkpoints"))
+    meta = _newest_meta(tmp_path)
     assert meta.iteration == 1 and meta.env_steps < 100_000
 
 
