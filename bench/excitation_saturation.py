@@ -87,16 +87,17 @@ def main() -> None:
     excitations, actions, muscles, dofs = record(
         args.checkpoint, args.scene, args.episodes, args.after_s
     )
-    full = (excitations > FULL).mean(axis=0)
+    fully = excitations > FULL
+    full, mean = fully.mean(axis=0), excitations.mean(axis=0)
     at_bound = ((actions < BOUND) | (actions > 1 - BOUND)).mean(axis=0)
     table = Table(title=f"{args.checkpoint} on {args.scene}, {args.episodes} deterministic "
                         f"episodes from {args.after_s:g} s ({len(actions)} steps)")  # fmt: skip
     table.add_column("muscle")
     table.add_column("fully excited", justify="right")
     table.add_column("mean excitation", justify="right")
-    for name, share, mean in zip(muscles, full, excitations.mean(axis=0), strict=True):
-        table.add_row(name, f"{share:.0%}", f"{mean:.2f}")
-    table.add_row("all", f"{(excitations > FULL).mean():.0%}", f"{excitations.mean():.2f}")
+    for name, share, muscle_mean in zip(muscles, full, mean, strict=True):
+        table.add_row(name, f"{share:.0%}", f"{muscle_mean:.2f}")
+    table.add_row("all", f"{fully.mean():.0%}", f"{excitations.mean():.2f}")
     console = Console(width=120)
     console.print(table)
     console.print("actions at a bound of the span: " + ", ".join(
@@ -106,8 +107,7 @@ def main() -> None:
             "checkpoint": str(args.checkpoint), "scene": args.scene, "episodes": args.episodes,
             "after_s": args.after_s, "steps": len(actions),
             "fully_excited": dict(zip(muscles, full.round(3).tolist(), strict=True)),
-            "mean_excitation": dict(zip(muscles, excitations.mean(0).round(3).tolist(),
-                                        strict=True)),
+            "mean_excitation": dict(zip(muscles, mean.round(3).tolist(), strict=True)),
             "actions_at_bound": dict(zip(dofs, at_bound.round(3).tolist(), strict=True)),
         }, indent=1))  # fmt: skip
 
