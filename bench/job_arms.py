@@ -1,21 +1,24 @@
 """Arms of a learning A/B: one job file, changed per arm, trained on each seed one run after
 another (``gaitforge train``), each end network judged again on fresh deterministic episodes
-(``gaitforge evaluate``, seeds 0..N-1, not the 1,000,000 + i the runs watched), and a table
-of falls and mean speed per arm and seed with the median over seeds.
+(``gaitforge evaluate``, seeds 0..N-1 unless ``--judge-seed``, not the 1,000,000 + i the
+runs watched), and a table of falls and mean speed per arm and seed with the median over
+seeds.
 
 Usage:
     python bench/job_arms.py JOB.yaml --out DIR --arm NAME [KEY=VALUE ...] [--arm ...]
-        [--seeds 0 1 2] [--scene run-2d-clock] [--episodes 200]
+        [--seeds 0 1 2] [--scene run-2d-clock | stage] [--episodes 200] [--judge-seed 0]
         [--side-by-side N] [--train-minutes M]
 
 An arm is a name and dotted overrides of the job file, values read as YAML:
 ``--arm gamma-0.99 ppo.gamma=0.99``, ``--arm short stages.0.scene=short.yaml``; an arm with
 no override is the job as it is (the control). Relative paths in the job and in the overrides
 (``init_from``, a stage's scene or evaluation scene given as a YAML file) are taken from the
-job file's directory. Writes ``DIR/ARM/seed-S.yaml``, ``.log``, the run under
-``DIR/ARM/seed-S/``, its judgement ``DIR/ARM/seed-S.json`` and ``.txt``, and
-``DIR/arms.json``; a seed already judged is not run again, so a stopped A/B goes on where it
-was.
+job file's directory. ``--scene stage`` judges each run on its last stage's own scene (arms
+that train on different scenes with the same falls and speed, such as run-2d-clock variants
+with other clocks); ``--judge-seed`` is the first episode seed judged. Writes
+``DIR/ARM/seed-S.yaml``, ``.log``, the run under ``DIR/ARM/seed-S/``, its judgement
+``DIR/ARM/seed-S.json`` and ``.txt``, and ``DIR/arms.json``; a seed already judged is not run
+again, so a stopped A/B goes on where it was.
 
 On a machine with many cores, ``--side-by-side N`` trains and judges up to N runs at once
 (each its own ``gaitforge train``; give each run its share of the cores with
@@ -102,12 +105,23 @@ def judged(json_path: Path) -> dict[str, float]:
     return {"fall_rate": mode["fall_rate"]["value"], "speed": mode["mean_speed_m_s"]["mean"]}
 
 
+def judging_scene(job: dict[str, Any], scene: str) -> str:
+    """``scene``, or for ``stage`` the job's last stage's scene (a name or a file path)."""
+    return str(job["stages"][-1]["scene"]) if scene == "stage" else scene
+
+
 def run_seed(
-    job: dict[str, Any], where: Path, scene: str, episodes: int, train_minutes: float | None = None
+    job: dict[str, Any],
+    where: Path,
+    scene: str,
+    episodes: int,
+    train_minutes: float | None = None,
+    judge_seed: int = 0,
 ) -> dict[str, float]:
     """Train ``job`` into ``where`` (a run directory) unless judged already, for at most
     ``train_minutes`` of wall clock if given; judge its end network on ``episodes`` episodes of
-    ``scene``."""
+    ``scene`` (``stage``: the job's last stage's scene), seeds ``judge_seed`` on."""
+    scene = judging_scene(job, scene)
     verdict = where.with_suffix(".json")
     if not verdict.exists():
         job_file = where.with_suffix(".yaml")
@@ -121,7 +135,7 @@ def run_seed(
         logger.info("judging %s on %d episodes of %s", where, episodes, scene)
         with where.with_suffix(".txt").open("w") as table:
             subprocess.run(["gaitforge", "evaluate", str(where), "--scene", scene, "--episodes",
-                            str(episodes), "--seed", "0", "--json-out", str(verdict)],
+                            str(episodes), "--seed", str(judge_seed), "--json-out", str(verdict)],
                            stdout=table, stderr=subprocess.STDOUT, check=True)  # fmt: skip
     return judged(verdict)
 
@@ -147,8 +161,11 @@ def main() -> None:
     parser.add_argument("--arm", nargs="+", action="append", required=True,
                         metavar="WORD", help="an arm: NAME [KEY=VALUE ...]")  # fmt: skip
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--scene", default="run-2d-clock", help="the scene judged on")
+    parser.add_argument("--scene", default="run-2d-clock",
+                        help="the scene judged on (stage: each run's last stage's)")  # fmt: skip
     parser.add_argument("--episodes", type=int, default=200)
+    parser.add_argument("--judge-seed", type=int, default=0,
+                        help="the first episode seed judged")  # fmt: skip
     parser.add_argument("--side-by-side", type=int, default=1, metavar="N",
                         help="train and judge up to N runs at once")  # fmt: skip
     parser.add_argument("--train-minutes", type=float, default=None, metavar="M",
@@ -171,7 +188,9 @@ def main() -> None:
         where = args.out.resolve() / arm / f"seed-{seed}"
         where.parent.mkdir(parents=True, exist_ok=True)
         job = arm_job(args.job.resolve(), seed, arms[arm])
-        verdict = run_seed(job, where, args.scene, args.episodes, args.train_minutes)
+        verdict = run_seed(
+            job, where, args.scene, args.episodes, args.train_minutes, args.judge_seed
+        )
         logger.info("%s seed %d: %s", arm, seed, verdict)
         return verdict
 
@@ -182,6 +201,7 @@ def main() -> None:
         results[arm][seed] = verdict
     (args.out / "arms.json").write_text(json.dumps(
         {"job": str(args.job), "scene": args.scene, "episodes": args.episodes,
+         "judge_seed": args.judge_seed,
          "train_minutes": args.train_minutes,
          "arms": {arm: {"overrides": arms[arm], "seeds": results[arm]} for arm in arms}},
         indent=2))  # fmt: skip
