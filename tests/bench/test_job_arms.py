@@ -75,6 +75,12 @@ def test_arm_job_sets_seed_and_overrides_and_loads_from_elsewhere(tmp_path):
     assert [s.name for s in scenes] == ["walk-2d-clock-2s"] and scenes[0].episode_s == 2
 
 
+def test_judging_scene_is_the_given_one_or_the_last_stages():
+    job = {"stages": [{"scene": "walk-2d-clock"}, {"scene": "/jobs/run-fast.yaml"}]}
+    assert job_arms.judging_scene(job, "run-2d-clock") == "run-2d-clock"
+    assert job_arms.judging_scene(job, "stage") == "/jobs/run-fast.yaml"
+
+
 def test_arms_run_side_by_side_for_minutes_and_are_judged(tmp_path, monkeypatch):
     """Two arms trained at once (their trainings overlap in time), each stopped by
     --train-minutes long before its budget, each judged, both in arms.json."""
@@ -86,7 +92,7 @@ def test_arms_run_side_by_side_for_minutes_and_are_judged(tmp_path, monkeypatch)
     monkeypatch.setenv("PATH", f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
     monkeypatch.setattr(sys, "argv", [
         "job_arms", str(job), "--out", str(tmp_path / "out"), "--seeds", "0",
-        "--scene", "elbow-reach", "--episodes", "2", "--side-by-side", "2",
+        "--scene", "stage", "--judge-seed", "5", "--episodes", "2", "--side-by-side", "2",
         "--train-minutes", "0.001", "--arm", "control", "--arm", "lr", "ppo.lr=0.0001",
     ])  # fmt: skip
     job_arms.main()
@@ -96,6 +102,8 @@ def test_arms_run_side_by_side_for_minutes_and_are_judged(tmp_path, monkeypatch)
     for arm in ("control", "lr"):
         assert set(report["arms"][arm]["seeds"]["0"]) == {"fall_rate", "speed"}
         run = tmp_path / "out" / arm / "seed-0"
+        verdict = json.loads(run.with_suffix(".json").read_text())
+        assert (verdict["scene"], verdict["seed"]) == ("elbow-reach", 5), "its stage's scene"
         log = run.with_suffix(".log").read_text()
         assert "iteration 1," in log
         assert len(list((run / "checkpoints").iterdir())) == 1, "stopped after one update"
