@@ -14,6 +14,7 @@ default; give a catalogue scene with the same ``init`` when it was judged on a f
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import statistics
 from pathlib import Path
@@ -24,11 +25,18 @@ from rich.console import Console
 from rich.table import Table
 
 
-def mirrored_by_seed(scene: str, seeds: list[int]) -> dict[int, bool]:
-    """Whether the reset with each seed mirrors the clock (the env's own draw)."""
+@functools.cache
+def _clocked_env(scene: str) -> MuscleEnv:
+    """One env per scene for all the reports (building one compiles its simulator)."""
     env = MuscleEnv(scene)
     if env.imitation is None:
         raise SystemExit(f"--scene {scene}: no imitation clock, so nothing is mirrored")
+    return env
+
+
+def mirrored_by_seed(scene: str, seeds: list[int]) -> dict[int, bool]:
+    """Whether the reset with each seed mirrors the clock (the env's own draw)."""
+    env = _clocked_env(scene)
     return {seed: bool(env.reset(seed=seed)[1]["imitation"]["mirrored"]) for seed in seeds}
 
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Session 25's quick-start A/B on a lent 16-core machine (as session 24's speed-term/device.sh:
-# no Ray there, rollouts in-process, the wheels the image lacks carried in .devwheels/): 4 arms
-# x 4 seeds, 16 runs side by side, each trained for the same MINUTES of wall clock from the
+# Session 25's quick-start A/B on a lent 16-core machine (set up by bench/device_setup.sh: no
+# Ray there, rollouts in-process, the wheels carried in .devwheels/): 4 arms x 4 seeds, 16 runs
+# side by side, each trained for the same MINUTES of wall clock from the
 # shipped runner, its last network judged on 200 deterministic episodes of its own scene
 # (seeds 100-299), then each arm's speed profile (30 episodes a seed).
 # Usage (on the machine, from the repository root):
@@ -13,13 +13,7 @@ minutes=${MINUTES:-5}
 seeds=${SEEDS:-0 1 2 3}
 episodes=${EPISODES:-200}
 profile_episodes=${PROFILE_EPISODES:-30}
-if [ "${INSTALL:-1}" = 1 ]; then
-  python3 -m pip install -q --no-index --no-deps .devwheels/*.whl
-  python3 -m pip install -q --no-index --no-deps --no-build-isolation .
-fi
-PATH="$(python3 -c 'import os, sys; print(os.path.dirname(sys.executable))'):$PATH"
-nproc
-export PATH OMP_NUM_THREADS=1
+source bench/device_setup.sh  # the carried wheels, the project, PATH, one thread
 here=bench/results/learn-to-run-2d/quick-start
 runs=/tmp/quick-start
 in_process="workers.num_workers=0"

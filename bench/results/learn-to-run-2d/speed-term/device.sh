@@ -4,16 +4,8 @@
 # side by side, each trained for the same 5.5 minutes of wall clock from the shipped runner with
 # no in-training evaluation, its last network judged on 100 deterministic run-2d-clock
 # episodes (seeds 0-99), then each arm's speed profile (30 episodes). The wheels the image
-# lacks (mujoco, gymnasium, pydantic, ...; for Python 3.12) are carried in .devwheels/ (ignored
-# through .git/info/exclude), fetched here with
-#   pip download --only-binary=:all: --python-version 3.12 --no-deps -d .devwheels \
-#     --platform manylinux2014_x86_64 --platform manylinux_2_17_x86_64 \
-#     --platform manylinux_2_27_x86_64 --platform manylinux_2_28_x86_64 --platform any \
-#     mujoco==3.17.0 pydantic==2.14.4 pydantic_core==2.50.5 pydantic-settings==2.16.3 \
-#     python-dotenv==1.2.4 gymnasium==1.4.0 Farama-Notifications==0.0.6 glfw==2.11.0 \
-#     foxglove-sdk==0.30.3 mcap==1.6.0 zstandard==0.25.0 cffi==2.1.1 pycparser==3.12 \
-#     annotated-types==0.8.0 typing-inspection==0.4.5 typing_extensions==4.16.0
-# (39 MB; Ray's 79 MB wheel would not fit the 64 MiB the machine is sent).
+# lacks (mujoco, gymnasium, pydantic, ...; for Python 3.12) are carried in .devwheels/
+# (bench/device_setup.sh says how they were fetched).
 # Usage (on the machine, from the repository root): bash bench/results/learn-to-run-2d/speed-term/device.sh OUT
 # (MINUTES, SEEDS, PROFILE_EPISODES and INSTALL=0 shrink it for a try on a small machine.)
 set -euo pipefail
@@ -21,13 +13,7 @@ out=${1:?OUT}
 minutes=${MINUTES:-5.5}
 seeds=${SEEDS:-0 1 2 3 4}
 profile_episodes=${PROFILE_EPISODES:-30}
-if [ "${INSTALL:-1}" = 1 ]; then
-  python3 -m pip install -q --no-index --no-deps .devwheels/*.whl
-  python3 -m pip install -q --no-index --no-deps --no-build-isolation .
-fi
-PATH="$(python3 -c 'import os, sys; print(os.path.dirname(sys.executable))'):$PATH"
-nproc
-export PATH OMP_NUM_THREADS=1
+source bench/device_setup.sh  # the carried wheels, the project, PATH, one thread
 python3 -c "import gaitforge.service.cli, mujoco, torch; print('torch', torch.__version__, 'mujoco', mujoco.__version__)"
 here=bench/results/learn-to-run-2d/speed-term
 runs=/tmp/speed-term
