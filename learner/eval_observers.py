@@ -25,7 +25,9 @@ class EpisodeMetrics(Observer):
     """An episode's evaluation statistics: effort (sum of excitation^2 as applied) and each
     weighted reward term summed over the steps; in imitation scenes (``info["imitation"]``
     on every step) the RMS over the steps of the pose error (rad) and whether the bound still
-    held on the last step. :attr:`result` once the episode ended."""
+    held on the last step; in obstacle scenes (``info["obstacle_contact"]``) the steps that
+    ended with a foot on an obstacle and the first one's time (s). :attr:`result` once the
+    episode ended."""
 
     def __init__(self) -> None:
         self.result: EpisodeResult | None = None
@@ -33,12 +35,16 @@ class EpisodeMetrics(Observer):
         self._terms: dict[str, float] = {}
         self._n_muscles = 0
         self._pose_sq, self._pose_steps, self._kept = 0.0, 0, True
+        self._touch_steps: int | None = None
+        self._first_touch_s: float | None = None
 
     def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
         self.result, self._effort_sum, self._terms = None, 0.0, {}
         # the action's entries but a clock_rate, the clock's pace rather than an effort
         self._n_muscles = int(env.action_space.shape[0]) - int(paces_clock(env.scene))
         self._pose_sq, self._pose_steps, self._kept = 0.0, 0, True
+        self._touch_steps = 0 if env.scene.obstacles is not None else None
+        self._first_touch_s = None
 
     def on_step(
         self,
@@ -60,6 +66,10 @@ class EpisodeMetrics(Observer):
                 self._pose_sq += error * error
                 self._pose_steps += 1
             self._kept = self._kept and bool(imitation.get("kept", False))
+        if self._touch_steps is not None and info.get("obstacle_contact"):
+            self._touch_steps += 1
+            if self._first_touch_s is None:
+                self._first_touch_s = float(info["step"]) * env.dt
 
     def on_end(self, summary: EpisodeSummary | None) -> None:
         if summary is not None:
@@ -67,8 +77,10 @@ class EpisodeMetrics(Observer):
             if self._pose_steps:
                 tracking = (math.sqrt(self._pose_sq / self._pose_steps), self._kept)
             self.result = EpisodeResult.of(
-                summary, self._effort_sum, self._terms, self._n_muscles, tracking
-            )
+                summary, self._effort_sum, self._terms, self._n_muscles, tracking,
+                obstacles=None if self._touch_steps is None
+                else (self._touch_steps, self._first_touch_s),
+            )  # fmt: skip
 
 
 def check_recording_available(record: bool, video: bool) -> None:

@@ -152,6 +152,12 @@ def evaluate_policy(
             "%s: tracking error %.3f rad, kept the gait in %.0f %% of episodes", label,
             result.tracking_error_rad.mean, 100 * result.kept_gait_rate.value,
         )  # fmt: skip
+    if result.touched_rate is not None:
+        logger.info(
+            "%s: a foot touched an obstacle in %d of %d episodes; falls %d of them, %d of the "
+            "others", label, result.touched_rate.count, len(results),
+            result.fall_rate_touched.count, result.fall_rate_untouched.count,
+        )  # fmt: skip
     return result
 
 

@@ -13,6 +13,12 @@ the gait*: its pose error never passed the scene's bound (``kept`` on its last s
 not fall, the simulator stayed healthy and it ran to the episode's end (``episode_s``). Over
 N episodes: the tracking error's mean with its t interval and the kept share with its Wilson
 interval. Other scenes leave these fields None (JSON ``null``): the keys are always there.
+
+Obstacle scenes (the env reports ``info["obstacle_contact"]`` every healthy step) add per
+episode the steps that ended with a foot touching an obstacle sphere and the first one's
+time, and over N episodes the share that touched one and the fall rate among those that did
+and those that did not (Wilson intervals; NaN where a group is empty): how much of the fall
+rate the obstacles cause. Other scenes leave these None.
 """
 
 from __future__ import annotations
@@ -53,6 +59,10 @@ class EpisodeResult:
             itself RMS over the tracked kept joints); None elsewhere.
         kept_gait: imitation scenes: the pose error stayed within the bound, no fall, no
             simulator failure, and the episode ran to its end; None elsewhere.
+        obstacle_contact_steps: obstacle scenes: control steps that ended with a foot
+            touching an obstacle sphere; None elsewhere.
+        first_obstacle_touch_s: obstacle scenes: s from the start to the first such step;
+            None if there was none or the scene has no obstacles.
     """
 
     seed: int
@@ -69,6 +79,13 @@ class EpisodeResult:
     reward_terms: dict[str, float]
     tracking_error_rad: float | None = None
     kept_gait: bool | None = None
+    obstacle_contact_steps: int | None = None
+    first_obstacle_touch_s: float | None = None
+
+    @property
+    def touched_obstacle(self) -> bool:
+        """A foot touched an obstacle sphere in this episode."""
+        return bool(self.obstacle_contact_steps)
 
     @classmethod
     def of(
@@ -78,10 +95,13 @@ class EpisodeResult:
         reward_terms: dict[str, float],
         n_muscles: int,
         tracking: tuple[float, bool] | None = None,
+        obstacles: tuple[int, float | None] | None = None,
     ) -> EpisodeResult:
         """From the loop's summary, the episode's sum of excitation^2 and each weighted term's
         sum; ``n_muscles`` is the action's size; ``tracking`` (imitation scenes): the
-        episode's RMS pose error (rad) and whether the bound held on its last step."""
+        episode's RMS pose error (rad) and whether the bound held on its last step;
+        ``obstacles`` (obstacle scenes): the steps that ended touching an obstacle and the
+        first one's time (s, None if none)."""
         steps, time_s, distance = summary.steps, summary.time_s, summary.distance_m
         ran_out = summary.truncated and not summary.fell and summary.health == "ok"
         return cls(
@@ -99,6 +119,8 @@ class EpisodeResult:
             reward_terms=reward_terms,
             tracking_error_rad=None if tracking is None else float(tracking[0]),
             kept_gait=None if tracking is None else bool(tracking[1] and ran_out),
+            obstacle_contact_steps=None if obstacles is None else int(obstacles[0]),
+            first_obstacle_touch_s=None if obstacles is None else obstacles[1],
         )
 
 
@@ -131,6 +153,13 @@ class ModeResult:
     """imitation scenes: the episodes' RMS pose error, rad (None elsewhere)"""
     kept_gait_rate: Rate | None = None
     """imitation scenes: the share of episodes that kept the gait to their end (None elsewhere)"""
+    touched_rate: Rate | None = None
+    """obstacle scenes: the share of episodes in which a foot touched an obstacle sphere
+    (None elsewhere)"""
+    fall_rate_touched: Rate | None = None
+    """obstacle scenes: falls among the episodes that touched an obstacle (None elsewhere)"""
+    fall_rate_untouched: Rate | None = None
+    """obstacle scenes: falls among the episodes that touched none (None elsewhere)"""
 
     @classmethod
     def of(
@@ -150,6 +179,14 @@ class ModeResult:
         if imitating:
             tracking = Stat.of([float(e.tracking_error_rad or 0.0) for e in imitating])
             kept = Rate.of(sum(bool(e.kept_gait) for e in imitating), len(imitating))
+        among_obstacles = [e for e in episodes if e.obstacle_contact_steps is not None]
+        touched_rate = fall_touched = fall_untouched = None
+        if among_obstacles:
+            touched = [e for e in among_obstacles if e.touched_obstacle]
+            untouched = [e for e in among_obstacles if not e.touched_obstacle]
+            touched_rate = Rate.of(len(touched), len(among_obstacles))
+            fall_touched = Rate.of(sum(e.fell for e in touched), len(touched))
+            fall_untouched = Rate.of(sum(e.fell for e in untouched), len(untouched))
 
         return cls(
             mode=mode,
@@ -170,6 +207,9 @@ class ModeResult:
             health=dict(sorted(Counter(e.health for e in episodes).items())),
             tracking_error_rad=tracking,
             kept_gait_rate=kept,
+            touched_rate=touched_rate,
+            fall_rate_touched=fall_touched,
+            fall_rate_untouched=fall_untouched,
         )
 
 

@@ -1,7 +1,8 @@
 """Render an ``EvaluationReport`` for people (rich): means ± the half-width of their 95 %
 interval, rates with their 95 % Wilson interval. Imitation scenes add two columns, the
-tracking error (rad) and the share of episodes that kept the gait; other scenes' tables are
-as they were. Where the summary or sweep table (one row
+tracking error (rad) and the share of episodes that kept the gait; obstacle scenes three,
+the share of episodes that touched an obstacle and the fall rate among those that did and
+those that did not; other scenes' tables are as they were. Where the summary or sweep table (one row
 per mode or sweep point) is wider than the terminal, it turns on its side (one row per
 quantity), so that nothing is cut or folded at 80 columns."""
 
@@ -24,6 +25,8 @@ def _ci(stat: Any, fmt: str = ".2f") -> str:
 
 
 def _rate(rate: Any) -> str:
+    if rate.n == 0:
+        return "-"
     return f"{100 * rate.value:.0f} % ({100 * rate.low:.0f}-{100 * rate.high:.0f})"
 
 
@@ -60,11 +63,29 @@ def _tracking(r: Any) -> list[str]:
     return [_ci(r.tracking_error_rad, ".3f"), _rate(r.kept_gait_rate)]
 
 
+def _with_obstacles(report: Any) -> bool:
+    """Whether any result of the report (modes and sweep) ran among obstacles."""
+    results = [*report.results.values(), *(p.result for p in report.sweep)]
+    return any(r.touched_rate is not None for r in results)
+
+
+def _obstacles(r: Any) -> list[str]:
+    """The obstacle columns of a mode result: the share of episodes that touched an
+    obstacle, and the fall rate among those that did and those that did not."""
+    if r.touched_rate is None:
+        return ["-", "-", "-"]
+    return [_rate(r.touched_rate), _rate(r.fall_rate_touched), _rate(r.fall_rate_untouched)]
+
+
+OBSTACLE_HEADERS = ["touched an obstacle", "falls if touched", "falls if not"]
+
+
 def render_episodes(report: Any) -> list[Table]:
     """One table per mode: every episode of an ``EvaluationReport``."""
     tables = []
-    imitating = _imitating(report)
+    imitating, obstacles = _imitating(report), _with_obstacles(report)
     extra = ["tracking\nrad", "kept\ngait"] if imitating else []
+    extra += ["first touch\ns"] if obstacles else []
     for mode, r in report.results.items():
         episodes = table(
             "seed", "steps", "time\ns", "distance\nm", "speed\nm/s", "fell", "health",
@@ -79,6 +100,9 @@ def render_episodes(report: Any) -> list[Table]:
             if imitating:
                 error = "-" if e.tracking_error_rad is None else f"{e.tracking_error_rad:.3f}"
                 cells += [error, "-" if e.kept_gait is None else "yes" if e.kept_gait else "no"]
+            if obstacles:
+                touch = e.first_obstacle_touch_s
+                cells.append("-" if touch is None else f"{touch:.2f}")
             episodes.add_row(*cells)
         tables.append(episodes)
     return tables
@@ -93,8 +117,9 @@ def render(report: Any, console: Console) -> Group:
         f"{report.scene} on {report.backend}; seeds {report.seed}.."
         f"{report.seed + len(first.episodes) - 1}; means ± 95 % intervals"
     )
-    imitating = _imitating(report)
+    imitating, obstacles = _imitating(report), _with_obstacles(report)
     extra = ["tracking rad", "kept gait"] if imitating else []
+    extra += OBSTACLE_HEADERS if obstacles else []
     headers = ["mode", "target m/s", "distance m", "speed m/s", "fall rate", "survival",
                "time s", "effort", "return", "health failures", *extra]  # fmt: skip
     rows = []
@@ -104,6 +129,7 @@ def render(report: Any, console: Console) -> Group:
             mode, target, _ci(r.distance_m), _ci(r.mean_speed_m_s), _rate(r.fall_rate),
             _rate(r.survival_rate), _ci(r.time_s), _ci(r.effort, ".3f"), _ci(r.return_, ".1f"),
             _health(r.health), *(_tracking(r) if imitating else []),
+            *(_obstacles(r) if obstacles else []),
         ])  # fmt: skip
     parts: list[Any] = [head, _oriented("Evaluation", headers, rows, console)]
     if report.sweep:
@@ -116,6 +142,7 @@ def render(report: Any, console: Console) -> Group:
                 f"{100 * point.reduction:.0f} %", f"{point.target_speed_m_s:.2f}",
                 _rate(r.fall_rate), _ci(r.distance_m), _ci(r.mean_speed_m_s),
                 _ci(r.return_, ".1f"), _health(r.health), *(_tracking(r) if imitating else []),
+                *(_obstacles(r) if obstacles else []),
             ])  # fmt: skip
         title = f"Speed against safety ({report.sweep_mode})"
         parts.append(_oriented(title, headers, rows, console))

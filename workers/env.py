@@ -22,6 +22,12 @@ report ``info["imitation"] = {"phase", "pose_error_rad", "kept", "mirrored", "cl
 on reset and every step (``clock_rate``: the clock's rate in that step, 1 unless the policy
 paces it); ``reference_state()`` is the reference at the current phase.
 
+Scenes with obstacles report ``info["obstacle_contact"]`` on every healthy step: whether a
+foot's contact sphere touches an obstacle sphere at the step's end (surfaces within
+``OBSTACLE_TOUCH_M``; a touch shorter than a control step may fall between two ends), so an
+evaluation can tell the falls that came after a touch from the
+others.
+
 A simulator failure never raises and never reaches the observation: the step is
 ``terminated`` with ``info["health"]`` naming the cause, reward 0, and the last healthy
 observation repeated.
@@ -42,6 +48,9 @@ from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.base import HEALTHY, Health, SimState
 
 GRAVITY = 9.81
+OBSTACLE_TOUCH_M = 0.002
+"""m between the surfaces of a foot's contact sphere and an obstacle sphere that still count
+as a touch"""
 
 
 class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
@@ -171,6 +180,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         self._obs = self._observe(state)
         fell = self._fell(state)
         info = {"health": HEALTHY, "reward_terms": terms, "fell": fell}
+        if self.scene.obstacles is not None:
+            info["obstacle_contact"] = self._touching_obstacle()
         info.update(self._episode_info(state))
         ended = fell
         if self.imitation is not None:
@@ -245,6 +256,21 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             return np.zeros(3)
         nearest = ahead[np.argmin(ahead[:, 0])]
         return np.array([nearest[0] - here, nearest[1], nearest[2]])
+
+    def _touching_obstacle(self) -> bool:
+        """Whether a foot's contact sphere touches an obstacle sphere now (their surfaces
+        within ``OBSTACLE_TOUCH_M``): the feet's spheres are what meets the obstacles on
+        either simulator."""
+        obstacles = self.sim.obstacles()
+        if not len(obstacles):
+            return False
+        centres = np.zeros((len(obstacles), 3))
+        centres[:, self.sim.forward_axis] = obstacles[:, 0]
+        centres[:, self.sim.up_axis] = obstacles[:, 1]
+        feet = np.concatenate(list(self.sim.contact_spheres().values()))
+        between = np.linalg.norm(feet[:, None, :3] - centres[None], axis=-1)
+        gaps = between - feet[:, None, 3] - obstacles[None, :, 2]
+        return bool((gaps < OBSTACLE_TOUCH_M).any())
 
     # ---- episode bookkeeping ------------------------------------------------------------
 

@@ -409,3 +409,57 @@ def test_other_scenes_have_no_tracking_columns(walk: tuple[Path, Scene], tmp_pat
     det = json.loads(out.read_text())["results"]["deterministic"]
     assert det["tracking_error_rad"] is None and det["kept_gait_rate"] is None
     assert det["episodes"][0]["tracking_error_rad"] is None
+    assert "touched" not in printed.output and det["touched_rate"] is None
+    assert det["episodes"][0]["obstacle_contact_steps"] is None
+
+
+def obstacle_scene(tmp_path: Path, x_range: list[float], name: str) -> Scene:
+    """obstacles-2d for 0.3 s with its 10 spheres, each 10 cm, centred on the ground within
+    ``x_range`` (m ahead of the start)."""
+    data = yaml.safe_load(catalogue_file("obstacles-2d").read_text())
+    data.update(name=name, episode_s=0.3)
+    data["obstacles"].update(x_range=x_range, radius_range=[0.1, 0.1], height_range=[0, 0])
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return load_scene(path)
+
+
+def test_obstacle_scenes_tell_the_falls_after_a_touch_from_the_others(tmp_path: Path) -> None:
+    """Spheres under the standing feet are touched from the first step; spheres 20 m ahead
+    never; the evaluation splits the falls by it, and a scene without obstacles has none of
+    it."""
+    under = obstacle_scene(tmp_path, [0.0, 0.0], "spheres-under-the-feet")
+    ahead = obstacle_scene(tmp_path, [20.0, 30.0], "spheres-far-ahead")
+    env = MuscleEnv(under)
+    env.reset(seed=0)
+    assert env.step(np.zeros(env.action_space.shape))[4]["obstacle_contact"] is True
+    env = MuscleEnv(ahead)
+    env.reset(seed=0)
+    assert env.step(np.zeros(env.action_space.shape))[4]["obstacle_contact"] is False
+    plain = MuscleEnv(short_scene(tmp_path))
+    plain.reset(seed=0)
+    assert "obstacle_contact" not in plain.step(np.zeros(plain.action_space.shape))[4]
+
+    policy = relaxed_policy(len(env.obs_names), env.action_space.shape[0])
+    touched = evaluate_policy(policy, under, episodes=2, seed=0)
+    assert all(e.first_obstacle_touch_s == pytest.approx(0.01) for e in touched.episodes)
+    assert all(e.obstacle_contact_steps >= 1 for e in touched.episodes)
+    assert touched.touched_rate.count == 2 and touched.fall_rate_untouched.n == 0
+    assert touched.fall_rate_touched.count == sum(e.fell for e in touched.episodes)
+    clear = evaluate_policy(policy, ahead, episodes=2, seed=0)
+    assert [e.obstacle_contact_steps for e in clear.episodes] == [0, 0]
+    assert all(e.first_obstacle_touch_s is None for e in clear.episodes)
+    assert clear.touched_rate.count == 0 and clear.fall_rate_touched.n == 0
+    assert clear.fall_rate_untouched.n == 2
+
+    run = tmp_path / "run"
+    save(run / "checkpoints", policy, under)
+    out = tmp_path / "eval.json"
+    printed = runner.invoke(
+        app, ["evaluate", str(run), "--episodes", "1", "--per-episode", "--json-out", str(out)],
+        env={"COLUMNS": "200"},
+    )  # fmt: skip
+    assert printed.exit_code == 0, printed.output
+    assert "touched an obstacle" in printed.output and "falls if not" in printed.output
+    det = json.loads(out.read_text())["results"]["deterministic"]
+    assert det["touched_rate"]["count"] == 1 and det["episodes"][0]["obstacle_contact_steps"] >= 1
