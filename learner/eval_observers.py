@@ -12,6 +12,7 @@ import numpy as np
 from gaitforge.learner.evaluate_results import EpisodeResult
 from gaitforge.workers.episode import EpisodeObserver, EpisodeSummary, Observer
 from gaitforge.workers.scenes.io_names import paces_clock
+from gaitforge.workers.sim.base import HEALTHY
 
 if TYPE_CHECKING:
     from gaitforge.workers.env import MuscleEnv
@@ -25,7 +26,7 @@ class EpisodeMetrics(Observer):
     """An episode's evaluation statistics: effort (sum of excitation^2 as applied) and each
     weighted reward term summed over the steps; in imitation scenes (``info["imitation"]``
     on every step) the RMS over the steps of the pose error (rad) and whether the bound still
-    held on the last step; in obstacle scenes (``info["obstacle_contact"]``) the steps that
+    held on the last step; in obstacle scenes (``env.touching_obstacle()``) the steps that
     ended with a foot on an obstacle and the first one's time (s). :attr:`result` once the
     episode ended."""
 
@@ -66,7 +67,8 @@ class EpisodeMetrics(Observer):
                 self._pose_sq += error * error
                 self._pose_steps += 1
             self._kept = self._kept and bool(imitation.get("kept", False))
-        if self._touch_steps is not None and info.get("obstacle_contact"):
+        healthy = info.get("health") == HEALTHY
+        if self._touch_steps is not None and healthy and env.touching_obstacle():
             self._touch_steps += 1
             if self._first_touch_s is None:
                 self._first_touch_s = float(info["step"]) * env.dt

@@ -430,17 +430,13 @@ def test_obstacle_scenes_tell_the_falls_after_a_touch_from_the_others(tmp_path: 
     it."""
     under = obstacle_scene(tmp_path, [0.0, 0.0], "spheres-under-the-feet")
     ahead = obstacle_scene(tmp_path, [20.0, 30.0], "spheres-far-ahead")
-    env = MuscleEnv(under)
-    env.reset(seed=0)
-    assert env.step(np.zeros(env.action_space.shape))[4]["obstacle_contact"] is True
-    env = MuscleEnv(ahead)
-    env.reset(seed=0)
-    assert env.step(np.zeros(env.action_space.shape))[4]["obstacle_contact"] is False
-    plain = MuscleEnv(short_scene(tmp_path))
-    plain.reset(seed=0)
-    assert "obstacle_contact" not in plain.step(np.zeros(plain.action_space.shape))[4]
+    for scene, touching in ((under, True), (ahead, False), (load_scene("walk-2d"), None)):
+        env = MuscleEnv(scene)
+        env.reset(seed=0)
+        env.step(np.zeros(env.action_space.shape))
+        assert env.touching_obstacle() is touching, scene.name
 
-    policy = relaxed_policy(len(env.obs_names), env.action_space.shape[0])
+    policy = relaxed_policy(len(MuscleEnv(under).obs_names), WALK_ACT)
     touched = evaluate_policy(policy, under, episodes=2, seed=0)
     assert all(e.first_obstacle_touch_s == pytest.approx(0.01) for e in touched.episodes)
     assert all(e.obstacle_contact_steps >= 1 for e in touched.episodes)
