@@ -46,9 +46,6 @@ from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.base import HEALTHY, Health, SimState
 
 GRAVITY = 9.81
-OBSTACLE_TOUCH_M = 0.002
-"""m between the surfaces of a foot's contact sphere and an obstacle sphere that still count
-as a touch"""
 
 
 class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
@@ -254,10 +251,10 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         return np.array([nearest[0] - here, nearest[1], nearest[2]])
 
     def touching_obstacle(self) -> bool | None:
-        """Whether a foot's contact sphere touches an obstacle sphere now (their surfaces
-        within ``OBSTACLE_TOUCH_M``; the feet's spheres are what meets the obstacles on
-        either simulator); None if the scene has no obstacles. For observers: about 0.1 ms,
-        so the step itself does not ask."""
+        """Whether a foot's contact sphere overlaps an obstacle sphere now, as both
+        simulators' contacts begin (the feet's spheres are what meets the obstacles on
+        either); None if the scene has no obstacles. For observers: about 0.1 ms, so the
+        step itself does not ask."""
         if self.scene.obstacles is None:
             return None
         obstacles = self.sim.obstacles()
@@ -267,7 +264,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         forward = feet[:, None, self.sim.forward_axis] - obstacles[None, :, 0]
         up = feet[:, None, self.sim.up_axis] - obstacles[None, :, 1]
         across = np.delete(feet[:, :3], [self.sim.forward_axis, self.sim.up_axis], axis=1)
-        reach = feet[:, None, 3] + obstacles[None, :, 2] + OBSTACLE_TOUCH_M
+        reach = feet[:, None, 3] + obstacles[None, :, 2]
         return bool((forward**2 + up**2 + across**2 < reach**2).any())
 
     # ---- episode bookkeeping ------------------------------------------------------------

@@ -78,6 +78,14 @@ class MujocoSimulator:
             ],
             dtype=int,
         )
+        if len(self._obstacle_ids):
+            # The obstacles are world geoms moved every reset, but the world body's bounding
+            # volume tree is built once, at compile time, around their parked places: with
+            # it the midphase dropped every foot pair of the six farthest spheres (their
+            # branch lay 100 m behind) and the feet went through them (session 27). Without
+            # it each geom pair of two bodies is tested by its bounding spheres
+            # (geom_rbound, set with each placement).
+            m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_MIDPHASE)
         initial = {
             **topology.root_defaults,
             **{d: topology.dof_defaults[d] for d in self.dof_names},
