@@ -14,8 +14,8 @@ not fall, the simulator stayed healthy and it ran to the episode's end (``episod
 N episodes: the tracking error's mean with its t interval and the kept share with its Wilson
 interval. Other scenes leave these fields None (JSON ``null``): the keys are always there.
 
-Obstacle scenes (the env reports ``info["obstacle_contact"]`` every healthy step) add per
-episode the steps that ended with a foot touching an obstacle sphere and the first one's
+Obstacle scenes (the evaluation asks ``MuscleEnv.touching_obstacle()`` after every healthy
+step) add per episode the steps that ended with a foot touching an obstacle sphere and the first one's
 time, and over N episodes the share that touched one and the fall rate among those that did
 and those that did not (Wilson intervals; NaN where a group is empty): how much of the fall
 rate the obstacles cause. Other scenes leave these None.

@@ -2,9 +2,9 @@
 interval, rates with their 95 % Wilson interval. Imitation scenes add two columns, the
 tracking error (rad) and the share of episodes that kept the gait; obstacle scenes three,
 the share of episodes that touched an obstacle and the fall rate among those that did and
-those that did not; other scenes' tables are as they were. Where the summary or sweep table (one row
-per mode or sweep point) is wider than the terminal, it turns on its side (one row per
-quantity), so that nothing is cut or folded at 80 columns."""
+those that did not; other scenes' tables are as they were. Where the summary or sweep table
+(one row per mode or sweep point) is wider than the terminal, it turns on its side (one row
+per quantity), so that nothing is cut or folded at 80 columns."""
 
 from __future__ import annotations
 
