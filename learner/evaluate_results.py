@@ -15,10 +15,10 @@ N episodes: the tracking error's mean with its t interval and the kept share wit
 interval. Other scenes leave these fields None (JSON ``null``): the keys are always there.
 
 Obstacle scenes (the evaluation asks ``MuscleEnv.touching_obstacle()`` after every healthy
-step) add per episode the steps that ended with a foot touching an obstacle sphere and the first one's
-time, and over N episodes the share that touched one and the fall rate among those that did
-and those that did not (Wilson intervals; NaN where a group is empty): how much of the fall
-rate the obstacles cause. Other scenes leave these None.
+step) add per episode the steps that ended with a foot touching an obstacle sphere and the
+first one's time, and over N episodes the share that touched one and the fall rate among
+those that did and those that did not (Wilson intervals; NaN where a group is empty): how
+much of the fall rate the obstacles cause. Other scenes leave these None.
 """
 
 from __future__ import annotations
