@@ -356,6 +356,15 @@ class PoseErrors(Observer):
         self.steps.append(dict(info["imitation"]))
 
 
+def evaluate_run_dir(run: Path, out: Path, episodes: int) -> tuple[str, dict]:
+    """``gaitforge evaluate RUN --per-episode`` on a wide terminal: its printed output and the
+    deterministic results of the JSON it wrote to ``out``."""
+    args = ["evaluate", str(run), "--episodes", str(episodes), "--per-episode"]
+    printed = runner.invoke(app, [*args, "--json-out", str(out)], env={"COLUMNS": "200"})
+    assert printed.exit_code == 0, printed.output
+    return printed.output, json.loads(out.read_text())["results"]["deterministic"]
+
+
 def test_imitation_scenes_report_tracking_error_and_kept_gait(tmp_path: Path) -> None:
     scene = load_scene(short_scene(tmp_path, "imitate-walk-2d", episode_s=0.4))  # 10 steps
     n_obs = len(MuscleEnv(scene).obs_names)
@@ -385,31 +394,19 @@ def test_imitation_scenes_report_tracking_error_and_kept_gait(tmp_path: Path) ->
     # the printed tables and the JSON carry them; a non-imitation scene's do not
     run = tmp_path / "run"
     save(run / "checkpoints", policy, scene)
-    out = tmp_path / "eval.json"
-    printed = runner.invoke(
-        app, ["evaluate", str(run), "--episodes", "2", "--per-episode", "--json-out", str(out)],
-        env={"COLUMNS": "200"},
-    )  # fmt: skip
-    assert printed.exit_code == 0, printed.output
-    assert "tracking rad" in printed.output and "kept gait" in printed.output
-    det = json.loads(out.read_text())["results"]["deterministic"]
+    printed, det = evaluate_run_dir(run, tmp_path / "eval.json", episodes=2)
+    assert "tracking rad" in printed and "kept gait" in printed
     assert det["tracking_error_rad"]["n"] == 2 and det["kept_gait_rate"]["n"] == 2
     assert all(isinstance(e["kept_gait"], bool) for e in det["episodes"])
 
 
 def test_other_scenes_have_no_tracking_columns(walk: tuple[Path, Scene], tmp_path: Path) -> None:
     run, _ = walk
-    out = tmp_path / "eval.json"
-    printed = runner.invoke(
-        app, ["evaluate", str(run), "--episodes", "1", "--per-episode", "--json-out", str(out)],
-        env={"COLUMNS": "200"},
-    )  # fmt: skip
-    assert printed.exit_code == 0, printed.output
-    assert "tracking" not in printed.output and "kept" not in printed.output
-    det = json.loads(out.read_text())["results"]["deterministic"]
+    printed, det = evaluate_run_dir(run, tmp_path / "eval.json", episodes=1)
+    assert "tracking" not in printed and "kept" not in printed
     assert det["tracking_error_rad"] is None and det["kept_gait_rate"] is None
     assert det["episodes"][0]["tracking_error_rad"] is None
-    assert "touched" not in printed.output and det["touched_rate"] is None
+    assert "touched" not in printed and det["touched_rate"] is None
     assert det["episodes"][0]["obstacle_contact_steps"] is None
 
 
@@ -450,12 +447,6 @@ def test_obstacle_scenes_tell_the_falls_after_a_touch_from_the_others(tmp_path: 
 
     run = tmp_path / "run"
     save(run / "checkpoints", policy, under)
-    out = tmp_path / "eval.json"
-    printed = runner.invoke(
-        app, ["evaluate", str(run), "--episodes", "1", "--per-episode", "--json-out", str(out)],
-        env={"COLUMNS": "200"},
-    )  # fmt: skip
-    assert printed.exit_code == 0, printed.output
-    assert "touched an obstacle" in printed.output and "falls if not" in printed.output
-    det = json.loads(out.read_text())["results"]["deterministic"]
+    printed, det = evaluate_run_dir(run, tmp_path / "eval.json", episodes=1)
+    assert "touched an obstacle" in printed and "falls if not" in printed
     assert det["touched_rate"]["count"] == 1 and det["episodes"][0]["obstacle_contact_steps"] >= 1
