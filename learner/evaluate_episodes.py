@@ -162,9 +162,14 @@ def evaluate_policy(
 
 
 def with_target_speed(scene: Scene, target_speed: float) -> Scene:
-    """``scene`` with its task's target speed (m/s) replaced (validated again)."""
+    """``scene`` with its task's target speed (m/s) replaced (validated again); a scene that
+    draws it each episode (``task.target_speed_range``) draws ``target_speed`` every time,
+    its clock's tempo scaled from the scene's ``target_speed`` as in training."""
     data = scene.model_dump(mode="json")
-    data["task"]["target_speed"] = target_speed
+    if scene.task.target_speed_range is not None:
+        data["task"]["target_speed_range"] = (target_speed, target_speed)
+    else:
+        data["task"]["target_speed"] = target_speed
     return Scene.model_validate(data)
 
 

@@ -5,8 +5,11 @@ Observation (float32, names in ``env.obs_names``), in this order:
     locomotion only: pelvis height (m), pelvis up axis in world [3], pelvis linear [3] (m/s)
     and angular [3] (rad/s) velocity, normal ground force per foot [n_feet] (body weights);
     muscle activations [n_muscles]; previous excitations [n_muscles];
-    task: target speed (m/s) or reach target (rad); with obstacles, the nearest obstacle
-    ahead: forward distance, height, radius (m; 0, 0, 0 when none is left); imitating a
+    task: target speed (m/s; the episode's draw with ``task.target_speed_range``) or reach
+    target (rad); with obstacles, the scene's
+    ``obstacles.observe_ahead`` nearest spheres ahead of the pelvis (one whose far edge it
+    has not passed), then its ``observe_behind`` nearest passed ones: forward distance from
+    the pelvis, centre height, radius (m; 0, 0, 0 for each that does not exist); imitating a
     motion (``task.imitate``): the gait phase as ``phase_sin``, ``phase_cos``, and
     ``phase_mirror`` (+1 in a mirrored episode, -1 otherwise).
 Action (``env.act_names``): excitations [n_muscles] in [0, 1]; or, with ``action.kind:
@@ -68,6 +71,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             self.sim.dof_names.index(task.reach_dof) if task.reach_dof is not None else None
         )
         self._reach_target = 0.0
+        self._target_speed = task.target_speed
+        """m/s this episode: the scene's, or drawn from its ``target_speed_range``"""
         self._weight = GRAVITY * self.sim.report.mass
         self.reward_term_names = term_names(task)
         self.imitation = Imitation(self.scene, self.sim, self.dt) if task.imitate else None
@@ -99,6 +104,10 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         self.sim.reset(int(self.np_random.integers(2**31 - 1)))
         if self.scene.task.reach_range is not None:
             self._reach_target = float(self.np_random.uniform(*self.scene.task.reach_range))
+        if self.scene.task.target_speed_range is not None:
+            self._target_speed = float(self.np_random.uniform(*self.scene.task.target_speed_range))
+            if self.imitation is not None:
+                self.imitation.set_tempo_scale(self._target_speed / self.scene.task.target_speed)
         self._prev_excitation = np.zeros(len(self.sim.muscle_names))
         self._steps = 0
         info: dict = {"health": HEALTHY}
@@ -206,7 +215,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
     def target_speed(self) -> float | None:
         """The target_speed term's target (m/s) for the step just taken (the scene's, or with
         ``speed_target_from_clock`` the imitation clock's; None without one)."""
-        target = self.scene.task.target_speed
+        target = self._target_speed
         if self.imitation is None:
             return target
         return self.imitation.target_speed(self._steps, target)
@@ -233,22 +242,27 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
                 s.foot_forces / self._weight,
             ]
         parts += [s.activations, self._prev_excitation]
-        task = self.scene.task
-        parts.append([task.target_speed or 0.0] if self._locomotion else [self._reach_target])
+        parts.append([self._target_speed or 0.0] if self._locomotion else [self._reach_target])
         if self.scene.obstacles is not None:
-            parts.append(self._obstacle_ahead(s))
+            parts.append(self._observed_obstacles(s))
         if self.imitation is not None:
             parts.append(self.imitation.observe(self._steps))
         return np.concatenate([np.ravel(p) for p in parts]).astype(np.float32)
 
-    def _obstacle_ahead(self, s: SimState) -> np.ndarray:
+    def _observed_obstacles(self, s: SimState) -> np.ndarray:
+        """[3 * (ahead + behind)]: see the module's docstring."""
+        spec = self.scene.obstacles
         here = s.pelvis_pos[self.sim.forward_axis]
         obstacles = self.sim.obstacles()
-        ahead = obstacles[obstacles[:, 0] + obstacles[:, 2] > here]
-        if not len(ahead):
-            return np.zeros(3)
-        nearest = ahead[np.argmin(ahead[:, 0])]
-        return np.array([nearest[0] - here, nearest[1], nearest[2]])
+        obstacles = obstacles[np.argsort(obstacles[:, 0])]
+        is_ahead = obstacles[:, 0] + obstacles[:, 2] > here
+        ahead = obstacles[is_ahead][: spec.observe_ahead]
+        behind = obstacles[~is_ahead][::-1][: spec.observe_behind]
+        seen = np.zeros((spec.observe_ahead + spec.observe_behind, 3))
+        seen[: len(ahead)] = ahead
+        seen[spec.observe_ahead : spec.observe_ahead + len(behind)] = behind
+        seen[:, 0] -= here * (seen[:, 2] > 0)
+        return seen
 
     def touching_obstacle(self) -> bool | None:
         """Whether a foot's contact sphere overlaps an obstacle sphere now, as both

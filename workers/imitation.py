@@ -51,7 +51,7 @@ The tracked joints are the motion's joints that the scene keeps. The episode end
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from gaitforge.workers.bodies.topology import topology_for
@@ -84,6 +84,8 @@ class Imitation:
             raise ValueError(f"scene {scene.name!r}: task.imitate is not set")
         self.spec: Imitate = imitate
         self.motion: Motion = load_motion(scene.body, imitate.motion)
+        self.tempo = imitate.tempo
+        """the main motion's tempo this episode (:meth:`set_tempo_scale`)"""
         lead_in = imitate.lead_in
         self.crossfade = (
             None
@@ -157,13 +159,13 @@ class Imitation:
         if fade := self._fading():
             return (self.phase0 + fade.cycles(clock_s)) % 1.0
         # start_s is 0 unless the lead-in fades: the clock reads the time played
-        return (self.phase0 + clock_s * self.spec.tempo / self.motion.period_s) % 1.0
+        return (self.phase0 + clock_s * self.tempo / self.motion.period_s) % 1.0
 
     def _motion_at(self, clock_s: float) -> MotionState:
         """The motion (faded from the lead-in, at ``tempo``, not mirrored) at ``clock_s``."""
         if fade := self._fading():
             return fade.at(clock_s, self.phase0)
-        return faster(self.motion.at(self._phase_at(clock_s)), self.spec.tempo)
+        return faster(self.motion.at(self._phase_at(clock_s)), self.tempo)
 
     def _ramp_at(self, clock_s: float) -> float:
         """:meth:`ramp` at ``clock_s`` s on the episode's clock."""
@@ -181,7 +183,7 @@ class Imitation:
         times ``tempo`` and the step's clock rate; cross-faded from the lead-in after a
         standing start or a start inside the lead-in). A step asks
         for it twice (the targets' base, then tracking): the last one is kept."""
-        key = (steps, self.phase0, self.mirrored, self.standing_start, self.start_s)
+        key = (steps, self.phase0, self.mirrored, self.standing_start, self.start_s, self.tempo)
         if self._last_reference is not None and self._last_reference[0] == key:
             return self._last_reference[1]
         state = faster(self._motion_at(self._clock_s(steps)), self.clock_rate(steps))
@@ -237,6 +239,14 @@ class Imitation:
         return [float(np.sin(angle)), float(np.cos(angle)), 1.0 if self.mirrored else -1.0]
 
     # ---- reference state initialisation ----------------------------------------------
+
+    def set_tempo_scale(self, scale: float) -> None:
+        """Play the scene's main motion at ``scale`` times ``imitate.tempo`` (the lead-in
+        keeps its own): the env sets it at each reset, before :meth:`start`, to the episode's
+        drawn target speed over the scene's ``task.target_speed``."""
+        self.tempo = self.spec.tempo * scale
+        if self.crossfade is not None:
+            self.crossfade = replace(self.crossfade, main_tempo=self.tempo)
 
     def start(self, rng: np.random.Generator) -> Pose | None:
         """Draw this episode's phase, mirroring and start; the pose to start it from (None

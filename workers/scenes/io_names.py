@@ -29,8 +29,8 @@ def observation_layout(
     feet and muscles (see ``workers.env`` for units): ``q:<dof>``, ``qd:<dof>``; locomotion:
     ``pelvis_height``, ``pelvis_up_{x,y,z}``, ``pelvis_vel_{x,y,z}``,
     ``pelvis_angvel_{x,y,z}``, ``grf:<foot>``; ``act:<muscle>``, ``prev_exc:<muscle>``;
-    ``target_speed`` (locomotion) or ``reach_target``; with obstacles ``obstacle_dx``,
-    ``obstacle_height``, ``obstacle_radius``; imitating a motion ``phase_sin``,
+    ``target_speed`` (locomotion) or ``reach_target``; with obstacles the observed spheres
+    (``obstacle_names``); imitating a motion ``phase_sin``,
     ``phase_cos``, ``phase_mirror``."""
     locomotion = scene.task.kind == "locomotion"
     names = [f"q:{d}" for d in dofs] + [f"qd:{d}" for d in dofs]
@@ -42,10 +42,19 @@ def observation_layout(
     names += [f"prev_exc:{m}" for m in muscles]
     names += ["target_speed"] if locomotion else ["reach_target"]
     if scene.obstacles is not None:
-        names += ["obstacle_dx", "obstacle_height", "obstacle_radius"]
+        names += obstacle_names(scene.obstacles.observe_ahead, scene.obstacles.observe_behind)
     if scene.task.imitate is not None:
         names += ["phase_sin", "phase_cos", "phase_mirror"]
     return names
+
+
+def obstacle_names(ahead: int, behind: int) -> list[str]:
+    """Forward distance, height and radius of each observed sphere: the nearest one ahead
+    ``obstacle_{dx,height,radius}`` (the names of a scene that observes one), the k-th ahead
+    ``obstacle_<k>_*`` (k >= 2), then the k-th nearest passed ``obstacle_behind_<k>_*``."""
+    prefixes = ["obstacle"] + [f"obstacle_{k}" for k in range(2, ahead + 1)]
+    prefixes += [f"obstacle_behind_{k}" for k in range(1, behind + 1)]
+    return [f"{p}_{field}" for p in prefixes for field in ("dx", "height", "radius")]
 
 
 CLOCK_RATE_ACTION = "clock_rate"

@@ -67,6 +67,12 @@ class Obstacles(_Strict):
     height_range: tuple[float, float] = Field(
         default=(-0.5, 0.5), description="centre height in radii above the ground"
     )
+    observe_ahead: Annotated[int, Field(ge=1, le=10)] = Field(
+        default=1, description="spheres observed ahead of the pelvis, nearest first"
+    )
+    observe_behind: Annotated[int, Field(ge=0, le=10)] = Field(
+        default=0, description="spheres observed that the pelvis has passed, nearest first"
+    )
 
     @model_validator(mode="after")
     def _ranges(self) -> Obstacles:
@@ -101,6 +107,11 @@ class RewardWeights(_Strict):
 class Task(_Strict):
     kind: Literal["locomotion", "reach"]
     target_speed: NonNegative | None = Field(default=None, description="m/s, locomotion")
+    target_speed_range: tuple[float, float] | None = Field(
+        default=None,
+        description="m/s; drawn uniformly each episode in place of target_speed (observed and "
+        "rewarded; an imitation clock's main motion plays at tempo times drawn / target_speed)",
+    )
     min_pelvis_height: float | None = Field(
         default=None, description="m; the episode terminates below it (a fall)"
     )
@@ -124,6 +135,14 @@ class Task(_Strict):
             )
         if self.kind == "locomotion" and self.min_pelvis_height is None:
             raise ValueError("a locomotion task needs min_pelvis_height")
+        if self.target_speed_range is not None:
+            low, high = self.target_speed_range
+            if not self.target_speed or not 0 < low <= high:
+                raise ValueError(
+                    "target_speed_range must be (low, high) m/s with 0 < low <= high, on a "
+                    f"task with target_speed > 0 (the clock's pace); got {(low, high)} with "
+                    f"target_speed {self.target_speed}"
+                )
         return self
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import catalogue, load_scene
+from gaitforge.workers.scenes.spec import Scene
 from gymnasium.utils.env_checker import check_env
 
 CASES = [(name, b) for name in catalogue() for b in load_scene(name).backends]
@@ -94,6 +95,28 @@ def test_obstacles_are_replaced_each_episode_and_the_nearest_one_ahead_is_observ
     assert obs_b[dx] == pytest.approx(nearest[0] - env.sim.state().pelvis_pos[0], abs=1e-5)
     assert obs_b[radius] == pytest.approx(nearest[2], abs=1e-6)
     assert 0.05 <= obs_a[radius] <= 0.1
+
+
+def test_a_scene_can_observe_more_spheres_ahead_and_the_ones_passed() -> None:
+    scene = load_scene("obstacles-2d").model_dump()
+    scene["obstacles"].update(x_range=(-3.0, 3.0), observe_ahead=2, observe_behind=2)
+    env = MuscleEnv(Scene.model_validate(scene))
+    names = env.obs_names
+    obs, _ = env.reset(seed=3)
+    here = env.sim.state().pelvis_pos[0]
+    spheres = env.sim.obstacles()
+    passed = spheres[:, 0] + spheres[:, 2] <= here
+    ahead, behind = spheres[~passed], spheres[passed][::-1]
+    assert len(ahead) >= 2 and len(behind) >= 2
+    for prefix, sphere in [
+        ("obstacle", ahead[0]),
+        ("obstacle_2", ahead[1]),
+        ("obstacle_behind_1", behind[0]),
+        ("obstacle_behind_2", behind[1]),
+    ]:
+        got = [obs[names.index(f"{prefix}_{field}")] for field in ("dx", "height", "radius")]
+        assert got == pytest.approx([sphere[0] - here, sphere[1], sphere[2]], abs=1e-5)
+    assert names.index("obstacle_radius") + 1 == names.index("obstacle_2_dx")
 
 
 def test_a_fall_terminates_the_episode() -> None:
