@@ -6,12 +6,12 @@ Observation (float32, names in ``env.obs_names``), in this order:
     and angular [3] (rad/s) velocity, normal ground force per foot [n_feet] (body weights);
     muscle activations [n_muscles]; previous excitations [n_muscles];
     task: target speed (m/s; the episode's draw with ``task.target_speed_range``) or reach
-    target (rad); with obstacles, the scene's
-    ``obstacles.observe_ahead`` nearest spheres ahead of the pelvis (one whose far edge it
-    has not passed), then its ``observe_behind`` nearest passed ones: forward distance from
-    the pelvis, centre height, radius (m; 0, 0, 0 for each that does not exist); imitating a
-    motion (``task.imitate``): the gait phase as ``phase_sin``, ``phase_cos``, and
-    ``phase_mirror`` (+1 in a mirrored episode, -1 otherwise).
+    target (rad); with obstacles, the scene's ``obstacles.observe_ahead`` nearest spheres
+    ahead of the pelvis (one whose far edge it has not passed), then its ``observe_behind``
+    nearest passed ones: forward distance from the pelvis, centre height, radius (m; 0, 0,
+    0 for each that does not exist); imitating a motion (``task.imitate``): the gait phase
+    as ``phase_sin``, ``phase_cos``, and ``phase_mirror`` (+1 in a mirrored episode, -1
+    otherwise).
 Action (``env.act_names``): excitations [n_muscles] in [0, 1]; or, with ``action.kind:
 joint_targets``, targets [n_dofs] in [0, 1] around a base pose that the reflex layer
 (``workers.reflex``) turns into excitations (``prev_exc`` then holds the step's mean

@@ -1,51 +1,87 @@
-"""For each first touch of a sphere: was it the sphere the observation showed at that moment?"""
-import sys, json
-import numpy as np, torch, mujoco
+"""Which spheres a policy touches on obstacles-2d-clock-one-leg, and whether the observation
+showed each at the moment of its first touch (the nearest one ahead of the pelvis is all
+it shows). Session 28's diagnostic, kept with its result (seen-60min.json).
+
+Usage: python seen_spheres.py CHECKPOINT FIRST_SEED EPISODES OUT.json
+"""
+
+from __future__ import annotations
+
+import json
+import sys
 from pathlib import Path
+
+import mujoco
+import numpy as np
+import torch
 from gaitforge.learner.checkpoint import load_policy
 from gaitforge.learner.evaluate import fitted_to_scene
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import load_scene
 
-ckpt, first, n = Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
-scene = load_scene("obstacles-2d-clock-one-leg").resolved()
-policy, meta = load_policy(ckpt)
-policy, names = fitted_to_scene(policy, meta.obs_names, scene, "mujoco")
-env = MuscleEnv(scene); sim = env.sim; m = sim.model
-ids = sim._obstacle_ids.tolist()
-rows = []
-for seed in range(first, first + n):
+
+def first_touches(env: MuscleEnv, policy, seed: int) -> dict:
+    """One deterministic episode: each sphere's first touch (time s, whether it was the one
+    observed, its rank among the spheres ahead, -1 if passed, and the foot geom)."""
+    sim, model = env.sim, env.sim.model
+    ids = sim._obstacle_ids.tolist()
     obs, _ = env.reset(seed=seed)
-    touched = {}
-    for k in range(scene.steps_per_episode):
-        o = sim.obstacles()
+    touched: dict[int, dict] = {}
+    for k in range(env.scene.steps_per_episode):
+        spheres = sim.obstacles()
         here = float(sim.state().pelvis_pos[sim.forward_axis])
-        ahead = np.where(o[:, 0] + o[:, 2] > here)[0]
-        seen = int(ahead[np.argmin(o[ahead, 0])]) if len(ahead) else -1
+        ahead = np.where(spheres[:, 0] + spheres[:, 2] > here)[0]
+        seen = int(ahead[np.argmin(spheres[ahead, 0])]) if len(ahead) else -1
         with torch.no_grad():
-            a = policy.mean_action(torch.as_tensor(obs[None], dtype=torch.float32))[0].numpy()
-        obs, r, term, trunc, info = env.step(a)
-        d = sim.data
-        for c in d.contact[: d.ncon]:
-            for g, other in ((c.geom1, c.geom2), (c.geom2, c.geom1)):
-                if g in ids and ids.index(g) not in touched:
-                    j = ids.index(g)
-                    rank = int(np.sum(o[ahead, 0] < o[j, 0])) if j in ahead else -1
-                    touched[j] = dict(t=round((k + 1) * env.dt, 2), seen=(j == seen), rank=rank,
-                                      dx=round(float(o[j, 0] - here), 2), r=round(float(o[j, 2]), 3),
-                                      h=round(float(o[j, 1]), 3),
-                                      foot=mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, other))
-        if term or trunc:
+            action = policy.mean_action(torch.as_tensor(obs[None], dtype=torch.float32))[0]
+        obs, _, terminated, truncated, _ = env.step(action.numpy())
+        for contact in sim.data.contact[: sim.data.ncon]:
+            for geom, other in ((contact.geom1, contact.geom2), (contact.geom2, contact.geom1)):
+                j = ids.index(geom) if geom in ids else None
+                if j is None or j in touched:
+                    continue
+                rank = int(np.sum(spheres[ahead, 0] < spheres[j, 0])) if j in ahead else -1
+                touched[j] = {
+                    "t": round((k + 1) * env.dt, 2),
+                    "seen": j == seen,
+                    "rank": rank,
+                    "dx": round(float(spheres[j, 0] - here), 2),
+                    "foot": mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, other),
+                }
+        if terminated or truncated:
             break
-    fell = bool(term and not trunc)
-    rows.append(dict(seed=seed, fell=fell, t_end=round((k + 1) * env.dt, 2), touches=list(touched.values())))
-json.dump(rows, open(sys.argv[4], "w"), indent=0)
-T = [t for r in rows for t in r["touches"]]
-print("episodes", len(rows), "falls", sum(r["fell"] for r in rows), "touches", len(T))
-print("seen", sum(t["seen"] for t in T), "rank(ahead order; -1 behind pelvis)",
-      {k: sum(t["rank"] == k for t in T) for k in sorted({t["rank"] for t in T})})
-# the last touch before each fall
-last = [max(r["touches"], key=lambda t: t["t"]) for r in rows if r["fell"] and r["touches"]]
-print("falls' last touch: seen", sum(t["seen"] for t in last), "of", len(last),
-      {k: sum(t["rank"] == k for t in last) for k in sorted({t["rank"] for t in last})})
-print("dx at touch", np.percentile([t["dx"] for t in T], [10, 50, 90]))
+    return {
+        "seed": seed,
+        "fell": bool(terminated and not truncated),
+        "touches": list(touched.values()),
+    }
+
+
+def main() -> None:
+    checkpoint, first, episodes, out = (
+        Path(sys.argv[1]),
+        int(sys.argv[2]),
+        int(sys.argv[3]),
+        sys.argv[4],
+    )
+    scene = load_scene("obstacles-2d-clock-one-leg").resolved()
+    policy, meta = load_policy(checkpoint)
+    policy, _ = fitted_to_scene(policy, meta.obs_names, scene, "mujoco")
+    env = MuscleEnv(scene)
+    rows = [first_touches(env, policy, seed) for seed in range(first, first + episodes)]
+    Path(out).write_text(json.dumps(rows, indent=0))
+    touches = [t for r in rows for t in r["touches"]]
+    ranks = sorted({t["rank"] for t in touches})
+    print("episodes", len(rows), "falls", sum(r["fell"] for r in rows), "touches", len(touches))
+    print(
+        "seen",
+        sum(t["seen"] for t in touches),
+        "by rank (-1: passed)",
+        {k: sum(t["rank"] == k for t in touches) for k in ranks},
+    )
+    last = [max(r["touches"], key=lambda t: t["t"]) for r in rows if r["fell"] and r["touches"]]
+    print("falls after a touch", len(last), "the last touch seen", sum(t["seen"] for t in last))
+
+
+if __name__ == "__main__":
+    main()
