@@ -107,7 +107,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.scene.task.target_speed_range is not None:
             self._target_speed = float(self.np_random.uniform(*self.scene.task.target_speed_range))
             if self.imitation is not None:
-                self.imitation.set_tempo_scale(self._target_speed / self.scene.task.target_speed)
+                ratio = self._target_speed / self.scene.task.target_speed
+                self.imitation.set_tempo_scale(ratio**self.imitation.spec.tempo_speed_exponent)
         self._prev_excitation = np.zeros(len(self.sim.muscle_names))
         self._steps = 0
         info: dict = {"health": HEALTHY}

@@ -3,21 +3,22 @@
 The gait phase runs with the env's time: ``phase = phase0 + t * tempo / period (mod 1)``,
 ``t`` the control steps taken times the control period; ``imitate.tempo`` plays the motion
 faster or slower (its speeds scale with it), times the episode's target speed over the
-scene's ``task.target_speed`` in a scene that draws one (``task.target_speed_range``). Each
-reset draws ``phase0`` (uniform, or 0) and whether the episode is mirrored (left and right
-legs swapped, p = 0.5), and starts the body in the reference state there (joint angles plus
-uniform noise, their speeds, pelvis height, pitch, list, rotation and their rates, forward
-and vertical speed; ``Simulator.set_pose``); or, with ``init.start: standing`` or in a
-fraction ``init.standing_fraction`` of episodes, in the body's standing reset pose, and then
-:meth:`Imitation.ramp` says how far (0..1) the joint-target base, and the pose the pose term
-and ``max_pose_error_rad`` compare with, have blended from standing into the motion (over
-``init.ramp_s``). With ``imitate.lead_in``, an episode that starts standing plays the
-lead-in motion first and cross-fades into the scene's (``workers.motions.playback``: a run
-that starts as a walk); the phase, the reference and (with ``speed_target_from_clock``) the
-target speed of the ``target_speed`` term follow it. In a fraction ``init.lead_in_fraction``
-of episodes the body starts part way along that way in, in the faded reference state at a
-random time ``start_s`` past the ramp, and the episode's clock reads ``start_s`` plus the
-time since (reference state initialisation along the fade).
+scene's ``task.target_speed`` to the power ``imitate.tempo_speed_exponent`` in a scene that
+draws one (``task.target_speed_range``). Each reset draws ``phase0`` (uniform, or 0) and
+whether the episode is mirrored (left and right legs swapped, p = 0.5), and starts the body
+in the reference state there (joint angles plus uniform noise, their speeds, pelvis height,
+pitch, list, rotation and their rates, forward and vertical speed; ``Simulator.set_pose``);
+or, with ``init.start: standing`` or in a fraction ``init.standing_fraction`` of episodes,
+in the body's standing reset pose, and then :meth:`Imitation.ramp` says how far (0..1) the
+joint-target base, and the pose the pose term and ``max_pose_error_rad`` compare with, have
+blended from standing into the motion (over ``init.ramp_s``). With ``imitate.lead_in``, an
+episode that starts standing plays the lead-in motion first and cross-fades into the scene's
+(``workers.motions.playback``: a run that starts as a walk); the phase, the reference and
+(with ``speed_target_from_clock``) the target speed of the ``target_speed`` term follow it.
+In a fraction ``init.lead_in_fraction`` of episodes the body starts part way along that way
+in, in the faded reference state at a random time ``start_s`` past the ramp, and the
+episode's clock reads ``start_s`` plus the time since (reference state initialisation along
+the fade).
 
 With ``imitate.clock_rate_span`` the policy paces the clock: the env hands each step's
 ``clock_rate`` action entry ``a`` to :meth:`Imitation.advance` before anything reads the
@@ -245,7 +246,8 @@ class Imitation:
     def set_tempo_scale(self, scale: float) -> None:
         """Play the scene's main motion at ``scale`` times ``imitate.tempo`` (the lead-in
         keeps its own): the env sets it at each reset, before :meth:`start`, to the episode's
-        drawn target speed over the scene's ``task.target_speed``."""
+        drawn target speed over the scene's ``task.target_speed``, to the power
+        ``imitate.tempo_speed_exponent``."""
         self.tempo = self.spec.tempo * scale
         if self.crossfade is not None:
             self.crossfade = replace(self.crossfade, main_tempo=self.tempo)

@@ -140,6 +140,13 @@ class Imitate(_Strict):
         description="the motion plays this many times faster (a shorter period; joint, pelvis "
         "and forward speeds times tempo): a walk at another pace with the same strides",
     )
+    tempo_speed_exponent: Annotated[float, Field(ge=0, le=1)] = Field(
+        default=1.0,
+        description="in a scene that draws its target speed (task.target_speed_range), the "
+        "motion plays at tempo times (draw / task.target_speed) to this power: 1 scales the "
+        "cadence with the target (the same strides), 0 keeps the cadence (the speed from the "
+        "stride's length); the lead-in keeps its tempo",
+    )
     lead_in: LeadIn | None = Field(
         default=None,
         description="after a standing start (init.start: standing or standing_fraction), "

@@ -110,7 +110,8 @@ class Task(_Strict):
     target_speed_range: tuple[float, float] | None = Field(
         default=None,
         description="m/s; drawn uniformly each episode in place of target_speed (observed and "
-        "rewarded; an imitation clock's main motion plays at tempo times drawn / target_speed)",
+        "rewarded; an imitation clock's main motion plays at tempo times (drawn / target_speed) "
+        "** imitate.tempo_speed_exponent)",
     )
     min_pelvis_height: float | None = Field(
         default=None, description="m; the episode terminates below it (a fall)"
