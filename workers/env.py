@@ -107,8 +107,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.scene.task.target_speed_range is not None:
             self._target_speed = float(self.np_random.uniform(*self.scene.task.target_speed_range))
             if self.imitation is not None:
-                ratio = self._target_speed / self.scene.task.target_speed
-                self.imitation.set_tempo_scale(ratio**self.imitation.spec.tempo_speed_exponent)
+                self.imitation.follow_target_speed(self._target_speed)
         self._prev_excitation = np.zeros(len(self.sim.muscle_names))
         self._steps = 0
         info: dict = {"health": HEALTHY}
@@ -257,12 +256,12 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         obstacles = self.sim.obstacles()
         obstacles = obstacles[np.argsort(obstacles[:, 0])]
         is_ahead = obstacles[:, 0] + obstacles[:, 2] > here
-        ahead = obstacles[is_ahead][: spec.observe_ahead]
-        behind = obstacles[~is_ahead][::-1][: spec.observe_behind]
+        relative = obstacles - [here, 0.0, 0.0]
+        ahead = relative[is_ahead][: spec.observe_ahead]
+        behind = relative[~is_ahead][::-1][: spec.observe_behind]
         seen = np.zeros((spec.observe_ahead + spec.observe_behind, 3))
         seen[: len(ahead)] = ahead
         seen[spec.observe_ahead : spec.observe_ahead + len(behind)] = behind
-        seen[:, 0] -= here * (seen[:, 2] > 0)
         return seen
 
     def touching_obstacle(self) -> bool | None:

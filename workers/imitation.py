@@ -88,7 +88,9 @@ class Imitation:
         self.spec: Imitate = imitate
         self.motion: Motion = load_motion(scene.body, imitate.motion)
         self.tempo = imitate.tempo
-        """the main motion's tempo this episode (:meth:`set_tempo_scale`)"""
+        """the main motion's tempo this episode (:meth:`follow_target_speed`)"""
+        self.nominal_speed = scene.task.target_speed
+        """m/s: the target speed the scene's ``tempo`` is set for"""
         lead_in = imitate.lead_in
         self.crossfade = (
             None
@@ -243,12 +245,13 @@ class Imitation:
 
     # ---- reference state initialisation ----------------------------------------------
 
-    def set_tempo_scale(self, scale: float) -> None:
-        """Play the scene's main motion at ``scale`` times ``imitate.tempo`` (the lead-in
-        keeps its own): the env sets it at each reset, before :meth:`start`, to the episode's
-        drawn target speed over the scene's ``task.target_speed``, to the power
-        ``imitate.tempo_speed_exponent``."""
-        self.tempo = self.spec.tempo * scale
+    def follow_target_speed(self, target_speed: float) -> None:
+        """Play the scene's main motion at ``imitate.tempo`` times (``target_speed``, m/s,
+        over the scene's ``task.target_speed``) to the power ``imitate.tempo_speed_exponent``
+        (the lead-in keeps its own tempo): the env calls it at each reset of a scene that
+        draws its target speed, before :meth:`start`."""
+        ratio = target_speed / self.nominal_speed
+        self.tempo = self.spec.tempo * ratio**self.spec.tempo_speed_exponent
         if self.crossfade is not None:
             self.crossfade = replace(self.crossfade, main_tempo=self.tempo)
 
