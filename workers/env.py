@@ -164,6 +164,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             target_speed=self.target_speed(),
             reach_index=self._reach_index,
             reach_target=self._reach_target,
+            touching_obstacle=bool(self.scene.task.reward.obstacle_touch)
+            and bool(self.touching_obstacle()),
         )
         terms = weighted(reward_terms(state, ctx), self.scene.task.reward)
         kept = True

@@ -102,6 +102,7 @@ class RewardWeights(_Strict):
     upright: float = 0.0
     alive: float = 0.0
     reach: float = 0.0
+    obstacle_touch: float = 0.0
 
 
 class Task(_Strict):
@@ -216,6 +217,11 @@ class Scene(_Strict):
                 )
         if self.action.targets:
             self._check_reflex()
+        if self.task.reward.obstacle_touch and self.obstacles is None:
+            raise ValueError(
+                f"task.reward.obstacle_touch {self.task.reward.obstacle_touch}: the scene has no "
+                "obstacles to touch (set obstacles, or the weight to 0)"
+            )
         timeconst = self.contact_timeconst_s
         if isinstance(timeconst, tuple) and timeconst[0] > timeconst[1]:
             raise ValueError(f"contact_timeconst_s: low {timeconst[0]} > high {timeconst[1]}")
