@@ -3,7 +3,9 @@ where it came from and does its scene's 10 s from standing on the catalogue's cl
 (real MuJoCo, deterministic episodes; the 100-episode evaluation each was shipped with is in
 its meta.json): the walker walks walk-2d-clock (6 % falls at 1.29 m/s), the runner runs
 run-2d-clock-one-leg, run-2d's scene option whose clock leads with the same leg every start
-(5 % falls at 3.03 m/s: run-2d's target is 3 m/s at 10 %)."""
+(5 % falls at 3.03 m/s: run-2d's target is 3 m/s at 10 %), and the obstacle runner runs
+obstacles-2d-clock-one-leg, obstacles-2d's ten spheres on that clock (8 % falls at
+3.23 m/s: obstacles-2d's target is 2 m/s at 10 %)."""
 
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ from gaitforge.learner.evaluate import evaluate_checkpoint
 
 POLICIES = Path(__file__).resolve().parents[2] / "examples" / "policies"
 WALKER, RUNNER = POLICIES / "walk-2d", POLICIES / "run-2d"
+OBSTACLE_RUNNER = POLICIES / "obstacles-2d"
 
 
 def test_the_shipped_walker_names_its_making() -> None:
@@ -65,6 +68,33 @@ def test_the_shipped_runner_runs_from_standing() -> None:
     at a mean of at least 2.5 m/s (they run about 3.1; the walker walks 1.3)."""
     report = evaluate_checkpoint(RUNNER, scene="run-2d-clock-one-leg", episodes=10)
     result = report.results["deterministic"]
+    assert result.fall_rate.count <= 5, result.fall_rate
+    runs = [e for e in result.episodes if not e.fell]
+    assert all(e.time_s == pytest.approx(10.0) for e in runs)
+    assert sum(e.distance_m / e.time_s for e in runs) / len(runs) >= 2.5
+
+
+def test_the_shipped_obstacle_runner_names_its_making() -> None:
+    """It names the A/B that made it from the shipped runner and its evaluation on the 100
+    episodes obstacles-2d is judged on."""
+    provenance = json.loads((OBSTACLE_RUNNER / "meta.json").read_text())["provenance"]
+    assert provenance["seed"] == 1 and provenance["commit"]
+    assert "bench/job_arms.py" in provenance["command"]
+    assert "init_from_action_std=0.1" in provenance["command"]
+    assert provenance["evaluation"]["scene"] == "obstacles-2d-clock-one-leg"
+    assert provenance["evaluation"]["episodes"] == 100
+    assert provenance["evaluation"]["fall_rate"] <= 0.1
+    assert provenance["evaluation"]["mean_speed_m_s"] >= 2.0
+    assert not (OBSTACLE_RUNNER / "optimizer.safetensors").exists()
+
+
+def test_the_shipped_obstacle_runner_runs_over_the_spheres() -> None:
+    """Episodes 0-9 of obstacles-2d-clock-one-leg: its feet meet the spheres, and at most
+    half the episodes fall (none of 0-9 fell, 8 of 0-99); those that stand run the whole
+    10 s at a mean of at least 2.5 m/s (they run about 3.3)."""
+    report = evaluate_checkpoint(OBSTACLE_RUNNER, scene="obstacles-2d-clock-one-leg", episodes=10)
+    result = report.results["deterministic"]
+    assert result.touched_rate.count >= 5, result.touched_rate
     assert result.fall_rate.count <= 5, result.fall_rate
     runs = [e for e in result.episodes if not e.fell]
     assert all(e.time_s == pytest.approx(10.0) for e in runs)
