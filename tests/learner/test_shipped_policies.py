@@ -20,6 +20,20 @@ WALKER, RUNNER = POLICIES / "walk-2d", POLICIES / "run-2d"
 OBSTACLE_RUNNER = POLICIES / "obstacles-2d"
 
 
+def judged_provenance(policy: Path, scene: str, min_speed_m_s: float) -> dict:
+    """``policy``'s provenance, once it is known to be policy and normaliser only and to cite
+    its evaluation on the 100 episodes of ``scene`` its task is judged on, within the
+    target: at most 10 % falls at ``min_speed_m_s`` or more."""
+    provenance = json.loads((policy / "meta.json").read_text())["provenance"]
+    evaluation = provenance["evaluation"]
+    assert provenance["commit"]
+    assert evaluation["scene"] == scene and evaluation["episodes"] == 100
+    assert evaluation["fall_rate"] <= 0.1
+    assert evaluation["mean_speed_m_s"] >= min_speed_m_s
+    assert not (policy / "optimizer.safetensors").exists()
+    return provenance
+
+
 def test_the_shipped_walker_names_its_making() -> None:
     meta = json.loads((WALKER / "meta.json").read_text())
     provenance = meta["provenance"]
@@ -50,16 +64,11 @@ def test_the_shipped_runner_names_its_making() -> None:
     """It names the commands that made it (the 60-minute bench run whose imitation
     checkpoint it went on from, then the jobs and the lent machine's run that went on) and
     its evaluation, on the 100 episodes run-2d is judged on."""
-    provenance = json.loads((RUNNER / "meta.json").read_text())["provenance"]
-    assert provenance["seed"] == 0 and provenance["commit"]
+    provenance = judged_provenance(RUNNER, "run-2d-clock-one-leg", min_speed_m_s=3.0)
+    assert provenance["seed"] == 0
     assert "bench/learning.py" in provenance["command"]
     assert "gaitforge train" in provenance["command"]
     assert "one-leg/long/device.sh" in provenance["command"]
-    assert provenance["evaluation"]["scene"] == "run-2d-clock-one-leg"
-    assert provenance["evaluation"]["episodes"] == 100
-    assert provenance["evaluation"]["fall_rate"] <= 0.1
-    assert provenance["evaluation"]["mean_speed_m_s"] >= 3.0
-    assert not (RUNNER / "optimizer.safetensors").exists()
 
 
 def test_the_shipped_runner_runs_from_standing() -> None:
@@ -77,15 +86,10 @@ def test_the_shipped_runner_runs_from_standing() -> None:
 def test_the_shipped_obstacle_runner_names_its_making() -> None:
     """It names the A/B that made it from the shipped runner and its evaluation on the 100
     episodes obstacles-2d is judged on."""
-    provenance = json.loads((OBSTACLE_RUNNER / "meta.json").read_text())["provenance"]
-    assert provenance["seed"] == 1 and provenance["commit"]
+    provenance = judged_provenance(OBSTACLE_RUNNER, "obstacles-2d-clock-one-leg", 2.0)
+    assert provenance["seed"] == 1
     assert "bench/job_arms.py" in provenance["command"]
     assert "init_from_action_std=0.1" in provenance["command"]
-    assert provenance["evaluation"]["scene"] == "obstacles-2d-clock-one-leg"
-    assert provenance["evaluation"]["episodes"] == 100
-    assert provenance["evaluation"]["fall_rate"] <= 0.1
-    assert provenance["evaluation"]["mean_speed_m_s"] >= 2.0
-    assert not (OBSTACLE_RUNNER / "optimizer.safetensors").exists()
 
 
 def test_the_shipped_obstacle_runner_runs_over_the_spheres() -> None:
