@@ -26,7 +26,7 @@ EVALUATION = {"eval_fall_rate": "falls (fraction)", "eval_speed": "mean speed (m
 TRAINING = {"fall_rate": "training falls (fraction)", "speed": "training speed (m/s)"}
 
 
-def evaluations(run_dir: Path, series: dict[str, str] = EVALUATION) -> dict[str, list]:
+def scalar_series(run_dir: Path, series: dict[str, str]) -> dict[str, list]:
     """Each of ``series`` (names of ``train/`` scalars) in ``run_dir/tb``: (env steps,
     value) pairs, in step order.
 
@@ -59,7 +59,7 @@ def main() -> None:
     figure, axes = plt.subplots(1, len(wanted), figsize=(6 * len(wanted), 4))
     table = Table("run", "env steps", *wanted.values())
     for run, label in zip(args.runs, labels, strict=True):
-        series = evaluations(run, wanted)
+        series = scalar_series(run, wanted)
         for ax, (name, title) in zip(axes, wanted.items(), strict=True):
             steps, values = zip(*series[name], strict=True)
             ax.plot([s / 1e6 for s in steps], values, marker="o", label=label)
