@@ -33,6 +33,8 @@ from gaitforge.workers.episode import EpisodeSummary, Observer
 from gaitforge.workers.scenes import Scene, catalogue_file, load_scene
 from typer.testing import CliRunner
 
+from tests.workers.test_obstacle_touch import obstacle_scene
+
 runner = CliRunner()
 WALK_OBS, WALK_ACT = 61, 18
 
@@ -408,17 +410,6 @@ def test_other_scenes_have_no_tracking_columns(walk: tuple[Path, Scene], tmp_pat
     assert det["episodes"][0]["tracking_error_rad"] is None
     assert "touched" not in printed and det["touched_rate"] is None
     assert det["episodes"][0]["obstacle_contact_steps"] is None
-
-
-def obstacle_scene(tmp_path: Path, x_range: list[float], name: str) -> Scene:
-    """obstacles-2d for 0.3 s with its 10 spheres, each 10 cm, centred on the ground within
-    ``x_range`` (m ahead of the start)."""
-    data = yaml.safe_load(catalogue_file("obstacles-2d").read_text())
-    data.update(name=name, episode_s=0.3)
-    data["obstacles"].update(x_range=x_range, radius_range=[0.1, 0.1], height_range=[0, 0])
-    path = tmp_path / f"{name}.yaml"
-    path.write_text(yaml.safe_dump(data))
-    return load_scene(path)
 
 
 def test_obstacle_scenes_tell_the_falls_after_a_touch_from_the_others(tmp_path: Path) -> None:

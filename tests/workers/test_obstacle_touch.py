@@ -13,14 +13,16 @@ from gaitforge.workers.scenes import catalogue_file, load_scene
 from gaitforge.workers.scenes.spec import Scene
 
 
-def spheres_at(tmp_path: Path, x_range: list[float], weight: float) -> Scene:
-    """obstacles-2d for 0.2 s, its 10 spheres 10 cm and centred on the ground within
-    ``x_range`` (m ahead of the start), the touch term at ``weight``."""
+def obstacle_scene(
+    tmp_path: Path, x_range: list[float], name: str, touch_weight: float = 0.0
+) -> Scene:
+    """obstacles-2d for 0.3 s with its 10 spheres, each 10 cm, centred on the ground within
+    ``x_range`` (m ahead of the start), the obstacle_touch term at ``touch_weight``."""
     data = yaml.safe_load(catalogue_file("obstacles-2d").read_text())
-    data.update(name="touch", episode_s=0.2)
+    data.update(name=name, episode_s=0.3)
     data["obstacles"].update(x_range=x_range, radius_range=[0.1, 0.1], height_range=[0, 0])
-    data["task"]["reward"]["obstacle_touch"] = weight
-    path = tmp_path / f"touch-{x_range[0]}-{weight}.yaml"
+    data["task"]["reward"]["obstacle_touch"] = touch_weight
+    path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(data))
     return load_scene(path)
 
@@ -40,10 +42,11 @@ def touch_terms(scene: Scene) -> list[float]:
 
 
 def test_steps_ending_on_a_sphere_are_charged_and_others_are_not(tmp_path: Path) -> None:
-    under_the_feet = touch_terms(spheres_at(tmp_path, [0.0, 0.0], weight=2.0))
+    under_the_feet = touch_terms(obstacle_scene(tmp_path, [0.0, 0.0], "under", touch_weight=2))
     assert under_the_feet and all(term == -2.0 for term in under_the_feet)
-    assert set(touch_terms(spheres_at(tmp_path, [20.0, 30.0], weight=2.0))) == {0.0}
-    assert set(touch_terms(spheres_at(tmp_path, [0.0, 0.0], weight=0.0))) == {0.0}
+    far_ahead = obstacle_scene(tmp_path, [20.0, 30.0], "ahead", touch_weight=2)
+    assert set(touch_terms(far_ahead)) == {0.0}
+    assert set(touch_terms(obstacle_scene(tmp_path, [0.0, 0.0], "unweighed"))) == {0.0}
 
 
 def test_a_scene_without_obstacles_cannot_weigh_the_touch(tmp_path: Path) -> None:
