@@ -60,6 +60,13 @@ class PPOSettings(BaseModel):
     """env steps gathered per update (whole fragments: at least this many)"""
     mirror: bool = False
     """add each sample's left-right mirror image to the batch (bilateral bodies)"""
+    decoupled: bool = False
+    """clip each update around the policy as it was when the update began (the *proximal*
+    policy), not around the one that sampled the batch, and weight each sample by their
+    probability ratio (capped at ``MAX_BEHAVIOUR_WEIGHT``): PPO's decoupled objective (Hilton
+    et al. 2021, "Batch size-invariance for policy optimization"). The same as plain PPO when
+    the batch was sampled by the current weights (in-process rollouts); with Ray actors a
+    batch is sampled by the weights of one update before (the trainer's ``policy_lag``)"""
 
     def at(self, progress: float) -> PPOSettings:
         """These settings ``progress`` (0..1, env steps of the stage over its budget) through
@@ -79,6 +86,10 @@ class PPOSettings(BaseModel):
         """How many minibatches a batch of ``samples`` samples is cut into."""
         return max(1, round(samples / self.minibatch_size))
 
+
+MAX_BEHAVIOUR_WEIGHT = 2.0
+"""Cap on a sample's weight pi_proximal / pi_behaviour in the decoupled objective (a sample
+the previous update made far likelier would otherwise own its minibatch)."""
 
 FROM_ENV = ("obs", "action", "logp", "value", "reward", "bootstrap_value", "last_value")
 """Fragment arrays checked before any arithmetic, so a NaN is named where it entered."""
@@ -120,10 +131,12 @@ def check_finite(tensors: dict[str, torch.Tensor]) -> None:
             )
 
 
-def clipped_surrogate_loss(ratio: torch.Tensor, adv: torch.Tensor, clip: float) -> torch.Tensor:
-    """PPO's policy loss: ``-mean(min(r A, clip(r, 1 - eps, 1 + eps) A))`` over ratios
-    ``ratio`` [N] and advantages ``adv`` [N]."""
-    return -torch.min(ratio * adv, ratio.clamp(1 - clip, 1 + clip) * adv).mean()
+def clipped_surrogate_loss(
+    ratio: torch.Tensor, adv: torch.Tensor, clip: float, weight: torch.Tensor | float = 1.0
+) -> torch.Tensor:
+    """PPO's policy loss: ``-mean(w min(r A, clip(r, 1 - eps, 1 + eps) A))`` over ratios
+    ``ratio`` [N], advantages ``adv`` [N] and sample weights ``weight`` ([N] or 1)."""
+    return -(weight * torch.min(ratio * adv, ratio.clamp(1 - clip, 1 + clip) * adv)).mean()
 
 
 def _clip_groups(policy: GaussianPolicy) -> list[list[torch.nn.Parameter]]:
@@ -166,15 +179,16 @@ def ppo_update(
     n = batch["obs"].shape[0]
     adv = batch["advantage"]
     adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+    proximal_logp, behaviour_weight = _proximal(policy, batch, cfg.decoupled)
     stats: dict[str, float] = {}
     for epoch in range(cfg.epochs):
         order = torch.randperm(n, generator=generator)
         kls = []
         for idx in order.chunk(cfg.minibatches(n)):
             logp, entropy, value = policy.evaluate(batch["obs"][idx], batch["action"][idx])
-            log_ratio = logp - batch["logp"][idx]
+            log_ratio = logp - proximal_logp[idx]
             ratio = log_ratio.exp()
-            policy_loss = clipped_surrogate_loss(ratio, adv[idx], cfg.clip)
+            policy_loss = clipped_surrogate_loss(ratio, adv[idx], cfg.clip, behaviour_weight[idx])
             value_loss = 0.5 * (value - batch["return"][idx]).pow(2).mean()
             loss = policy_loss + cfg.value_coef * value_loss - cfg.entropy_coef * entropy.mean()
             check_finite({"policy_loss": policy_loss, "value_loss": value_loss})
@@ -191,7 +205,23 @@ def ppo_update(
             "entropy": entropy.mean().item(),
             "approx_kl": float(np.mean(kls)),
             "epochs": epoch + 1,
+            "behaviour_weight": behaviour_weight.mean().item(),
         }
         if cfg.target_kl is not None and stats["approx_kl"] > cfg.target_kl:
             break
     return stats
+
+
+def _proximal(
+    policy: GaussianPolicy, batch: dict[str, torch.Tensor], decoupled: bool
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The log-probabilities [N] the update's ratios are taken against and each sample's
+    weight [N]: the behaviour policy's (``batch["logp"]``) with weights 1 for plain PPO; for
+    the decoupled objective the policy's own before the update, weighted by
+    pi_proximal / pi_behaviour capped at ``MAX_BEHAVIOUR_WEIGHT``."""
+    behaviour = batch["logp"]
+    if not decoupled:
+        return behaviour, torch.ones_like(behaviour)
+    with torch.no_grad():
+        proximal = policy.evaluate(batch["obs"], batch["action"])[0].to(behaviour.dtype)
+    return proximal, (proximal - behaviour).exp().clamp(max=MAX_BEHAVIOUR_WEIGHT)

@@ -20,9 +20,12 @@ if TYPE_CHECKING:
 logger = logging.getLogger(__name__)
 
 
-def batch_stats(fragments: list[Fragment]) -> dict:
-    """A batch's env steps, finished episodes, health causes (count) and reward terms
-    (weighted mean per env step)."""
+def batch_stats(fragments: list[Fragment], version: int) -> dict:
+    """A batch's env steps, finished episodes, health causes (count), reward terms
+    (weighted mean per env step) and ``policy_lag``: how many weight updates behind
+    ``version`` (the newest published when the batch was gathered) its actions were sampled,
+    mean per env step (0 for in-process rollouts; with Ray actors, requests queued before an
+    update finish on the weights they carry)."""
     steps = sum(f.steps for f in fragments)
     health: Counter[str] = Counter()
     terms: Counter[str] = Counter()
@@ -34,6 +37,7 @@ def batch_stats(fragments: list[Fragment]) -> dict:
         "episodes": sum(f.episodes for f in fragments),
         "health": dict(health),
         "reward_terms": dict(terms),
+        "policy_lag": sum((version - f.policy_version) * f.steps for f in fragments) / steps,
     }
 
 
