@@ -11,6 +11,7 @@ import torch
 from gaitforge.learner.job import Job
 from gaitforge.learner.policy import GaussianPolicy
 from gaitforge.learner.ppo import (
+    MAX_BEHAVIOUR_WEIGHT,
     PPOSettings,
     batch_from_fragments,
     clipped_surrogate_loss,
@@ -84,6 +85,53 @@ def test_clipped_surrogate_against_hand_worked_numbers() -> None:
     adv = torch.tensor([2.0, 1.0, -1.0, -3.0])
     expected = -(2.4 + 0.5 + (-0.8) + (-3.3)) / 4
     assert clipped_surrogate_loss(ratio, adv, 0.2).item() == pytest.approx(expected)
+
+
+def _update_once(
+    policy: GaussianPolicy, batch: dict[str, torch.Tensor], cfg: PPOSettings
+) -> dict[str, float]:
+    """One PPO update of ``policy`` on ``batch`` (Adam at ``cfg.lr``, a fixed minibatch
+    order)."""
+    optimizer = torch.optim.Adam(policy.parameters(), lr=cfg.lr)
+    return ppo_update(policy, optimizer, batch, cfg, torch.Generator().manual_seed(0))
+
+
+def test_the_decoupled_objective_clips_around_the_policy_at_the_updates_start() -> None:
+    """A batch sampled by older weights (as a Ray actor's queued request is): plain PPO's
+    ratios start away from 1 (the KL to the sampling policy), the decoupled objective's at 1,
+    its samples weighted by pi_proximal / pi_behaviour. On a batch the current weights
+    sampled, the two are the same update."""
+    torch.manual_seed(0)
+    factory = _elbow_factory()
+    worker = RolloutWorker(load_scene("elbow-reach").resolved(), factory, num_envs=4,
+                           fragment_length=50)  # fmt: skip
+    policy, stale = factory(), factory()
+    stale.load_state_dict(policy.state_dict())
+    with torch.no_grad():
+        for parameter in stale.actor.parameters():
+            parameter.add_(0.1 * torch.randn_like(parameter))
+    still = PPOSettings(lr=1e-12, epochs=1, minibatch_size=200, target_kl=None)
+    batch = batch_from_fragments([worker.sample(stale.state_dict(), 0)], still)
+    plain = _update_once(policy, batch, still)
+    decoupled = _update_once(policy, batch, still.model_copy(update={"decoupled": True}))
+    assert plain["approx_kl"] > 1e-3, plain
+    assert decoupled["approx_kl"] < 1e-6, decoupled
+    assert plain["behaviour_weight"] == 1.0
+    assert 0.5 < decoupled["behaviour_weight"] <= MAX_BEHAVIOUR_WEIGHT
+
+    fresh = batch_from_fragments([worker.sample(policy.state_dict(), 1)], still)
+    cfg = PPOSettings(lr=1e-3, epochs=3, minibatch_size=50, target_kl=None)
+    one, two = factory(), factory()
+    one.load_state_dict(policy.state_dict())
+    two.load_state_dict(policy.state_dict())
+    _update_once(one, fresh, cfg)
+    _update_once(two, fresh, cfg.model_copy(update={"decoupled": True}))
+    for (name, a), b in zip(one.state_dict().items(), two.state_dict().values(), strict=True):
+        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-5, msg=name)
+    assert any(
+        not torch.equal(a, b) for a, b in zip(one.state_dict().values(),
+                                              policy.state_dict().values(), strict=True)
+    ), "the update moved the weights"  # fmt: skip
 
 
 def test_schedules_are_applied_by_the_settings() -> None:

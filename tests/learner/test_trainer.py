@@ -63,6 +63,7 @@ def test_resume_after_sigkill_continues_the_step_count(tmp_path: Path) -> None:
     assert resumed.optimizer.state_dict()["state"], "the optimizer's moments were restored"
     history = resumed.run(max_iterations=2)
     assert [h["iteration"] for h in history] == [killed_at + 1, killed_at + 2]
+    assert [h["policy_lag"] for h in history] == [0.0, 0.0], "in-process: sampled on-policy"
     assert history[0]["env_steps"] == steps_at + 200
     _, final = load_checkpoint(latest_checkpoint(tmp_path / "checkpoints"))
     assert final.iteration == killed_at + 2 and final.env_steps == steps_at + 400
@@ -75,5 +76,9 @@ def test_the_loop_runs_over_a_ray_pool(tmp_path: Path) -> None:
     finally:
         ray.shutdown()
     assert [h["env_steps"] for h in history] == [200, 400, 600]
+    # each actor keeps two requests queued with the weights of when they were queued: the
+    # first batch comes from the first weights, every later one from weights an update old
+    lags = [h["policy_lag"] for h in history]
+    assert lags[:2] == [0.0, 1.0] and lags[2] >= 1.0, lags
     assert latest_checkpoint(tmp_path / "checkpoints").name == "ckpt-000000000600"
     assert list((tmp_path / "tb").glob("events.out.tfevents.*")), "TensorBoard scalars written"
