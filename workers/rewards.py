@@ -5,6 +5,7 @@ weights and reports every term, weighted, in ``info["reward_terms"]``.
 |----------------|--------------------------------------------------|---------|
 | forward        | pelvis forward displacement                      | m       |
 | target_speed   | -(forward speed - target)^2                      | (m/s)^2 |
+| overspeed      | -max(0, forward speed - target)^2                | (m/s)^2 |
 | effort         | -mean(activation^2)                              | 1       |
 | smoothness     | -mean((excitation - previous)^2)                 | 1       |
 | upright        | pelvis up axis . world up (1 upright)            | 1       |
@@ -69,6 +70,7 @@ def reward_terms(state: SimState, ctx: StepContext) -> dict[str, float]:
     return {
         "forward": forward,
         "target_speed": 0.0 if target is None else -((speed - target) ** 2),
+        "overspeed": 0.0 if target is None else -(max(0.0, speed - target) ** 2),
         "effort": -float(np.mean(state.activations**2)) if state.activations.size else 0.0,
         "smoothness": -float(np.mean((ctx.excitation - ctx.previous_excitation) ** 2)),
         "upright": float(state.pelvis_up[ctx.up_axis]),

@@ -97,6 +97,10 @@ class RewardWeights(_Strict):
 
     forward: float = 0.0
     target_speed: float = 0.0
+    overspeed: float = 0.0
+    """charges running faster than the target only: with ``forward`` at weight f (per m, at
+    control period dt) and this at w, the pay per step is highest at target + f dt / (2 w)
+    m/s, and a start below the target is not charged (``target_speed`` charges it)"""
     effort: float = 0.0
     smoothness: float = 0.0
     upright: float = 0.0
@@ -137,6 +141,11 @@ class Task(_Strict):
             )
         if self.kind == "locomotion" and self.min_pelvis_height is None:
             raise ValueError("a locomotion task needs min_pelvis_height")
+        if self.reward.overspeed and not self.target_speed:
+            raise ValueError(
+                f"task.reward.overspeed {self.reward.overspeed}: the task has no target speed "
+                "to run over (set target_speed, or the weight to 0)"
+            )
         if self.target_speed_range is not None:
             low, high = self.target_speed_range
             if not self.target_speed or not 0 < low <= high:
