@@ -133,6 +133,8 @@ class StagePPO(StrictSpec):
     mirror: bool | None = None
     """mirror augmentation in this stage (``learner.ppo.PPOSettings.mirror``): a fine-tune
     of a policy with little action noise may do without it"""
+    decoupled: bool | None = None
+    """PPO's decoupled objective in this stage (``learner.ppo.PPOSettings.decoupled``)"""
     entropy_coef: EntropyWeight | None = None
     """entropy weight at the stage's start"""
     entropy_coef_end: EntropyWeight | None = None

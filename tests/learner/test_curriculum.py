@@ -102,9 +102,10 @@ def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> 
             {"scene": "stand-2d", "fidelity": "fast", "env_steps": 100_000,
              "promote": "length >= 0 over 2"},
             {"scene": "stand-2d", "fidelity": "accurate", "env_steps": 400,
-             "ppo": {"lr": 1e-4, "lr_end": 5e-5}, "action_std": 0.6},
+             "ppo": {"lr": 1e-4, "lr_end": 5e-5, "decoupled": True}, "action_std": 0.6},
         ],
     })  # fmt: skip
+    assert [job.stage_ppo(i).decoupled for i in (0, 1)] == [False, True]
     trainer = Trainer(job, tmp_path, tensorboard=False)
     assert [s.profile("mujoco").timestep for s in trainer.scenes] == [0.005, 0.0005]
     history = trainer.run()
