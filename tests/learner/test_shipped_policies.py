@@ -5,7 +5,9 @@ its meta.json): the walker walks walk-2d-clock (6 % falls at 1.29 m/s), the runn
 run-2d-clock-one-leg, run-2d's scene option whose clock leads with the same leg every start
 (5 % falls at 3.03 m/s: run-2d's target is 3 m/s at 10 %), and the obstacle runner runs
 obstacles-2d-clock-one-leg, obstacles-2d's ten spheres on that clock (8 % falls at
-3.23 m/s: obstacles-2d's target is 2 m/s at 10 %)."""
+3.23 m/s: obstacles-2d's target is 2 m/s at 10 %), and the obstacle runner that slows when
+asked runs obstacles-2d-clock-overspeed, the target speed drawn from 2 to 3 m/s (0 % falls at
+2.26 m/s)."""
 
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ from gaitforge.learner.evaluate import evaluate_checkpoint
 POLICIES = Path(__file__).resolve().parents[2] / "examples" / "policies"
 WALKER, RUNNER = POLICIES / "walk-2d", POLICIES / "run-2d"
 OBSTACLE_RUNNER = POLICIES / "obstacles-2d"
+SPEED_RUNNER = POLICIES / "obstacles-2d-speeds"
 
 
 def judged_provenance(policy: Path, scene: str, min_speed_m_s: float) -> dict:
@@ -103,3 +106,23 @@ def test_the_shipped_obstacle_runner_runs_over_the_spheres() -> None:
     runs = [e for e in result.episodes if not e.fell]
     assert all(e.time_s == pytest.approx(10.0) for e in runs)
     assert sum(e.distance_m / e.time_s for e in runs) / len(runs) >= 2.5
+
+
+def test_the_shipped_speed_runner_names_its_making() -> None:
+    """It names the probe that made it from the shipped obstacle runner and its evaluation
+    on the 100 episodes of its scene."""
+    provenance = judged_provenance(SPEED_RUNNER, "obstacles-2d-clock-overspeed", 2.0)
+    assert provenance["seed"] == 0
+    assert "bench/results/obstacles-2d/real/overspeed/job.yaml" in provenance["command"]
+
+
+def test_the_shipped_speed_runner_runs_slower_when_asked() -> None:
+    """Episodes 0-4 of obstacles-2d-clock-overspeed swept at 3.0 and 2.4 m/s: asked for
+    2.4 it runs at least 0.25 m/s slower (2.57 and 2.11 m/s over episodes 0-99), and at most
+    one episode falls at either speed (6 and 0 of 100)."""
+    report = evaluate_checkpoint(SPEED_RUNNER, scene="obstacles-2d-clock-overspeed",
+                                 episodes=5, sweep=[0.0, 0.2])  # fmt: skip
+    fast, slow = (point.result for point in report.sweep)
+    assert [point.target_speed_m_s for point in report.sweep] == pytest.approx([3.0, 2.4])
+    assert fast.fall_rate.count <= 1 and slow.fall_rate.count <= 1
+    assert fast.mean_speed_m_s.mean - slow.mean_speed_m_s.mean >= 0.25
