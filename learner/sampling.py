@@ -18,6 +18,9 @@ from gaitforge.workers.scenes import Scene
 
 
 class Sampler(Protocol):
+    version: int
+    """the newest weights' version, handed out by ``set_weights`` and ``set_policy``"""
+
     def set_weights(self, weights: dict[str, torch.Tensor]) -> int: ...
 
     def set_scene(self, scene: Scene, backend: str | None = None) -> None: ...

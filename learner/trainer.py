@@ -103,8 +103,7 @@ class Trainer:
         self.blend_start = 0
         self.lineage: list[dict] = [self._lineage_entry(0, "initial")]
         self.history: list[dict] = []
-        self._min_version = 0  # fragments from older weights are dropped
-        self._version = 0  # the newest weights published to the sampler
+        self._min_version = 0
         self._checkpointed_at = 0
         self._stop = threading.Event()
         self.scalars = ScalarLog(run_dir / "tb", enabled=tensorboard)
@@ -202,7 +201,7 @@ class Trainer:
             self.job.workers, self.scene, self.backend, self._policy_factory(),
             seed=self.job.seed * 1000 + self.iteration,
         )  # fmt: skip
-        self._min_version = self._version = sampler.set_weights(self.policy.state_dict())
+        self._min_version = sampler.set_weights(self.policy.state_dict())
         return sampler
 
     # ---- the loop -------------------------------------------------------------------------
@@ -262,7 +261,7 @@ class Trainer:
         start = time.perf_counter()
         fragments = self._gather(sampler, ppo.batch_env_steps)
         gathered_s = time.perf_counter() - start
-        stats = batch_stats(fragments, self._version)
+        stats = batch_stats(fragments, sampler.version)
         obs = np.concatenate([f.flat_obs() for f in fragments])
         progress = min(1.0, self.curriculum.stage_env_steps / stage.env_steps)
         cfg = ppo.at(progress)
@@ -277,7 +276,7 @@ class Trainer:
         self._ramp_blend(sampler)
         self.iteration += 1
         if not self._stop.is_set():  # stopping: no more rollouts (and a local Ray may be gone)
-            self._version = sampler.set_weights(self.policy.state_dict())
+            sampler.set_weights(self.policy.state_dict())
         verdict = self.curriculum.verdict(stage)
         metrics = self._metrics(stats, losses, cfg.lr, cfg.entropy_coef, gathered_s, start)
         metrics["verdict"] = verdict
@@ -302,7 +301,7 @@ class Trainer:
             self.curriculum.advance()
             if not self.done:
                 sampler.set_scene(self.scene, self.backend)
-                self._min_version = self._version = sampler.set_weights(self.policy.state_dict())
+                self._min_version = sampler.set_weights(self.policy.state_dict())
 
     # ---- stage transitions (the networks: learner/transitions.py) ----------------------
 
@@ -332,17 +331,13 @@ class Trainer:
         self.policy = policy
         self.obs_names = io.obs_names
         self.optimizer = self._new_optimizer()
-        self._min_version = self._version = sampler.set_policy(
-            self._policy_factory(), self.policy.state_dict()
-        )
+        self._min_version = sampler.set_policy(self._policy_factory(), self.policy.state_dict())
 
     def _ramp_blend(self, sampler: Sampler) -> None:
         ramp = self.stage.blend.ramp_env_steps
         if ramp_alpha(self.policy, self.curriculum.stage_env_steps, self.blend_start, ramp):
             self.policy = collapsed(self.policy)  # pi_old no longer acts: drop it
-            self._min_version = self._version = sampler.set_policy(
-                self._policy_factory(), self.policy.state_dict()
-            )
+            self._min_version = sampler.set_policy(self._policy_factory(), self.policy.state_dict())
 
     def _judge(self, judge: StageJudge, sampler: Sampler, metrics: dict, stage_end: bool) -> None:
         """Evaluate the network into ``metrics`` and keep it if it is the stage's best so far;
@@ -356,8 +351,8 @@ class Trainer:
 
     def _metrics(self, stats: dict, losses: dict, lr: float, entropy_coef: float,
                  gathered_s: float, start: float) -> dict:  # fmt: skip
-        """An iteration's metrics; ``stats`` is the batch's ``batch_stats`` (its
-        ``batch_steps`` taken out)."""
+        """An iteration's metrics; ``stats`` is the batch's ``batch_stats`` (taken before the
+        update, whose new weights would count every fragment one version further behind)."""
         steps = stats.pop("batch_steps")
         return {
             "iteration": self.iteration,
