@@ -103,7 +103,7 @@ class Trainer:
         self.blend_start = 0
         self.lineage: list[dict] = [self._lineage_entry(0, "initial")]
         self.history: list[dict] = []
-        self._min_version = 0
+        self._min_version = 0  # fragments from older weights are dropped
         self._checkpointed_at = 0
         self._stop = threading.Event()
         self.scalars = ScalarLog(run_dir / "tb", enabled=tensorboard)
