@@ -1,4 +1,5 @@
-"""The passive fibre force of Thelen 2003 (the reference's muscle), which both backends fit.
+"""The passive fibre force of Thelen 2003 (the reference's muscle), which both backends fit,
+and MuJoCo's force-velocity curve fitted to OpenSim-Millard's (a scene option).
 
 MuJoCo's and OpenSim-Millard's muscles have their own curve shapes; each builder picks its
 parameters so that its passive curve follows this one, so that the two simulators (and the
@@ -49,3 +50,17 @@ def fit_mujoco_fpmax(strain: float, shape: float, lmax: float) -> float:
     unit = mujoco_passive(lengths, lmax, 1.0)
     target = thelen_passive(lengths, strain, shape)
     return float(unit @ target / (unit @ unit))
+
+
+MILLARD_VMAX_SCALE = 0.65
+"""MuJoCo's ``vmax`` times this, with :data:`MILLARD_FVMAX`, makes its force-velocity curve
+follow Millard 2012's default one (OpenSim's ``ForceVelocityCurve``, the OpenSim backend's
+muscle) from 40 % of the muscle's max contraction velocity shortening to 20 % lengthening:
+least squares on a grid of 0.01 (scale) and 0.01 (fvmax), RMS 0.05 of isometric force
+(MuJoCo's own curve: RMS 0.14, up to 0.19 above Millard's while shortening at 0.1-0.3 vmax).
+``tests/workers/sim/test_muscle_force_velocity.py`` refits it against OpenSim's curve."""
+MILLARD_FVMAX = 1.27
+"""MuJoCo's ``fvmax`` (force at lengthening / isometric) in that fit; Millard's curve rises
+to 1.27 by 0.2 vmax lengthening (1.4 at vmax), MuJoCo's own stops at 1.2."""
+FORCE_VELOCITY_FIT_RANGE = (-0.4, 0.2)
+"""Fibre velocities (fraction of max contraction velocity, shortening negative) fitted."""
