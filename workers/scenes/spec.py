@@ -201,12 +201,12 @@ class Scene(_Strict):
         "a [low, high] range drawn anew each episode; None keeps MuJoCo's 0.02 s. About 0.12 "
         "sinks gait2d's feet as deep as OpenSim's Hunt-Crossley spheres (OpenSim: ignored)",
     )
-    muscle_force_velocity: Literal["mujoco", "millard"] = Field(
+    muscle_curves: Literal["mujoco", "millard"] = Field(
         default="mujoco",
-        description="MuJoCo: its muscles' force-velocity curve, MuJoCo's own (quadratic while "
-        "shortening, up to 0.19 of isometric force above Millard's at 0.1-0.3 vmax) or "
-        "'millard': vmax x0.65 and fvmax 1.27, fitted to Millard 2012's curve (OpenSim's "
-        "muscle) from 0.4 vmax shortening to 0.2 lengthening (OpenSim: ignored)",
+        description="MuJoCo: its muscles' active force-length and force-velocity curves, "
+        "MuJoCo's own or 'millard': fitted to Millard 2012's (OpenSim's muscle; lmin 0.24, "
+        "lmax 1.87, vmax x0.65, fvmax 1.27), RMS 0.05 of isometric force off it where "
+        "MuJoCo's own are 0.15 (length) and 0.14 (velocity) off (OpenSim: ignored)",
     )
     rebuild_every: Annotated[int, Field(ge=1)] = Field(
         default=100, description="OpenSim: episodes between model rebuilds (a memory bound)"

@@ -3,7 +3,7 @@
 The body's unpruned model is the source (a neutral body built by ``mujoco_build``, or a
 MyoSuite MJCF); pruning welds the scene's locked joints, removes muscles, restricts contacts,
 adds the scene's obstacles and strips visuals, then sets the fidelity profile's integrator
-and timestep (and, where the scene asks, the muscles' force-velocity curve fitted to
+and timestep (and, where the scene asks, the muscles' active force curves fitted to
 OpenSim's).
 """
 
@@ -22,7 +22,11 @@ from gaitforge.workers.sim.mjcf_moment_arms import planar_muscles
 from gaitforge.workers.sim.mjcf_muscles import remove_muscles, strip_unused
 from gaitforge.workers.sim.mjcf_sources import MJCF_SOURCES
 from gaitforge.workers.sim.mujoco_build import CONTACT_GROUP, FLOOR, build_spec
-from gaitforge.workers.sim.muscle_curves import MILLARD_FVMAX, MILLARD_VMAX_SCALE
+from gaitforge.workers.sim.muscle_curves import (
+    MILLARD_ACTIVE_RANGE,
+    MILLARD_FVMAX,
+    MILLARD_VMAX_SCALE,
+)
 
 INTEGRATORS = {
     "euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -79,10 +83,12 @@ def planar_muscles_of(scene: Scene) -> list[str] | None:
     return _full_model_facts(scene.body, _sagittal(scene))[1] if scene.keep.planar else None
 
 
-def _fit_force_velocity_to_millard(model: mujoco.MjModel) -> None:
-    """Every muscle's ``vmax`` and ``fvmax`` (``gainprm[6]``, ``gainprm[8]``) set to the fit
-    to Millard 2012's force-velocity curve (``muscle_curves.MILLARD_VMAX_SCALE``)."""
+def _fit_muscle_curves_to_millard(model: mujoco.MjModel) -> None:
+    """Every muscle's active force (``gainprm``: ``lmin``, ``lmax``, ``vmax``, ``fvmax`` at
+    4, 5, 6, 8) fitted to Millard 2012's curves (``muscle_curves.MILLARD_ACTIVE_RANGE``);
+    the passive force (``biasprm``) is left as it is."""
     muscles = model.actuator_gaintype == mujoco.mjtGain.mjGAIN_MUSCLE
+    model.actuator_gainprm[muscles, 4:6] = MILLARD_ACTIVE_RANGE
     model.actuator_gainprm[muscles, 6] *= MILLARD_VMAX_SCALE
     model.actuator_gainprm[muscles, 8] = MILLARD_FVMAX
 
@@ -107,8 +113,8 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
     spec.option.integrator = INTEGRATORS[profile.integrator]
     spec.option.timestep = profile.timestep
     model = spec.compile()
-    if scene.muscle_force_velocity == "millard":
-        _fit_force_velocity_to_millard(model)
+    if scene.muscle_curves == "millard":
+        _fit_muscle_curves_to_millard(model)
     report = CompileReport(
         scene=scene.name,
         backend="mujoco",

@@ -1,5 +1,6 @@
 """The passive fibre force of Thelen 2003 (the reference's muscle), which both backends fit,
-and MuJoCo's force-velocity curve fitted to OpenSim-Millard's (a scene option).
+and MuJoCo's active force-length and force-velocity curves fitted to OpenSim-Millard's (a
+scene option).
 
 MuJoCo's and OpenSim-Millard's muscles have their own curve shapes; each builder picks its
 parameters so that its passive curve follows this one, so that the two simulators (and the
@@ -52,15 +53,26 @@ def fit_mujoco_fpmax(strain: float, shape: float, lmax: float) -> float:
     return float(unit @ target / (unit @ unit))
 
 
+MILLARD_ACTIVE_RANGE = (0.24, 1.87)
+"""MuJoCo's ``lmin``, ``lmax`` of the active force (``gainprm``; the passive force keeps its
+own, ``mujoco_build.ACTIVE_RANGE``) fitted to Millard 2012's default active force-length
+curve (OpenSim's ``ActiveForceLengthCurve``, the OpenSim backend's muscle) over normalised
+fibre lengths 0.5-1.6: least squares on a 0.01 grid, RMS 0.05 of isometric force. With
+Millard's own end points (0.4441, 1.8) MuJoCo's piecewise quadratic is 0.15 off and a short
+muscle much weaker than Millard's: 0.16 against 0.45 at 0.6, 0.42 against 0.77 at 0.7."""
 MILLARD_VMAX_SCALE = 0.65
 """MuJoCo's ``vmax`` times this, with :data:`MILLARD_FVMAX`, makes its force-velocity curve
-follow Millard 2012's default one (OpenSim's ``ForceVelocityCurve``, the OpenSim backend's
-muscle) from 40 % of the muscle's max contraction velocity shortening to 20 % lengthening:
-least squares on a grid of 0.01 (scale) and 0.01 (fvmax), RMS 0.05 of isometric force
-(MuJoCo's own curve: RMS 0.14, up to 0.19 above Millard's while shortening at 0.1-0.3 vmax).
-``tests/workers/sim/test_muscle_force_velocity.py`` refits it against OpenSim's curve."""
+follow Millard 2012's default one (OpenSim's ``ForceVelocityCurve``) from 40 % of the
+muscle's max contraction velocity shortening to 20 % lengthening: least squares on a 0.01
+grid, RMS 0.05 of isometric force (MuJoCo's own curve: RMS 0.14, up to 0.19 above Millard's
+while shortening at 0.1-0.3 vmax)."""
 MILLARD_FVMAX = 1.27
-"""MuJoCo's ``fvmax`` (force at lengthening / isometric) in that fit; Millard's curve rises
-to 1.27 by 0.2 vmax lengthening (1.4 at vmax), MuJoCo's own stops at 1.2."""
+"""MuJoCo's ``fvmax`` (force lengthening / isometric) in that fit; Millard's curve rises to
+1.27 by 0.2 vmax lengthening (1.4 at vmax), MuJoCo's own stops at 1.2."""
+FORCE_LENGTH_FIT_RANGE = (0.5, 1.6)
+"""Normalised fibre lengths over which :data:`MILLARD_ACTIVE_RANGE` was fitted."""
 FORCE_VELOCITY_FIT_RANGE = (-0.4, 0.2)
-"""Fibre velocities (fraction of max contraction velocity, shortening negative) fitted."""
+"""Fibre velocities (fraction of max contraction velocity, shortening negative) over which
+:data:`MILLARD_VMAX_SCALE` and :data:`MILLARD_FVMAX` were fitted
+(``tests/workers/sim/test_muscle_curves_millard.py`` refits all three against OpenSim's
+curves)."""
