@@ -61,6 +61,7 @@ __all__ = [
     "load_optimizer_state",
     "load_policy",
     "read_meta",
+    "restore_optimizer",
     "save_checkpoint",
     "select_checkpoint",
 ]
@@ -200,6 +201,19 @@ def load_optimizer_state(path: Path) -> dict | None:
         index, name = key.split(".", 1)
         state.setdefault(int(index), {})[name] = tensor
     return {"state": state, "param_groups": groups}
+
+
+def restore_optimizer(optimizer: torch.optim.Optimizer, path: Path) -> None:
+    """Load checkpoint ``path``'s optimizer state into ``optimizer`` where it holds one and
+    it fits; where its parameter groups changed (a ``critic_lr`` added to the job) Adam
+    starts afresh, with a warning."""
+    state = load_optimizer_state(path)
+    if state is None:
+        return
+    try:
+        optimizer.load_state_dict(state)
+    except ValueError as exc:
+        logger.warning("%s: Adam's state does not fit (%s); it starts afresh", path, exc)
 
 
 def _flatten_optimizer(optimizer_state: dict) -> dict[str, torch.Tensor]:

@@ -32,7 +32,7 @@ import torch
 from gaitforge.learner.checkpoint import (
     latest_checkpoint,
     load_checkpoint,
-    load_optimizer_state,
+    restore_optimizer,
     save_checkpoint,
 )
 from gaitforge.learner.checkpoint_meta import CheckpointMeta
@@ -178,12 +178,7 @@ class Trainer:
         self.policy = build_policy(meta.network)
         self.policy.load_state_dict(state)
         self.optimizer = self._new_optimizer()
-        optimizer_state = load_optimizer_state(latest)
-        try:
-            if optimizer_state is not None:
-                self.optimizer.load_state_dict(optimizer_state)
-        except ValueError as exc:  # its groups changed (a critic_lr added to the job)
-            logger.warning("%s: Adam's state does not fit (%s); it starts afresh", latest, exc)
+        restore_optimizer(self.optimizer, latest)
         self.obs_names = meta.obs_names
         self.iteration, self.env_steps = int(meta.iteration or 0), meta.env_steps
         self.curriculum = CurriculumState.from_json(meta.curriculum.model_dump())
