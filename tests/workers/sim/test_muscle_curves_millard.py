@@ -33,8 +33,6 @@ LENGTHS = np.linspace(*FORCE_LENGTH_FIT_RANGE, 111)
 """Normalised fibre lengths fitted."""
 VELOCITIES = np.linspace(*FORCE_VELOCITY_FIT_RANGE, 61)
 """Fibre velocities fitted, in max contraction velocities (shortening negative)."""
-OWN = {"range": ACTIVE_RANGE, "vmax": 1.0, "fvmax": 1.2}
-FITTED = {"range": MILLARD_ACTIVE_RANGE, "vmax": MILLARD_VMAX_SCALE, "fvmax": MILLARD_FVMAX}
 
 
 def _millard_length(lengths: np.ndarray) -> np.ndarray:
@@ -48,11 +46,15 @@ def _millard_velocity(velocities: np.ndarray) -> np.ndarray:
 
 
 def _mujoco(
-    lengths: np.ndarray, velocities: np.ndarray, range: tuple, vmax: float, fvmax: float
+    lengths: np.ndarray,
+    velocities: np.ndarray,
+    active_range: tuple[float, float],
+    vmax: float,
+    fvmax: float,
 ) -> np.ndarray:
     """MuJoCo's active force / isometric at optimal length of a unit muscle (L0 = 1 m,
-    vmax in L0/s) at each (length, velocity) pair."""
-    params = np.array([*MUSCLE_RANGE, 1.0, 200.0, *range, vmax, 0.0, fvmax])
+    vmax in L0/s, ``lmin, lmax = active_range``) at each (length, velocity) pair."""
+    params = np.array([*MUSCLE_RANGE, 1.0, 200.0, *active_range, vmax, 0.0, fvmax])
     lengthrange = np.array(MUSCLE_RANGE)
     return np.array(
         [
