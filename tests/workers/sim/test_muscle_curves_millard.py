@@ -121,11 +121,11 @@ class _Soleus:
         d.qpos[:] = m.qpos0
         d.qpos[self.ankle_q] = ankle
         d.qvel[:] = 0.0
+        d.qvel[self.ankle_v] = 1.0
         mujoco.mj_forward(m, d)
-        jacobian = np.zeros((m.ntendon, m.nv))
-        mujoco.mju_sparse2dense(jacobian, d.ten_J, m.ten_J_rownnz, m.ten_J_rowadr, m.ten_J_colind)
+        tendon_per_ankle = float(d.ten_velocity[self.tendon])  # m/s per rad/s, dL/dq
         speed = fibre_velocity * self.muscle.max_contraction_velocity * self.optimal
-        d.qvel[self.ankle_v] = speed / jacobian[self.tendon, self.ankle_v]
+        d.qvel[self.ankle_v] = speed / tendon_per_ankle
         forces = []
         for activation in (1.0, 0.0):
             d.act[:] = 0.0
