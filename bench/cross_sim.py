@@ -1,7 +1,8 @@
 """One policy on both simulators, side by side: deterministic episodes of a scene on MuJoCo
 and on OpenSim from the same reset seeds, and where they part: the pelvis's height, forward
-distance from the reset and pitch, and each foot's normal ground force, against time (the
-median over the episodes still up). Where the policy is the same and the body is the same,
+distance from the reset and pitch, each foot's normal ground force, each kept joint's angle
+and each muscle's activation, against time (the median over the episodes still up). Where
+the policy is the same and the body is the same,
 what differs is the simulators' own modelling (contact above all: MuJoCo's soft constraints
 against the reference's Hunt-Crossley spheres).
 
@@ -37,14 +38,19 @@ console = Console(width=160)
 BACKENDS = ("mujoco", "opensim")
 SERIES = ("height", "forward", "pitch", "foot_r", "foot_l")
 """pelvis height (m), forward distance from the reset (m), pitch (rad, forward lean > 0),
-the right and left foot's normal ground force (body weights)"""
+the right and left foot's normal ground force (body weights); then each kept joint's angle
+(``q:NAME``, rad) and each muscle's activation (``a:NAME``, 0-1)"""
 
 
 class BodyLog(Observer):
-    """After each step: the series of :data:`SERIES`, one row per step."""
+    """After each step: the series named in ``names`` (:data:`SERIES`, then ``q:`` each kept
+    joint and ``a:`` each muscle), one row per step."""
 
     def on_reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
         self.rows: list[list[float]] = []
+        sim = env.sim
+        self.names = [*SERIES, *(f"q:{n}" for n in sim.dof_names),
+                      *(f"a:{n}" for n in sim.muscle_names)]  # fmt: skip
         state = env.sim.state()
         self._start = float(state.pelvis_pos[env.sim.forward_axis])
         self._weight = env.sim.report.mass * GRAVITY
@@ -55,20 +61,49 @@ class BodyLog(Observer):
         pitch = -pelvis_pitch_list(s.pelvis_up, up, fwd)[0]  # OpenSim's tilt, lean forward > 0
         feet = (s.foot_forces / self._weight).tolist() + [float("nan")] * 2
         self.rows.append([float(s.pelvis_pos[up]), float(s.pelvis_pos[fwd]) - self._start,
-                          pitch, feet[0], feet[1]])  # fmt: skip
+                          pitch, feet[0], feet[1], *s.dof_pos.tolist(),
+                          *s.activations.tolist()])  # fmt: skip
 
 
-def run(policy: ActorCritic, scene: Scene, backend: str, episodes: int, seed: int) -> np.ndarray:
-    """[episodes, steps, len(SERIES)], nan after an episode's end."""
-    out = np.full((episodes, scene.steps_per_episode, len(SERIES)), np.nan)
+def run(
+    policy: ActorCritic, scene: Scene, backend: str, episodes: int, seed: int
+) -> tuple[np.ndarray, list[str]]:
+    """([episodes, steps, series], the series' names), nan after an episode's end."""
+    runs, names = [], []
     with make_runner(policy, scene, backend) as runner:
         for i in range(episodes):
             log = BodyLog()
             runner.run(policy_act(policy, "deterministic", seed + i), seed + i, [log])
-            rows = np.array(log.rows)
-            out[i, : len(rows)] = rows
-            console.log(f"{backend} episode {i}: {len(rows)} steps")
-    return out
+            runs.append(np.array(log.rows))
+            names = log.names
+            console.log(f"{backend} episode {i}: {len(log.rows)} steps")
+    out = np.full((episodes, scene.steps_per_episode, len(names)), np.nan)
+    for i, rows in enumerate(runs):
+        out[i, : len(rows)] = rows
+    return out, names
+
+
+def plot_grid(t: np.ndarray, logs: dict[str, np.ndarray], median: dict[str, np.ndarray],
+              columns: list[int], labels: list[str], title: str, out: Path) -> None:  # fmt: skip
+    """One panel per series column: every episode thin, the median thick, per backend."""
+    cols = 3
+    rows = -(-len(columns) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 2.4 * rows), sharex=True,
+                             squeeze=False)  # fmt: skip
+    for ax, j, label in zip(axes.flat, columns, labels, strict=False):
+        for b, color in zip(BACKENDS, ("tab:blue", "tab:red"), strict=True):
+            for episode in logs[b]:
+                ax.plot(t, episode[:, j], color=color, alpha=0.3, lw=0.8)
+            ax.plot(t, median[b][:, j], color=color, lw=2, label=b)
+        ax.set_title(label, fontsize=9)
+        ax.grid(alpha=0.3)
+    for ax in axes.flat[len(columns) :]:
+        ax.set_visible(False)
+    axes.flat[0].legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(out, dpi=80)
+    plt.close(fig)
 
 
 def main() -> None:
@@ -84,7 +119,11 @@ def main() -> None:
     policy, _ = load_policy(resolve_checkpoint(args.checkpoint))
     scene = load_scene(args.scene).resolved()
     dt = 1.0 / scene.control_hz
-    logs = {b: run(policy, scene, b, args.episodes, args.seed) for b in BACKENDS}
+    runs = {b: run(policy, scene, b, args.episodes, args.seed) for b in BACKENDS}
+    logs = {b: v for b, (v, _) in runs.items()}
+    names = runs["mujoco"][1]
+    if names != runs["opensim"][1]:
+        raise SystemExit(f"the simulators name their series differently: {runs['opensim'][1]}")
     with warnings.catch_warnings():  # a time where no episode is up: nan, said by "up" = 0
         warnings.simplefilter("ignore", RuntimeWarning)
         median = {b: np.nanmedian(v, axis=0) for b, v in logs.items()}
@@ -101,10 +140,20 @@ def main() -> None:
     for k in range(every - 1, steps, every):
         cells = [f"{(k + 1) * dt:.2f}"]
         for b in BACKENDS:
-            h, x, p, fr, fl = median[b][k]
+            h, x, p, fr, fl = median[b][k][: len(SERIES)]
             cells += [str(up[b][k]), f"{h:.3f}", f"{x:+.2f}", f"{p:+.2f}", f"{fr:.2f}/{fl:.2f}"]
         table.add_row(*cells)
     console.print(table)
+    joints = [j for j, n in enumerate(names) if n.startswith("q:")]
+    angles = Table(title="joint angles, degrees, median over the episodes up: MuJoCo / OpenSim")
+    angles.add_column("t s", justify="right")
+    for j in joints:
+        angles.add_column(names[j][2:], justify="right")
+    for k in range(every - 1, steps, every):
+        deg = {b: np.degrees(median[b][k]) for b in BACKENDS}
+        pairs = [f"{deg['mujoco'][j]:+.0f}/{deg['opensim'][j]:+.0f}" for j in joints]
+        angles.add_row(f"{(k + 1) * dt:.2f}", *pairs)
+    console.print(angles)
     t = (np.arange(scene.steps_per_episode) + 1) * dt
     fig, axes = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
     labels = ("pelvis height m", "forward m", "pitch rad")
@@ -118,15 +167,22 @@ def main() -> None:
     axes[0].legend()
     axes[-1].set_xlabel("time from the reset, s")
     axes[-1].set_xlim(0, steps * dt)
-    fig.suptitle(f"{args.checkpoint.name} on {scene.name}, {args.episodes} deterministic episodes")
+    title = f"{args.checkpoint.name} on {scene.name}, {args.episodes} deterministic episodes"
+    fig.suptitle(title)
     fig.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.out, dpi=110)
-    data = {b: {"series": list(SERIES), "dt_s": dt, "episodes_up": up[b].tolist(),
-                "median": np.where(np.isfinite(median[b]), median[b], None).tolist()}
+    for part, prefix, unit in (("joints", "q:", "rad"), ("muscles", "a:", "activation")):
+        columns = [j for j, n in enumerate(names) if n.startswith(prefix)]
+        plot_grid(t[:steps], {b: v[:, :steps] for b, v in logs.items()},
+                  {b: v[:steps] for b, v in median.items()}, columns,
+                  [f"{names[j][2:]} {unit}" for j in columns], title,
+                  args.out.with_name(f"{args.out.stem}-{part}.png"))  # fmt: skip
+    data = {b: {"series": names, "dt_s": dt, "episodes_up": up[b].tolist(),
+                "median": np.where(np.isfinite(median[b]), median[b].round(4), None).tolist()}
             for b in BACKENDS}  # fmt: skip
     args.out.with_suffix(".json").write_text(json.dumps(data))
-    console.log(f"wrote {args.out} and {args.out.with_suffix('.json')}")
+    console.log(f"wrote {args.out} (and -joints, -muscles) and {args.out.with_suffix('.json')}")
 
 
 if __name__ == "__main__":

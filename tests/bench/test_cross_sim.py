@@ -28,11 +28,20 @@ def test_the_walker_on_both_simulators_gives_a_table_a_plot_and_medians(tmp_path
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     assert "mu height m" in done.stdout and "op height m" in done.stdout
-    assert out.stat().st_size > 10_000
+    assert "knee_angle_r" in done.stdout  # the joint-angle table
+    for png in (out, tmp_path / "cross-joints.png", tmp_path / "cross-muscles.png"):
+        assert png.stat().st_size > 10_000, png
     medians = json.loads(out.with_suffix(".json").read_text())
     for backend in ("mujoco", "opensim"):
         data = medians[backend]
-        assert data["series"] == ["height", "forward", "pitch", "foot_r", "foot_l"]
+        series = data["series"]
+        assert series[:5] == ["height", "forward", "pitch", "foot_r", "foot_l"]
+        joints = [n for n in series if n.startswith("q:")]
+        muscles = [n for n in series if n.startswith("a:")]
+        assert len(joints) == 6 and "q:ankle_angle_l" in joints
+        assert len(muscles) == 18 and "a:soleus_r" in muscles
         assert data["episodes_up"][0] == 2 and len(data["median"]) == 25  # 1 s at 25 Hz
-        height = data["median"][0][0]
-        assert 0.8 < height < 1.0, (backend, height)
+        first = dict(zip(series, data["median"][0], strict=True))
+        assert 0.8 < first["height"] < 1.0, (backend, first["height"])
+        assert all(0.0 <= first[m] <= 1.0 for m in muscles), (backend, first)
+        assert abs(first["q:knee_angle_r"]) < 1.5, (backend, first)  # rad, a standing start

@@ -204,9 +204,10 @@ class Scene(_Strict):
     muscle_curves: Literal["mujoco", "millard"] = Field(
         default="mujoco",
         description="MuJoCo: its muscles' active force-length and force-velocity curves, "
-        "MuJoCo's own or 'millard': fitted to Millard 2012's (OpenSim's muscle; lmin 0.24, "
-        "lmax 1.87, vmax x0.65, fvmax 1.27), RMS 0.05 of isometric force off it where "
-        "MuJoCo's own are 0.15 (length) and 0.14 (velocity) off (OpenSim: ignored)",
+        "MuJoCo's own or 'millard': lmin, lmax, vmax and fvmax fitted to Millard 2012's "
+        "(OpenSim's muscle; the constants in workers.sim.muscle_curves), RMS 0.05 of "
+        "isometric force off it where MuJoCo's own are 0.15 (length) and 0.14 (velocity) "
+        "off (OpenSim: ignored)",
     )
     rebuild_every: Annotated[int, Field(ge=1)] = Field(
         default=100, description="OpenSim: episodes between model rebuilds (a memory bound)"
