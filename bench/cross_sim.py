@@ -1,10 +1,9 @@
 """One policy on both simulators, side by side: deterministic episodes of a scene on MuJoCo
 and on OpenSim from the same reset seeds, and where they part: the pelvis's height, forward
 distance from the reset and pitch, each foot's normal ground force, each kept joint's angle
-and each muscle's activation, against time (the median over the episodes still up). Where
-the policy is the same and the body is the same,
-what differs is the simulators' own modelling (contact above all: MuJoCo's soft constraints
-against the reference's Hunt-Crossley spheres).
+and each muscle's activation, against time (the median over the episodes still up). Where the
+policy is the same and the body is the same, what differs is the simulators' own modelling
+(contact above all: MuJoCo's soft constraints against the reference's Hunt-Crossley spheres).
 
 Usage: python bench/cross_sim.py CHECKPOINT [--scene walk-2d-clock] [--episodes 5]
            [--seed 0] [--every-s 0.2] [--until-s 3] [--out cross-sim.png]
@@ -83,20 +82,26 @@ def run(
     return out, names
 
 
+def draw_series(ax: Any, t: np.ndarray, logs: dict[str, np.ndarray],
+                median: dict[str, np.ndarray], column: int) -> None:  # fmt: skip
+    """One series on ``ax`` per backend: every episode thin, the median thick."""
+    for b, color in zip(BACKENDS, ("tab:blue", "tab:red"), strict=True):
+        for episode in logs[b]:
+            ax.plot(t, episode[:, column], color=color, alpha=0.3, lw=0.8)
+        ax.plot(t, median[b][:, column], color=color, lw=2, label=b)
+    ax.grid(alpha=0.3)
+
+
 def plot_grid(t: np.ndarray, logs: dict[str, np.ndarray], median: dict[str, np.ndarray],
               columns: list[int], labels: list[str], title: str, out: Path) -> None:  # fmt: skip
-    """One panel per series column: every episode thin, the median thick, per backend."""
+    """One panel per series column (:func:`draw_series`), three to a row, saved to ``out``."""
     cols = 3
     rows = -(-len(columns) // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 2.4 * rows), sharex=True,
                              squeeze=False)  # fmt: skip
     for ax, j, label in zip(axes.flat, columns, labels, strict=False):
-        for b, color in zip(BACKENDS, ("tab:blue", "tab:red"), strict=True):
-            for episode in logs[b]:
-                ax.plot(t, episode[:, j], color=color, alpha=0.3, lw=0.8)
-            ax.plot(t, median[b][:, j], color=color, lw=2, label=b)
+        draw_series(ax, t, logs, median, j)
         ax.set_title(label, fontsize=9)
-        ax.grid(alpha=0.3)
     for ax in axes.flat[len(columns) :]:
         ax.set_visible(False)
     axes.flat[0].legend(fontsize=8)
@@ -158,12 +163,8 @@ def main() -> None:
     fig, axes = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
     labels = ("pelvis height m", "forward m", "pitch rad")
     for j, (ax, label) in enumerate(zip(axes, labels, strict=True)):
-        for b, color in zip(BACKENDS, ("tab:blue", "tab:red"), strict=True):
-            for episode in logs[b]:
-                ax.plot(t, episode[:, j], color=color, alpha=0.3, lw=0.8)
-            ax.plot(t, median[b][:, j], color=color, lw=2, label=b)
+        draw_series(ax, t, logs, median, j)
         ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
     axes[0].legend()
     axes[-1].set_xlabel("time from the reset, s")
     axes[-1].set_xlim(0, steps * dt)
