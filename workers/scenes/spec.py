@@ -209,6 +209,15 @@ class Scene(_Strict):
         "isometric force off it where MuJoCo's own are 0.15 (length) and 0.14 (velocity) "
         "off (OpenSim: ignored)",
     )
+    muscle_passive: Literal["gait", "thelen"] = Field(
+        default="gait",
+        description="MuJoCo, body files only: its muscles' passive force-length curve fitted "
+        "to Thelen 2003's (OpenSim's and the reference's) over the first 0.6 of its strain, "
+        "'gait' (lmax shared with the active curve; softer beyond: gait2d's gastrocnemius "
+        "at 1.6 optimal length 0.44 of peak force against Thelen's 1.0), or 'thelen': lmax "
+        "and fpmax of the passive force fitted over the whole strain (0.77 there) "
+        "(OpenSim: ignored)",
+    )
     rebuild_every: Annotated[int, Field(ge=1)] = Field(
         default=100, description="OpenSim: episodes between model rebuilds (a memory bound)"
     )

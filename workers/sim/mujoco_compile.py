@@ -4,7 +4,7 @@ The body's unpruned model is the source (a neutral body built by ``mujoco_build`
 MyoSuite MJCF); pruning welds the scene's locked joints, removes muscles, restricts contacts,
 adds the scene's obstacles and strips visuals, then sets the fidelity profile's integrator
 and timestep (and, where the scene asks, the muscles' active force curves fitted to
-OpenSim's).
+OpenSim's, or their passive curve fitted to Thelen's over its whole strain).
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ from gaitforge.workers.sim.muscle_curves import (
     MILLARD_ACTIVE_RANGE,
     MILLARD_FVMAX,
     MILLARD_VMAX_SCALE,
+    fit_mujoco_passive_whole,
 )
 
 INTEGRATORS = {
@@ -93,6 +94,29 @@ def _fit_muscle_curves_to_millard(model: mujoco.MjModel) -> None:
     model.actuator_gainprm[muscles, 8] = MILLARD_FVMAX
 
 
+def _fit_passive_to_thelen_whole(model: mujoco.MjModel, scene: Scene) -> None:
+    """Every kept muscle's passive force (``biasprm``: ``lmax``, ``fpmax`` at 5, 7) fitted to
+    Thelen's curve over its whole strain (``muscle_curves.fit_mujoco_passive_whole``); the
+    active force (``gainprm``) is left as it is.
+
+    Raises:
+        ValueError: the body is a MuJoCo MJCF (no Thelen parameters to fit to).
+    """
+    if scene.body in MJCF_SOURCES:
+        raise ValueError(
+            f"scene {scene.name!r}: muscle_passive 'thelen' needs a body with Thelen passive "
+            f"parameters (a body file such as gait2d); {scene.body!r} is a MuJoCo MJCF"
+        )
+    for muscle in load_body(scene.body).muscles:
+        actuator = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, muscle.name)
+        if actuator >= 0:  # kept by the scene
+            lmax, fpmax = fit_mujoco_passive_whole(
+                muscle.passive_fibre_strain, muscle.passive_shape
+            )
+            model.actuator_biasprm[actuator, 5] = lmax
+            model.actuator_biasprm[actuator, 7] = fpmax
+
+
 def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology]:
     """Compile ``scene`` to a pruned model, with the report of what was removed."""
     topology = topology_for(scene.body)
@@ -115,6 +139,8 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
     model = spec.compile()
     if scene.muscle_curves == "millard":
         _fit_muscle_curves_to_millard(model)
+    if scene.muscle_passive == "thelen":
+        _fit_passive_to_thelen_whole(model, scene)
     report = CompileReport(
         scene=scene.name,
         backend="mujoco",
