@@ -45,13 +45,19 @@ relaxed muscles reach in gait (gastrocnemius at standing is near 0.6). MuJoCo's 
 linear where Thelen's keeps growing exponentially, so beyond it MuJoCo's is the softer."""
 
 
-def fit_mujoco_fpmax(strain: float, shape: float, lmax: float) -> float:
+def fit_mujoco_fpmax(
+    strain: float, shape: float, lmax: float, up_to: float = FIT_UP_TO, points: int = 41
+) -> float:
     """Least-squares ``fpmax`` so that MuJoCo's passive curve follows Thelen's over fibre
-    strains from 0 to ``FIT_UP_TO * strain``."""
-    lengths = np.linspace(1.0, 1.0 + FIT_UP_TO * strain, 41)
+    strains from 0 to ``up_to * strain`` (``points`` lengths)."""
+    lengths = np.linspace(1.0, 1.0 + up_to * strain, points)
     unit = mujoco_passive(lengths, lmax, 1.0)
     target = thelen_passive(lengths, strain, shape)
     return float(unit @ target / (unit @ unit))
+
+
+WHOLE_STRAIN_POINTS = 61
+"""Fibre lengths, 1 to 1 + strain, that :func:`fit_mujoco_passive_whole` fits over."""
 
 
 @lru_cache(maxsize=64)
@@ -66,17 +72,17 @@ def fit_mujoco_passive_whole(strain: float, shape: float) -> tuple[float, float]
     beyond it: gait2d's gastrocnemius at 1.6 optimal length pulls 0.44 of its peak force
     there against Thelen's 1.0; with this fit 0.77.
     """
-    lengths = np.linspace(1.0, 1.0 + strain, 61)
+    lengths = np.linspace(1.0, 1.0 + strain, WHOLE_STRAIN_POINTS)
     target = thelen_passive(lengths, strain, shape)
-    best: tuple[float, float, float] | None = None
-    for lmax in np.arange(1.02, 3.0, 0.01):
-        unit = mujoco_passive(lengths, float(lmax), 1.0)
-        fpmax = float(unit @ target / (unit @ unit))
-        error = float(np.sum((fpmax * unit - target) ** 2))
-        if best is None or error < best[0]:
-            best = (error, float(lmax), fpmax)
-    assert best is not None
-    return best[1], best[2]
+
+    def fpmax(lmax: float) -> float:
+        return fit_mujoco_fpmax(strain, shape, lmax, up_to=1.0, points=WHOLE_STRAIN_POINTS)
+
+    def error(lmax: float) -> float:
+        return float(np.sum((mujoco_passive(lengths, lmax, fpmax(lmax)) - target) ** 2))
+
+    lmax = min((float(x) for x in np.arange(1.02, 3.0, 0.01)), key=error)
+    return lmax, fpmax(lmax)
 
 
 MILLARD_ACTIVE_RANGE = (0.24, 1.87)

@@ -17,6 +17,7 @@ from gaitforge.workers.scenes import load_scene
 from gaitforge.workers.sim.mujoco_build import ACTIVE_RANGE, MUSCLE_RANGE
 from gaitforge.workers.sim.mujoco_compile import compile_scene
 from gaitforge.workers.sim.muscle_curves import (
+    WHOLE_STRAIN_POINTS,
     fit_mujoco_fpmax,
     fit_mujoco_passive_whole,
     mujoco_passive,
@@ -27,7 +28,7 @@ GASTROC = next(m for m in load_body("gait2d").muscles if m.name == "gastroc_r")
 
 
 def _error(lmax: float, fpmax: float, strain: float, shape: float) -> float:
-    lengths = np.linspace(1.0, 1.0 + strain, 61)
+    lengths = np.linspace(1.0, 1.0 + strain, WHOLE_STRAIN_POINTS)
     return float(
         np.sum((mujoco_passive(lengths, lmax, fpmax) - thelen_passive(lengths, strain, shape)) ** 2)
     )
@@ -38,9 +39,8 @@ def test_the_fit_is_the_least_squares_one_on_its_grid() -> None:
     lmax, fpmax = fit_mujoco_passive_whole(strain, shape)
     best = _error(lmax, fpmax, strain, shape)
     for other in (lmax - 0.05, lmax - 0.01, lmax + 0.01, lmax + 0.05):
-        unit = mujoco_passive(np.linspace(1.0, 1.0 + strain, 61), other, 1.0)
-        target = thelen_passive(np.linspace(1.0, 1.0 + strain, 61), strain, shape)
-        assert best <= _error(other, float(unit @ target / (unit @ unit)), strain, shape)
+        other_fpmax = fit_mujoco_fpmax(strain, shape, other, up_to=1.0, points=WHOLE_STRAIN_POINTS)
+        assert best <= _error(other, other_fpmax, strain, shape)
     default = _error(
         ACTIVE_RANGE[1], fit_mujoco_fpmax(strain, shape, ACTIVE_RANGE[1]), strain, shape
     )
