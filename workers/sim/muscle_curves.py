@@ -65,7 +65,8 @@ def fit_mujoco_passive_whole(strain: float, shape: float) -> tuple[float, float]
     """``(lmax, fpmax)`` of MuJoCo's passive curve (the muscle's ``biasprm``, apart from the
     active force's) fitted by least squares to Thelen's over its whole strain, 1 to
     ``1 + strain`` normalised fibre length (passive force 0 to 1): ``lmax`` on a 0.01 grid
-    from 1.02 to 3, ``fpmax`` solved at each. The scene option ``muscle_passive: thelen``.
+    from 1.02 to 3, ``fpmax`` solved at each (for a strain of 1.0, gait2d's rectus femoris
+    and vasti, the grid's end binds: lmax 2.99). The scene option ``muscle_passive: thelen``.
 
     :func:`fit_mujoco_fpmax` (the default) fits ``fpmax`` alone over the first
     :data:`FIT_UP_TO` of the strain, ``lmax`` shared with the active curve, and is the softer
