@@ -209,14 +209,17 @@ class Scene(_Strict):
         "isometric force off it where MuJoCo's own are 0.15 (length) and 0.14 (velocity) "
         "off (OpenSim: ignored)",
     )
-    muscle_passive: Literal["gait", "thelen"] = Field(
+    muscle_passive: Literal["gait", "thelen", "thelen-fibre"] = Field(
         default="gait",
         description="MuJoCo, body files only: its muscles' passive force-length curve fitted "
         "to Thelen 2003's (OpenSim's and the reference's) over the first 0.6 of its strain, "
         "'gait' (lmax shared with the active curve; softer beyond: gait2d's gastrocnemius "
-        "at 1.6 optimal length 0.44 of peak force against Thelen's 1.0), or 'thelen': lmax "
-        "and fpmax of the passive force fitted over the whole strain (0.77 there) "
-        "(OpenSim: ignored)",
+        "at 1.6 optimal length 0.44 of peak force against Thelen's 1.0), 'thelen': lmax "
+        "and fpmax of the passive force fitted over the whole strain (0.77 there), or "
+        "'thelen-fibre': that fit to Thelen's curve of the pennated fibre's own length, "
+        "projected on the tendon, as OpenSim's rigid-tendon muscle pulls (MuJoCo's muscle "
+        "has no pennation: its normalised length runs ahead of the fibre's past optimal "
+        "length, gait2d's standing gastrocnemius 1.458 against 1.425) (OpenSim: ignored)",
     )
     rebuild_every: Annotated[int, Field(ge=1)] = Field(
         default=100, description="OpenSim: episodes between model rebuilds (a memory bound)"

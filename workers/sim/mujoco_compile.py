@@ -96,22 +96,26 @@ def _fit_muscle_curves_to_millard(model: mujoco.MjModel) -> None:
 
 def _fit_passive_to_thelen_whole(model: mujoco.MjModel, scene: Scene) -> None:
     """Every kept muscle's passive force (``biasprm``: ``lmax``, ``fpmax`` at 5, 7) fitted to
-    Thelen's curve over its whole strain (``muscle_curves.fit_mujoco_passive_whole``); the
-    active force (``gainprm``) is left as it is.
+    Thelen's curve over its whole strain (``muscle_curves.fit_mujoco_passive_whole``), of
+    MuJoCo's normalised length (``thelen``) or of the pennated fibre's own length, projected
+    on the tendon as OpenSim's rigid-tendon muscle does (``thelen-fibre``); the active force
+    (``gainprm``) is left as it is.
 
     Raises:
         ValueError: the body is a MuJoCo MJCF (no Thelen parameters to fit to).
     """
     if scene.body in MJCF_SOURCES:
         raise ValueError(
-            f"scene {scene.name!r}: muscle_passive 'thelen' needs a body with Thelen passive "
+            f"scene {scene.name!r}: muscle_passive {scene.muscle_passive!r} needs a body with "
+            "Thelen passive "
             f"parameters (a body file such as gait2d); {scene.body!r} is a MuJoCo MJCF"
         )
     for muscle in load_body(scene.body).muscles:
         actuator = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, muscle.name)
         if actuator >= 0:  # kept by the scene
+            pennation = muscle.pennation_angle if scene.muscle_passive == "thelen-fibre" else 0.0
             lmax, fpmax = fit_mujoco_passive_whole(
-                muscle.passive_fibre_strain, muscle.passive_shape
+                muscle.passive_fibre_strain, muscle.passive_shape, pennation
             )
             model.actuator_biasprm[actuator, 5] = lmax
             model.actuator_biasprm[actuator, 7] = fpmax
@@ -139,7 +143,7 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
     model = spec.compile()
     if scene.muscle_curves == "millard":
         _fit_muscle_curves_to_millard(model)
-    if scene.muscle_passive == "thelen":
+    if scene.muscle_passive != "gait":
         _fit_passive_to_thelen_whole(model, scene)
     report = CompileReport(
         scene=scene.name,

@@ -51,8 +51,13 @@ def fit_mujoco_fpmax(
     """Least-squares ``fpmax`` so that MuJoCo's passive curve follows Thelen's over fibre
     strains from 0 to ``up_to * strain`` (``points`` lengths)."""
     lengths = np.linspace(1.0, 1.0 + up_to * strain, points)
+    return _least_squares_fpmax(lengths, thelen_passive(lengths, strain, shape), lmax)
+
+
+def _least_squares_fpmax(lengths: np.ndarray, target: np.ndarray, lmax: float) -> float:
+    """``fpmax`` of MuJoCo's passive curve (``lmax`` given) closest to ``target`` at
+    ``lengths`` (MuJoCo's normalised lengths) by least squares."""
     unit = mujoco_passive(lengths, lmax, 1.0)
-    target = thelen_passive(lengths, strain, shape)
     return float(unit @ target / (unit @ unit))
 
 
@@ -60,8 +65,28 @@ WHOLE_STRAIN_POINTS = 61
 """Fibre lengths, 1 to 1 + strain, that :func:`fit_mujoco_passive_whole` fits over."""
 
 
+def thelen_passive_on_tendon(
+    projected: np.ndarray, strain: float, shape: float, pennation: float
+) -> np.ndarray:
+    """Thelen's passive force along the tendon, as a fraction of MuJoCo's peak force
+    (``F_max cos(pennation)``), at MuJoCo's normalised lengths ``projected`` (the fibre's
+    length along the tendon over ``l_opt cos(pennation)``, ``mujoco_build``'s ``L0``).
+
+    OpenSim's rigid-tendon Millard muscle keeps the fibre's height constant (``l_opt
+    sin(pennation)``), so its fibre is ``sqrt((x cos a)^2 + sin(a)^2)`` optimal lengths long
+    at MuJoCo's ``x``, shorter than ``x`` past 1, and pulls on the tendon times ``cos`` of its
+    angle then, ``x cos(a) / fibre``: gait2d's gastrocnemius (17.5 degrees) standing is
+    1.458 long to MuJoCo and 1.425 to OpenSim. With ``pennation`` 0 this is
+    :func:`thelen_passive`."""
+    x = np.asarray(projected, dtype=float)
+    fibre = np.sqrt((x * math.cos(pennation)) ** 2 + math.sin(pennation) ** 2)
+    return thelen_passive(fibre, strain, shape) * x / fibre
+
+
 @lru_cache(maxsize=64)
-def fit_mujoco_passive_whole(strain: float, shape: float) -> tuple[float, float]:
+def fit_mujoco_passive_whole(
+    strain: float, shape: float, pennation: float = 0.0
+) -> tuple[float, float]:
     """``(lmax, fpmax)`` of MuJoCo's passive curve (the muscle's ``biasprm``, apart from the
     active force's) fitted by least squares to Thelen's over its whole strain, 1 to
     ``1 + strain`` normalised fibre length (passive force 0 to 1): ``lmax`` on a 0.01 grid
@@ -72,22 +97,25 @@ def fit_mujoco_passive_whole(strain: float, shape: float) -> tuple[float, float]
     pick among those (2.33 for 0.6, 2.99 for 1.0, gait2d's rectus femoris and vasti) sets only
     where the curve turns linear past the strain. The scene option ``muscle_passive: thelen``.
 
+    With ``pennation`` (rad at optimal length), the target is Thelen's curve of the pennated
+    fibre's own length, projected on the tendon (:func:`thelen_passive_on_tendon`), over the
+    MuJoCo lengths whose fibre spans 1 to ``1 + strain``: ``muscle_passive: thelen-fibre``.
+
     :func:`fit_mujoco_fpmax` (the default) fits ``fpmax`` alone over the first
     :data:`FIT_UP_TO` of the strain, ``lmax`` shared with the active curve, and is the softer
     beyond it: gait2d's gastrocnemius at 1.6 optimal length pulls 0.44 of its peak force
     there against Thelen's 1.0; with this fit 0.77.
     """
-    lengths = np.linspace(1.0, 1.0 + strain, WHOLE_STRAIN_POINTS)
-    target = thelen_passive(lengths, strain, shape)
-
-    def fpmax(lmax: float) -> float:
-        return fit_mujoco_fpmax(strain, shape, lmax, up_to=1.0, points=WHOLE_STRAIN_POINTS)
+    end = math.sqrt((1.0 + strain) ** 2 - math.sin(pennation) ** 2) / math.cos(pennation)
+    lengths = np.linspace(1.0, end, WHOLE_STRAIN_POINTS)
+    target = thelen_passive_on_tendon(lengths, strain, shape, pennation)
 
     def error(lmax: float) -> float:
-        return float(np.sum((mujoco_passive(lengths, lmax, fpmax(lmax)) - target) ** 2))
+        fpmax = _least_squares_fpmax(lengths, target, lmax)
+        return float(np.sum((mujoco_passive(lengths, lmax, fpmax) - target) ** 2))
 
     lmax = min((float(x) for x in np.arange(1.02, 3.0, 0.01)), key=error)
-    return lmax, fpmax(lmax)
+    return lmax, _least_squares_fpmax(lengths, target, lmax)
 
 
 MILLARD_ACTIVE_RANGE = (0.24, 1.87)

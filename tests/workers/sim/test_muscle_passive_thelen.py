@@ -5,6 +5,9 @@ gastrocnemius is stretched past that part when the knee is straight and the ankl
 
 The fit is checked as the least-squares optimum on its grid; a compiled walk-2d's relaxed
 gastrocnemius is posed long and its passive pull compared with Thelen's curve.
+``muscle_passive: thelen-fibre`` fits the same curve of the pennated fibre's own length,
+projected on the tendon (OpenSim's rigid-tendon muscle): checked against the parallelogram's
+geometry, and as the same fit for an unpennated muscle.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from gaitforge.workers.sim.muscle_curves import (
     fit_mujoco_passive_whole,
     mujoco_passive,
     thelen_passive,
+    thelen_passive_on_tendon,
 )
 
 GASTROC = next(m for m in load_body("gait2d").muscles if m.name == "gastroc_r")
@@ -96,3 +100,41 @@ def test_an_mjcf_body_is_refused_with_the_option_named() -> None:
     scene = load_scene("walk-3d-planar").model_copy(update={"muscle_passive": "thelen"})
     with pytest.raises(ValueError, match=r"muscle_passive 'thelen'.*myoleg"):
         compile_scene(scene)
+
+
+def test_thelen_on_the_tendon_follows_the_pennated_fibre() -> None:
+    """At MuJoCo's length 1 the fibre is at its optimal length; past it the fibre is shorter
+    than MuJoCo's length (its height stays ``sin(pennation)``) and pulls along the tendon by
+    ``cos`` of its angle; unpennated, it is Thelen's curve itself."""
+    strain, shape, pennation = GASTROC.passive_fibre_strain, GASTROC.passive_shape, 0.3
+    x = np.array([1.0, 1.2, 1.458])
+    fibre = np.sqrt((x * np.cos(pennation)) ** 2 + np.sin(pennation) ** 2)
+    np.testing.assert_allclose(fibre[0], 1.0)
+    assert np.all(fibre[1:] < x[1:])
+    expected = thelen_passive(fibre, strain, shape) * x * np.cos(pennation) / fibre
+    np.testing.assert_allclose(
+        thelen_passive_on_tendon(x, strain, shape, pennation) * np.cos(pennation), expected
+    )
+    np.testing.assert_allclose(
+        thelen_passive_on_tendon(x, strain, shape, 0.0), thelen_passive(x, strain, shape)
+    )
+
+
+def test_the_fibre_fit_changes_only_the_pennated_muscles() -> None:
+    """Compiled walk-2d: ``thelen-fibre`` equals ``thelen`` for gait2d's unpennated gluteus
+    maximus and is the softer for the gastrocnemius (its fibre shorter than MuJoCo's length)
+    at the standing gastrocnemius's 1.46."""
+
+    def compiled(option: str) -> mujoco.MjModel:
+        return compile_scene(load_scene("walk-2d").model_copy(update={"muscle_passive": option}))[0]
+
+    thelen, fibre = compiled("thelen"), compiled("thelen-fibre")
+
+    def actuator(name: str) -> int:
+        return mujoco.mj_name2id(thelen, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+
+    glut, gastroc = actuator("glut_max_r"), actuator("gastroc_r")
+    np.testing.assert_array_equal(fibre.actuator_biasprm[glut], thelen.actuator_biasprm[glut])
+    pull = {name: mujoco_passive(np.array([1.458]), *m.actuator_biasprm[gastroc, [5, 7]])[0]
+            for name, m in (("thelen", thelen), ("fibre", fibre))}  # fmt: skip
+    assert pull["fibre"] < 0.95 * pull["thelen"]

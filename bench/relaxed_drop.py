@@ -1,0 +1,115 @@
+"""The body let go from its reset pose on both simulators, no policy: every muscle held at one
+excitation (0: relaxed), from the same reset seed, on MuJoCo at each contact time constant
+asked for and on OpenSim. A table against time of each variant's right heel and toe depth
+(the contact sphere's lowest point against the floor, m; negative: inside it), right foot's
+normal ground force (body weights), right ankle and knee angles (degrees) and pelvis height
+(m). What differs is the simulators' own modelling of the contact and the passive body, with
+no policy to react to it (`bench/cross_sim.py` runs a policy on both).
+
+Usage: python bench/relaxed_drop.py [--scene walk-2d-clock] [--excitation 0]
+           [--timeconst 0.02 0.12] [--every-s 0.01] [--until-s 0.06] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+from gaitforge.workers.env import GRAVITY
+from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.sim import make_simulator
+from rich.console import Console
+from rich.table import Table
+
+console = Console(width=180)
+SERIES = ("heel m", "toe m", "foot BW", "ankle deg", "knee deg", "pelvis m")
+
+
+def drop(scene: Scene, backend: str, excitation: float, every_s: float, steps: int,
+         seed: int) -> np.ndarray:  # fmt: skip
+    """[steps, len(SERIES)]: the right foot's heel and toe sphere depths, its normal force,
+    the right ankle and knee angles and the pelvis height after each ``every_s`` step."""
+    sim = make_simulator(scene, backend)
+    sim.reset(seed)
+    weight = sim.report.mass * GRAVITY
+    up, foot = sim.up_axis, sim.foot_names.index("foot_right")
+    ankle, knee = sim.dof_names.index("ankle_angle_r"), sim.dof_names.index("knee_angle_r")
+    excitations = np.full(len(sim.muscle_names), excitation)
+    rows = []
+    for _ in range(steps):
+        health = sim.step(excitations, every_s)
+        state = sim.state()
+        spheres = sim.contact_spheres()["foot_right"]  # heel first, then toe: [n, 4]
+        depth = spheres[:, up] - spheres[:, 3]
+        rows.append([depth[0], depth[-1], state.foot_forces[foot] / weight,
+                     np.degrees(state.dof_pos[ankle]), np.degrees(state.dof_pos[knee]),
+                     state.pelvis_pos[up]])  # fmt: skip
+        if not health.ok:
+            console.log(f"{backend}: {health} at {state.time:.3f} s")
+            break
+    out = np.full((steps, len(SERIES)), np.nan)
+    out[: len(rows)] = rows
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scene", default="walk-2d-clock", help="a catalogue name or a file")
+    parser.add_argument("--excitation", type=float, default=0.0, help="every muscle's, 0-1")
+    parser.add_argument(
+        "--timeconst",
+        type=float,
+        nargs="+",
+        default=[0.02, 0.12],
+        help="MuJoCo contact time constants (s), one variant each",
+    )
+    parser.add_argument("--every-s", type=float, default=0.01)
+    parser.add_argument("--until-s", type=float, default=0.06)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json-out", type=Path, default=None)
+    args = parser.parse_args()
+    if not 0.0 <= args.excitation <= 1.0:
+        raise SystemExit(f"--excitation: {args.excitation} is not within 0-1")
+    if args.every_s <= 0 or args.until_s < args.every_s:
+        raise SystemExit("--every-s must be > 0 and --until-s at least --every-s")
+    if any(t <= 0 for t in args.timeconst):
+        raise SystemExit(f"--timeconst: {args.timeconst}: each must be > 0 s")
+    scene = load_scene(args.scene).resolved()
+    steps = round(args.until_s / args.every_s)
+    variants = {
+        f"mujoco {t:g} s": (scene.model_copy(update={"contact_timeconst_s": t}), "mujoco")
+        for t in args.timeconst
+    }
+    variants["opensim"] = (scene, "opensim")
+    logs = {
+        name: drop(s, backend, args.excitation, args.every_s, steps, args.seed)
+        for name, (s, backend) in variants.items()
+    }
+    title = (f"{scene.name}: every muscle at excitation {args.excitation:g} from the reset "
+             f"(seed {args.seed}); right foot: heel / toe depth m, force BW; right ankle / "
+             "knee deg; pelvis m")  # fmt: skip
+    table = Table(title=title)
+    table.add_column("t s", justify="right")
+    for name in logs:
+        table.add_column(name, justify="right")
+    for k in range(steps):
+        cells = [f"{(k + 1) * args.every_s:.3f}"]
+        for log in logs.values():
+            heel, toe, force, ankle, knee, pelvis = log[k]
+            cells.append(
+                f"{heel:+.3f}/{toe:+.3f} {force:.2f} {ankle:+.0f}/{knee:+.0f} {pelvis:.3f}"
+            )
+        table.add_row(*cells)
+    console.print(table)
+    if args.json_out is not None:
+        data = {"series": list(SERIES), "every_s": args.every_s, "excitation": args.excitation,
+                "scene": scene.name,
+                "runs": {n: np.where(np.isfinite(v), v.round(5), None).tolist()
+                         for n, v in logs.items()}}  # fmt: skip
+        args.json_out.write_text(json.dumps(data))
+
+
+if __name__ == "__main__":
+    main()
