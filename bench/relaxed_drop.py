@@ -1,10 +1,11 @@
 """The body let go from its reset pose on both simulators, no policy: every muscle held at one
 excitation (0: relaxed), from the same reset seed, on MuJoCo at each contact time constant
 asked for and on OpenSim. A table against time of each variant's right heel and toe depth
-(the contact sphere's lowest point against the floor, m; negative: inside it), right foot's
-normal ground force (body weights), right ankle and knee angles (degrees) and pelvis height
-(m). What differs is the simulators' own modelling of the contact and the passive body, with
-no policy to react to it (`bench/cross_sim.py` runs a policy on both).
+(the contact sphere's lowest point against the floor, m; negative: inside it), how far the
+toe has moved forward (m), the right foot's normal ground force (body weights), the right
+ankle and knee angles (degrees) and the pelvis height (m). What differs is the simulators'
+own modelling of the contact and the passive body, with no policy to react to it
+(`bench/cross_sim.py` runs a policy on both).
 
 Usage: python bench/relaxed_drop.py [--scene walk-2d-clock] [--excitation 0]
            [--timeconst 0.02 0.12] [--every-s 0.01] [--until-s 0.06] [--seed 0]
@@ -24,17 +25,19 @@ from rich.console import Console
 from rich.table import Table
 
 console = Console(width=180)
-SERIES = ("heel m", "toe m", "foot BW", "ankle deg", "knee deg", "pelvis m")
+SERIES = ("heel m", "toe m", "toe slide m", "foot BW", "ankle deg", "knee deg", "pelvis m")
 
 
 def drop(scene: Scene, backend: str, excitation: float, every_s: float, steps: int,
          seed: int) -> np.ndarray:  # fmt: skip
-    """[steps, len(SERIES)]: the right foot's heel and toe sphere depths, its normal force,
-    the right ankle and knee angles and the pelvis height after each ``every_s`` step."""
+    """[steps, len(SERIES)]: the right foot's heel and toe sphere depths, the toe's forward
+    travel, the foot's normal force, the right ankle and knee angles and the pelvis height
+    after each ``every_s`` step."""
     sim = make_simulator(scene, backend)
     sim.reset(seed)
     weight = sim.report.mass * GRAVITY
-    up, foot = sim.up_axis, sim.foot_names.index("foot_right")
+    up, forward, foot = sim.up_axis, sim.forward_axis, sim.foot_names.index("foot_right")
+    toe_start = sim.contact_spheres()["foot_right"][-1, forward]
     ankle, knee = sim.dof_names.index("ankle_angle_r"), sim.dof_names.index("knee_angle_r")
     excitations = np.full(len(sim.muscle_names), excitation)
     rows = []
@@ -43,7 +46,8 @@ def drop(scene: Scene, backend: str, excitation: float, every_s: float, steps: i
         state = sim.state()
         spheres = sim.contact_spheres()["foot_right"]  # heel first, then toe: [n, 4]
         depth = spheres[:, up] - spheres[:, 3]
-        rows.append([depth[0], depth[-1], state.foot_forces[foot] / weight,
+        rows.append([depth[0], depth[-1], spheres[-1, forward] - toe_start,
+                     state.foot_forces[foot] / weight,
                      np.degrees(state.dof_pos[ankle]), np.degrees(state.dof_pos[knee]),
                      state.pelvis_pos[up]])  # fmt: skip
         if not health.ok:
@@ -88,8 +92,8 @@ def main() -> None:
         for name, (s, backend) in variants.items()
     }
     title = (f"{scene.name}: every muscle at excitation {args.excitation:g} from the reset "
-             f"(seed {args.seed}); right foot: heel / toe depth m, force BW; right ankle / "
-             "knee deg; pelvis m")  # fmt: skip
+             f"(seed {args.seed}); right foot: heel / toe depth m, toe's forward travel, force BW; "
+             "right ankle / knee deg; pelvis m")  # fmt: skip
     table = Table(title=title)
     table.add_column("t s", justify="right")
     for name in logs:
@@ -97,10 +101,9 @@ def main() -> None:
     for k in range(steps):
         cells = [f"{(k + 1) * args.every_s:.3f}"]
         for log in logs.values():
-            heel, toe, force, ankle, knee, pelvis = log[k]
-            cells.append(
-                f"{heel:+.3f}/{toe:+.3f} {force:.2f} {ankle:+.0f}/{knee:+.0f} {pelvis:.3f}"
-            )
+            heel, toe, slide, force, ankle, knee, pelvis = log[k]
+            cells.append(f"{heel:+.3f}/{toe:+.3f} {slide * 1000:+.0f}mm {force:.2f} "
+                         f"{ankle:+.0f}/{knee:+.0f} {pelvis:.3f}")  # fmt: skip
         table.add_row(*cells)
     console.print(table)
     if args.json_out is not None:

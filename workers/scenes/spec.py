@@ -22,6 +22,9 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 NonNegative = Annotated[float, Field(ge=0)]
 Timeconst = Annotated[float, Field(gt=0, le=1)]
+Impedance = Annotated[float, Field(gt=0, lt=1)]
+Width = Annotated[float, Field(gt=0, le=0.2)]
+Power = Annotated[float, Field(ge=1, le=20)]
 
 
 class _Strict(BaseModel):
@@ -201,6 +204,22 @@ class Scene(_Strict):
         "a [low, high] range drawn anew each episode; None keeps MuJoCo's 0.02 s. About 0.12 "
         "sinks gait2d's feet as deep as OpenSim's Hunt-Crossley spheres (OpenSim: ignored)",
     )
+    contact_solimp: tuple[Impedance, Impedance, Width, Impedance, Power] | None = Field(
+        default=None,
+        description="MuJoCo: the contacts' impedance against penetration depth (solimp: "
+        "[dmin, dmax, width m, midpoint, power]; dmin at the surface rising to dmax at width "
+        "deep), so that a contact can stiffen with depth as a Hunt-Crossley sphere does; "
+        "None keeps MuJoCo's [0.9, 0.95, 0.001, 0.5, 2] (OpenSim: ignored)",
+    )
+    muscle_min_activation: float = Field(
+        default=0.0,
+        ge=0.0,
+        le=0.05,
+        description="MuJoCo: the least activation its muscles keep (their excitations raised to "
+        "it, their activation starting there); OpenSim's Millard muscle never goes below 0.01, "
+        "whose active force at rest (gait2d's vasti 1 % of 9594 N) holds a relaxed knee "
+        "straight where MuJoCo's at 0 buckles; 0.01 matches it (OpenSim: ignored)",
+    )
     muscle_curves: Literal["mujoco", "millard"] = Field(
         default="mujoco",
         description="MuJoCo: its muscles' active force-length and force-velocity curves, "
@@ -254,6 +273,10 @@ class Scene(_Strict):
         timeconst = self.contact_timeconst_s
         if isinstance(timeconst, tuple) and timeconst[0] > timeconst[1]:
             raise ValueError(f"contact_timeconst_s: low {timeconst[0]} > high {timeconst[1]}")
+        if self.contact_solimp is not None and self.contact_solimp[0] > self.contact_solimp[1]:
+            raise ValueError(
+                f"contact_solimp: dmin {self.contact_solimp[0]} > dmax {self.contact_solimp[1]}"
+            )
         return self
 
     def _check_reflex(self) -> None:

@@ -102,6 +102,9 @@ class MujocoSimulator:
         )
         self._lift_adr = self._root_slide_along(self.up_axis)
         self._stand_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, STAND_KEY)
+        self._muscle_act = m.actuator_actadr[
+            (m.actuator_gaintype == mujoco.mjtGain.mjGAIN_MUSCLE) & (m.actuator_actadr >= 0)
+        ]
         self._rng = np.random.default_rng(0)
         self._contact_timeconst = float("nan")
         self._set_contact_timeconst(self._rng)
@@ -133,6 +136,9 @@ class MujocoSimulator:
         d.qpos[self._qadr] = np.clip(d.qpos[self._qadr] + jitter, self._qlo, self._qhi)
         self._place_obstacles()
         self._touch_floor()
+        floor = self.scene.muscle_min_activation
+        if floor > 0:  # the muscles start at their least activation, as OpenSim's do
+            d.act[self._muscle_act] = np.maximum(d.act[self._muscle_act], floor)
         mujoco.mj_forward(m, d)
 
     def step(self, excitations: np.ndarray, duration: float) -> Health:

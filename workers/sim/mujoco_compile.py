@@ -141,6 +141,13 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
     spec.option.integrator = INTEGRATORS[profile.integrator]
     spec.option.timestep = profile.timestep
     model = spec.compile()
+    if scene.muscle_min_activation > 0:
+        muscles = model.actuator_gaintype == mujoco.mjtGain.mjGAIN_MUSCLE
+        model.actuator_ctrllimited[muscles] = 1
+        model.actuator_ctrlrange[muscles] = (scene.muscle_min_activation, 1.0)
+    if scene.contact_solimp is not None:
+        model.geom_solimp[:] = scene.contact_solimp
+        model.pair_solimp[:] = scene.contact_solimp
     if scene.muscle_curves == "millard":
         _fit_muscle_curves_to_millard(model)
     if scene.muscle_passive != "gait":
