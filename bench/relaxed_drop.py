@@ -9,6 +9,7 @@ own modelling of the contact and the passive body, with no policy to react to it
 
 Usage: python bench/relaxed_drop.py [--scene walk-2d-clock] [--excitation 0]
            [--timeconst 0.02 0.12] [--every-s 0.01] [--until-s 0.06] [--seed 0]
+           [--lift-m 0]
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import argparse
 import json
 from pathlib import Path
 
+import mujoco
 import numpy as np
 from gaitforge.workers.env import GRAVITY
 from gaitforge.workers.scenes import Scene, load_scene
@@ -29,12 +31,15 @@ SERIES = ("heel m", "toe m", "toe slide m", "foot BW", "ankle deg", "knee deg", 
 
 
 def drop(scene: Scene, backend: str, excitation: float, every_s: float, steps: int,
-         seed: int) -> np.ndarray:  # fmt: skip
+         seed: int, lift_m: float = 0.0) -> np.ndarray:  # fmt: skip
     """[steps, len(SERIES)]: the right foot's heel and toe sphere depths, the toe's forward
     travel, the foot's normal force, the right ankle and knee angles and the pelvis height
-    after each ``every_s`` step."""
+    after each ``every_s`` step; the body first raised ``lift_m`` above its reset (a drop
+    onto the floor)."""
     sim = make_simulator(scene, backend)
     sim.reset(seed)
+    if lift_m:
+        _lift(sim, backend, lift_m)
     weight = sim.report.mass * GRAVITY
     up, forward, foot = sim.up_axis, sim.forward_axis, sim.foot_names.index("foot_right")
     toe_start = sim.contact_spheres()["foot_right"][-1, forward]
@@ -58,6 +63,16 @@ def drop(scene: Scene, backend: str, excitation: float, every_s: float, steps: i
     return out
 
 
+def _lift(sim, backend: str, lift_m: float) -> None:
+    """Raise the body by ``lift_m`` through the simulator's own vertical root dof (a probe)."""
+    if backend == "mujoco":
+        sim.data.qpos[sim._lift_adr] += lift_m
+        mujoco.mj_forward(sim.model, sim.data)
+    else:
+        lift = sim._coords[sim._lift_dof]
+        lift.setValue(sim.osim_state, lift.getValue(sim.osim_state) + lift_m, False)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="walk-2d-clock", help="a catalogue name or a file")
@@ -72,12 +87,16 @@ def main() -> None:
     parser.add_argument("--every-s", type=float, default=0.01)
     parser.add_argument("--until-s", type=float, default=0.06)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--lift-m", type=float, default=0.0,
+                        help="drop the body from this high above its reset (m, 0-0.2)")  # fmt: skip
     parser.add_argument("--json-out", type=Path, default=None)
     args = parser.parse_args()
     if not 0.0 <= args.excitation <= 1.0:
         raise SystemExit(f"--excitation: {args.excitation} is not within 0-1")
     if args.every_s <= 0 or args.until_s < args.every_s:
         raise SystemExit("--every-s must be > 0 and --until-s at least --every-s")
+    if not 0.0 <= args.lift_m <= 0.2:
+        raise SystemExit(f"--lift-m: {args.lift_m} is not within 0-0.2 m")
     if any(t <= 0 for t in args.timeconst):
         raise SystemExit(f"--timeconst: {args.timeconst}: each must be > 0 s")
     scene = load_scene(args.scene).resolved()
@@ -88,10 +107,11 @@ def main() -> None:
     }
     variants["opensim"] = (scene, "opensim")
     logs = {
-        name: drop(s, backend, args.excitation, args.every_s, steps, args.seed)
+        name: drop(s, backend, args.excitation, args.every_s, steps, args.seed, args.lift_m)
         for name, (s, backend) in variants.items()
     }
-    title = (f"{scene.name}: every muscle at excitation {args.excitation:g} from the reset "
+    title = (f"{scene.name}: every muscle at excitation {args.excitation:g}, let go "
+             f"{args.lift_m * 100:g} cm above the reset pose "
              f"(seed {args.seed}); right foot: heel / toe depth m, toe's forward travel, force BW; "
              "right ankle / knee deg; pelvis m")  # fmt: skip
     table = Table(title=title)
