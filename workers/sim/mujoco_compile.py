@@ -107,8 +107,8 @@ def _fit_passive_to_thelen_whole(model: mujoco.MjModel, scene: Scene) -> None:
     if scene.body in MJCF_SOURCES:
         raise ValueError(
             f"scene {scene.name!r}: muscle_passive {scene.muscle_passive!r} needs a body with "
-            "Thelen passive "
-            f"parameters (a body file such as gait2d); {scene.body!r} is a MuJoCo MJCF"
+            f"Thelen passive parameters (a body file such as gait2d); {scene.body!r} is a "
+            "MuJoCo MJCF"
         )
     for muscle in load_body(scene.body).muscles:
         actuator = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, muscle.name)
