@@ -75,7 +75,7 @@ def thelen_passive_on_tendon(
     OpenSim's rigid-tendon Millard muscle keeps the fibre's height constant (``l_opt
     sin(pennation)``), so its fibre is ``sqrt((x cos a)^2 + sin(a)^2)`` optimal lengths long
     at MuJoCo's ``x``, shorter than ``x`` past 1, and pulls on the tendon times ``cos`` of its
-    angle then, ``x cos(a) / fibre``: gait2d's gastrocnemius (17.5 degrees) standing is
+    angle then, ``x cos(a) / fibre``: gait2d's gastrocnemius (17 degrees) standing is
     1.458 long to MuJoCo and 1.425 to OpenSim. With ``pennation`` 0 this is
     :func:`thelen_passive`."""
     x = np.asarray(projected, dtype=float)
