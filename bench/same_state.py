@@ -46,17 +46,7 @@ def main() -> None:
     m, d = mj.model, mj.data
     joints = [*ROOT, *mj.dof_names]
     dof = {n: int(m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)]) for n in joints}
-    own = {n: c for n, c in coords.items() if not n.startswith("pelvis")}
-    mj.set_pose(Pose(coordinates={n: c.getValue(st) for n, c in own.items()},
-                     speeds={n: c.getSpeedValue(st) for n, c in own.items()},
-                     pelvis_height=float(op.state().pelvis_pos[op.up_axis]),
-                     pelvis_pitch=coords["pelvis_tilt"].getValue(st),
-                     pelvis_angular_speed=(coords["pelvis_tilt"].getSpeedValue(st), 0.0, 0.0),
-                     forward_speed=coords["pelvis_tx"].getSpeedValue(st),
-                     vertical_speed=coords["pelvis_ty"].getSpeedValue(st)))  # fmt: skip
-    mujoco.mj_forward(m, d)  # set_pose lifts feet out of the floor: put the pelvis back
-    d.qpos[mj._lift_adr] += op.state().pelvis_pos[op.up_axis] - mj.state().pelvis_pos[mj.up_axis]
-    mujoco.mj_forward(m, d)
+    _put_in_state(mj, op)
 
     full = np.zeros((m.nv, m.nv))
     mujoco.mj_fullM(m, d, full)
@@ -80,6 +70,8 @@ def main() -> None:
         d.xfrc_applied[b, 3:] = torque + np.cross(d.xpos[b] - d.xipos[b], force)  # its COM
     mujoco.mj_forward(m, d)
     rows["MuJoCo, OpenSim's contacts"] = d.qacc[index].copy()
+    # what MuJoCo applies, muscles and those contact wrenches (qfrc_smooth = passive - bias +
+    # applied + actuator + the xfrc's); inverse dynamics gives what OpenSim's qacc needs
     applied = d.qfrc_smooth - d.qfrc_passive + d.qfrc_bias - d.qfrc_applied
     d.qacc[index] = rows["OpenSim"]
     mujoco.mj_inverse(m, d)
@@ -95,6 +87,23 @@ def main() -> None:
     for name, values in muscle_moments.items():
         table.add_row(f"muscles {name}, N m", "", "", "", *(f"{v:+.1f}" for v in values))
     console.print(table)
+
+
+def _put_in_state(mj, op) -> None:
+    """MuJoCo's joint angles and speeds, pelvis pitch, speeds and height set to OpenSim's."""
+    st, coords = op.osim_state, op._coords
+    own = {n: c for n, c in coords.items() if not n.startswith("pelvis")}
+    mj.set_pose(Pose(coordinates={n: c.getValue(st) for n, c in own.items()},
+                     speeds={n: c.getSpeedValue(st) for n, c in own.items()},
+                     pelvis_height=float(op.state().pelvis_pos[op.up_axis]),
+                     pelvis_pitch=coords["pelvis_tilt"].getValue(st),
+                     pelvis_angular_speed=(coords["pelvis_tilt"].getSpeedValue(st), 0.0, 0.0),
+                     forward_speed=coords["pelvis_tx"].getSpeedValue(st),
+                     vertical_speed=coords["pelvis_ty"].getSpeedValue(st)))  # fmt: skip
+    m, d = mj.model, mj.data
+    mujoco.mj_forward(m, d)  # set_pose lifts feet out of the floor: put the pelvis back
+    d.qpos[mj._lift_adr] += op.state().pelvis_pos[op.up_axis] - mj.state().pelvis_pos[mj.up_axis]
+    mujoco.mj_forward(m, d)
 
 
 def _opensim_mass_matrix(op, state, coordinates: list) -> np.ndarray:
