@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.sim import make_simulator
+from relaxed_drop import lift  # bench/relaxed_drop.py (this script's folder is on sys.path)
 from rich.console import Console
 from rich.table import Table
 
@@ -37,7 +38,7 @@ def mujoco_moments(scene: Scene, joint: str, angles: np.ndarray) -> np.ndarray:
         j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
         return int(m.jnt_qposadr[j] if kind == "q" else m.jnt_dofadr[j])
 
-    d.qpos[sim._lift_adr] += LIFT_M  # the simulator's own vertical dof (a bench probe)
+    lift(sim, "mujoco", LIFT_M)
     dofs = [address(n, "v") for n in sim.dof_names]
     out = []
     for angle in angles:
@@ -54,21 +55,24 @@ def opensim_moments(scene: Scene, joint: str, angles: np.ndarray) -> np.ndarray:
     activation (0.01), fibres in equilibrium."""
     sim = make_simulator(scene, "opensim")
     sim.reset(0)
+    lift(sim, "opensim", LIFT_M)
     state, coords = sim.osim_state, sim._coords  # the simulator's own (a bench probe)
-    lift = coords[sim._lift_dof]
-    lift.setValue(state, lift.getValue(state) + LIFT_M, False)
-    kept = [coords[n] for n in sim.dof_names]
     out = []
     for angle in angles:
         coords[joint].setValue(state, float(angle), False)
         for coord in coords.values():
             coord.setSpeedValue(state, 0.0)
         sim.model.equilibrateMuscles(state)
-        sim.model.realizeDynamics(state)
-        forces = np.array([mu.getActuation(state) for mu in sim._muscles])
-        arms = np.array([[mu.computeMomentArm(state, c) for c in kept] for mu in sim._muscles])
-        out.append(forces @ arms)
+        out.append(opensim_muscle_moments(sim))
     return np.array(out)
+
+
+def opensim_muscle_moments(sim) -> np.ndarray:
+    """[kept joints]: the muscles' moments (N m) on OpenSim at its present state, tendon
+    forces times ``sim.moment_arms()`` (also bench/same_state.py's)."""
+    sim.model.realizeDynamics(sim.osim_state)
+    forces = np.array([mu.getActuation(sim.osim_state) for mu in sim._muscles])
+    return forces @ sim.moment_arms()
 
 
 def main() -> None:

@@ -39,7 +39,7 @@ def drop(scene: Scene, backend: str, excitation: float, every_s: float, steps: i
     sim = make_simulator(scene, backend)
     sim.reset(seed)
     if lift_m:
-        _lift(sim, backend, lift_m)
+        lift(sim, backend, lift_m)
     weight = sim.report.mass * GRAVITY
     up, forward, foot = sim.up_axis, sim.forward_axis, sim.foot_names.index("foot_right")
     toe_start = sim.contact_spheres()["foot_right"][-1, forward]
@@ -63,8 +63,9 @@ def drop(scene: Scene, backend: str, excitation: float, every_s: float, steps: i
     return out
 
 
-def _lift(sim, backend: str, lift_m: float) -> None:
-    """Raise the body by ``lift_m`` through the simulator's own vertical root dof (a probe)."""
+def lift(sim, backend: str, lift_m: float) -> None:
+    """Raise the body by ``lift_m`` (m; negative lowers it) through the simulator's own
+    vertical root dof (a bench probe; also bench/passive_moments.py's and same_state.py's)."""
     if backend == "mujoco":
         sim.data.qpos[sim._lift_adr] += lift_m
         mujoco.mj_forward(sim.model, sim.data)

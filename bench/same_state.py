@@ -20,6 +20,8 @@ import opensim
 from gaitforge.workers.scenes import load_scene
 from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.base import Pose
+from passive_moments import opensim_muscle_moments  # bench/ (this folder is on sys.path)
+from relaxed_drop import lift
 from rich.console import Console
 from rich.table import Table
 
@@ -57,10 +59,10 @@ def main() -> None:
     rows = {"MuJoCo": d.qacc[index].copy()}
     op.model.realizeAcceleration(st)
     rows["OpenSim"] = np.array([coords[n].getAccelerationValue(st) for n in joints])
-    kept = [coords[n] for n in mj.dof_names]
-    forces = np.array([mu.getActuation(st) for mu in op._muscles])
-    arms = np.array([[mu.computeMomentArm(st, c) for c in kept] for mu in op._muscles])
-    muscle_moments = {"MuJoCo": d.qfrc_actuator[index[3:]].copy(), "OpenSim": forces @ arms}
+    muscle_moments = {
+        "MuJoCo": d.qfrc_actuator[index[3:]].copy(),
+        "OpenSim": opensim_muscle_moments(op),
+    }
 
     m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     d.xfrc_applied[:] = 0.0
@@ -100,10 +102,8 @@ def _put_in_state(mj, op) -> None:
                      pelvis_angular_speed=(coords["pelvis_tilt"].getSpeedValue(st), 0.0, 0.0),
                      forward_speed=coords["pelvis_tx"].getSpeedValue(st),
                      vertical_speed=coords["pelvis_ty"].getSpeedValue(st)))  # fmt: skip
-    m, d = mj.model, mj.data
-    mujoco.mj_forward(m, d)  # set_pose lifts feet out of the floor: put the pelvis back
-    d.qpos[mj._lift_adr] += op.state().pelvis_pos[op.up_axis] - mj.state().pelvis_pos[mj.up_axis]
-    mujoco.mj_forward(m, d)
+    mujoco.mj_forward(mj.model, mj.data)  # set_pose lifts feet out of the floor: put it back
+    lift(mj, "mujoco", op.state().pelvis_pos[op.up_axis] - mj.state().pelvis_pos[mj.up_axis])
 
 
 def _opensim_mass_matrix(op, state, coordinates: list) -> np.ndarray:
