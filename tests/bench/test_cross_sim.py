@@ -4,15 +4,18 @@ a plot and the medians per step (real simulators; episodes cut at 1 s)."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from conftest import RunBench
 
 REPO = Path(__file__).resolve().parents[2]
 
 
-def test_the_walker_on_both_simulators_gives_a_table_a_plot_and_medians(tmp_path: Path) -> None:
+def test_the_walker_on_both_simulators_gives_a_table_a_plot_and_medians(
+    tmp_path: Path, run_bench: RunBench
+) -> None:
     out = tmp_path / "cross.png"
     scene = tmp_path / "short.yaml"
     walk = (REPO / "workers/scenes/catalogue/walk-2d-clock.yaml").read_text()
@@ -21,10 +24,9 @@ def test_the_walker_on_both_simulators_gives_a_table_a_plot_and_medians(tmp_path
             "episode_s: 10", "episode_s: 1.0"
         )
     )
-    done = subprocess.run(
-        [sys.executable, str(REPO / "bench/cross_sim.py"), str(REPO / "examples/policies/walk-2d"),
-         "--scene", str(scene), "--episodes", "2", "--every-s", "0.4", "--out", str(out)],
-        capture_output=True, text=True, timeout=300, env={**os.environ, "COLUMNS": "200"},
+    done = run_bench(
+        "cross_sim.py", str(REPO / "examples/policies/walk-2d"), "--scene", str(scene),
+        "--episodes", "2", "--every-s", "0.4", "--out", str(out),
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     assert "mu height m" in done.stdout and "op height m" in done.stdout

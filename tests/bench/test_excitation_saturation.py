@@ -3,9 +3,12 @@ a time on (real MuJoCo, the reflex layer), summarised per muscle and dof."""
 
 from __future__ import annotations
 
-import subprocess
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from conftest import RunBench
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "bench"))
@@ -24,12 +27,10 @@ def test_every_reflex_update_after_the_time_is_recorded() -> None:
     assert 0.0 < (excitations > 0.99).mean() < 1.0
 
 
-def test_a_scene_on_excitations_is_refused(tmp_path: Path) -> None:
-    done = subprocess.run(
-        [sys.executable, str(REPO / "bench/excitation_saturation.py"),
-         str(REPO / "examples/policies/walk-2d"), "--scene", "walk-2d", "--episodes", "1",
-         "--json-out", str(tmp_path / "out.json")],
-        capture_output=True, text=True, timeout=300,
+def test_a_scene_on_excitations_is_refused(tmp_path: Path, run_bench: RunBench) -> None:
+    done = run_bench(
+        "excitation_saturation.py", str(REPO / "examples/policies/walk-2d"), "--scene",
+        "walk-2d", "--episodes", "1", "--json-out", str(tmp_path / "out.json"),
     )  # fmt: skip
     assert done.returncode != 0 and "not joint_targets" in done.stderr
     assert not (tmp_path / "out.json").exists()

@@ -4,23 +4,23 @@ muscle_passive option) and OpenSim, the body in the air, the ankle swept (real s
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-REPO = Path(__file__).resolve().parents[2]
+if TYPE_CHECKING:
+    from conftest import RunBench
 
 
-def test_standing_the_default_fit_pulls_as_opensim_and_thelen_harder(tmp_path: Path) -> None:
+def test_standing_the_default_fit_pulls_as_opensim_and_thelen_harder(
+    tmp_path: Path, run_bench: RunBench
+) -> None:
     """At the standing ankle (0 deg) MuJoCo's default passive fit and OpenSim agree on the
     relaxed ankle moment within 15 % (-79 against -82 N m); the whole-strain fit pulls harder
     (-127); bent up 10 deg, OpenSim's moment is more than the default's (-249 against -160)."""
     out = tmp_path / "moments.json"
-    done = subprocess.run(
-        [sys.executable, str(REPO / "bench/passive_moments.py"), "--scene", "walk-2d-clock",
-         "--degrees", "0", "10", "--options", "gait", "thelen", "--json-out", str(out)],
-        capture_output=True, text=True, timeout=300, env={**os.environ, "COLUMNS": "200"},
+    done = run_bench(
+        "passive_moments.py", "--scene", "walk-2d-clock", "--degrees", "0", "10",
+        "--options", "gait", "thelen", "--json-out", str(out),
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     data = json.loads(out.read_text())
@@ -32,9 +32,6 @@ def test_standing_the_default_fit_pulls_as_opensim_and_thelen_harder(tmp_path: P
     assert opensim[1] < 1.3 * gait[1] < 0  # OpenSim's the harder bent up
 
 
-def test_an_unknown_option_is_refused_with_the_allowed_ones() -> None:
-    done = subprocess.run(
-        [sys.executable, str(REPO / "bench/passive_moments.py"), "--options", "stiff"],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+def test_an_unknown_option_is_refused_with_the_allowed_ones(run_bench: RunBench) -> None:
+    done = run_bench("passive_moments.py", "--options", "stiff", timeout_s=120)
     assert done.returncode != 0 and "thelen-fibre" in done.stderr

@@ -5,21 +5,20 @@ pelvis (real simulators, 0.03 s)."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-REPO = Path(__file__).resolve().parents[2]
+if TYPE_CHECKING:
+    from conftest import RunBench
 
 
-def test_the_relaxed_drop_gives_a_table_and_series_per_variant(tmp_path: Path) -> None:
+def test_the_relaxed_drop_gives_a_table_and_series_per_variant(
+    tmp_path: Path, run_bench: RunBench
+) -> None:
     out = tmp_path / "drop.json"
-    done = subprocess.run(
-        [sys.executable, str(REPO / "bench/relaxed_drop.py"), "--scene", "walk-2d-clock",
-         "--timeconst", "0.02", "0.12", "--every-s", "0.01", "--until-s", "0.03",
-         "--json-out", str(out)],
-        capture_output=True, text=True, timeout=300, env={**os.environ, "COLUMNS": "200"},
+    done = run_bench(
+        "relaxed_drop.py", "--scene", "walk-2d-clock", "--timeconst", "0.02", "0.12",
+        "--every-s", "0.01", "--until-s", "0.03", "--json-out", str(out),
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     assert "mujoco 0.12 s" in done.stdout and "opensim" in done.stdout
@@ -31,9 +30,6 @@ def test_the_relaxed_drop_gives_a_table_and_series_per_variant(tmp_path: Path) -
         assert toe < 0.0 < heel  # reset on the toe, heel up: the toe takes the load
 
 
-def test_bad_arguments_are_refused_with_the_argument_named() -> None:
-    done = subprocess.run(
-        [sys.executable, str(REPO / "bench/relaxed_drop.py"), "--excitation", "2"],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+def test_bad_arguments_are_refused_with_the_argument_named(run_bench: RunBench) -> None:
+    done = run_bench("relaxed_drop.py", "--excitation", "2", timeout_s=120)
     assert done.returncode != 0 and "--excitation" in done.stderr

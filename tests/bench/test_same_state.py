@@ -5,20 +5,15 @@ simulators)."""
 
 from __future__ import annotations
 
-import os
 import re
-import subprocess
-import sys
-from pathlib import Path
+from typing import TYPE_CHECKING
 
-REPO = Path(__file__).resolve().parents[2]
+if TYPE_CHECKING:
+    from conftest import RunBench
 
 
-def test_the_same_state_on_both_simulators_gives_the_table() -> None:
-    done = subprocess.run(
-        [sys.executable, str(REPO / "bench/same_state.py"), "--at-s", "0.02"],
-        capture_output=True, text=True, timeout=300, env={**os.environ, "COLUMNS": "250"},
-    )  # fmt: skip
+def test_the_same_state_on_both_simulators_gives_the_table(run_bench: RunBench) -> None:
+    done = run_bench("same_state.py", "--at-s", "0.02", columns=250)
     assert done.returncode == 0, done.stderr[-2000:]
     gap = re.search(r"differ by at most ([0-9.e+-]+)", done.stdout)
     assert gap and float(gap.group(1)) < 1e-9, done.stdout[:400]
