@@ -211,6 +211,24 @@ class Scene(_Strict):
         "deep), so that a contact can stiffen with depth as a Hunt-Crossley sphere does; "
         "None keeps MuJoCo's [0.9, 0.95, 0.001, 0.5, 2] (OpenSim: ignored)",
     )
+    contact_model: Literal["mujoco", "hunt-crossley"] = Field(
+        default="mujoco",
+        description="MuJoCo: the contact spheres' floor contact, MuJoCo's soft constraint or "
+        "'hunt-crossley': OpenSim's law (Simbody's HuntCrossleyForce with the body's contact "
+        "parameters: a Hertz force growing with depth^1.5, its dissipation and its friction "
+        "against slip), applied as forces every MuJoCo step (workers.sim.hunt_crossley); "
+        "obstacles keep MuJoCo's contact, and contact_timeconst_s and contact_solimp apply "
+        "only to them. Body files only (OpenSim: ignored)",
+    )
+    joint_limits: Literal["mujoco", "opensim"] = Field(
+        default="mujoco",
+        description="MuJoCo: how kept dofs with a body-file passive limit are held past it, "
+        "MuJoCo's joint-limit constraint or 'opensim': OpenSim's CoordinateLimitForce spring "
+        "(stiffness ramping up over the limit's transition, with damping; "
+        "workers.sim.limit_springs), applied as forces every MuJoCo step. gait2d's knee goes "
+        "past its 10-degree limit on OpenSim while walking; MuJoCo's constraint stops it. "
+        "Body files only (OpenSim: ignored)",
+    )
     muscle_min_activation: float = Field(
         default=0.0,
         ge=0.0,

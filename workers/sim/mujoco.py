@@ -13,6 +13,7 @@ import logging
 
 import mujoco
 import numpy as np
+from gaitforge.workers.bodies import load_body
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.sim.base import (
     HEALTHY,
@@ -24,7 +25,10 @@ from gaitforge.workers.sim.base import (
     SimState,
     check_pose_names,
 )
-from gaitforge.workers.sim.mujoco_compile import OBSTACLE_PREFIX, compile_scene
+from gaitforge.workers.sim.hunt_crossley import HuntCrossleyFloor
+from gaitforge.workers.sim.limit_springs import LimitSprings
+from gaitforge.workers.sim.mjcf_contacts import CONTACT_BIT
+from gaitforge.workers.sim.mujoco_compile import OBSTACLE_PREFIX, compile_scene, opensim_limits
 from gaitforge.workers.sim.mujoco_pose import PoseSetter
 from gaitforge.workers.sim.mujoco_warnings import route_warnings
 
@@ -101,6 +105,8 @@ class MujocoSimulator:
             dtype=int,
         )
         self._lift_adr = self._root_slide_along(self.up_axis)
+        self._floor, self._springs = self._opensim_forces()
+        self._applied = np.zeros(m.nv)
         self._stand_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, STAND_KEY)
         self._muscle_act = m.actuator_actadr[
             (m.actuator_gaintype == mujoco.mjtGain.mjGAIN_MUSCLE) & (m.actuator_actadr >= 0)
@@ -140,12 +146,13 @@ class MujocoSimulator:
         if floor > 0:  # the muscles start at their least activation, as OpenSim's do
             d.act[self._muscle_act] = np.maximum(d.act[self._muscle_act], floor)
         mujoco.mj_forward(m, d)
+        self._opensim_forces_now()
 
     def step(self, excitations: np.ndarray, duration: float) -> Health:
         m, d = self.model, self.data
         t0 = self._start_step()
         d.ctrl[:] = np.clip(np.nan_to_num(excitations, nan=0.0), 0.0, 1.0)
-        mujoco.mj_step(m, d, nstep=max(1, round(duration / m.opt.timestep)))
+        self._advance(max(1, round(duration / m.opt.timestep)))
         return self._health(t0)
 
     def step_reflex(
@@ -161,10 +168,48 @@ class MujocoSimulator:
             excitation = reflex(qpos[self._qadr], qvel[self._vadr])  # finite while the state is
             total += excitation
             d.ctrl[:] = excitation
-            mujoco.mj_step(m, d, nstep=substeps)
+            self._advance(substeps)
             if not np.isfinite(qvel).all():
                 break
         return total / done, self._health(t0)
+
+    def _opensim_forces(self) -> tuple[HuntCrossleyFloor | None, LimitSprings | None]:
+        """The forces the scene asks to follow OpenSim's laws (``contact_model``,
+        ``joint_limits``; ``mujoco_compile`` has taken MuJoCo's own out), or None each."""
+        m, scene = self.model, self.scene
+        floor = springs = None
+        if scene.contact_model == "hunt-crossley":
+            spheres = np.flatnonzero(
+                (m.geom_type == mujoco.mjtGeom.mjGEOM_SPHERE)
+                & (m.geom_contype & CONTACT_BIT != 0)
+                & (m.geom_bodyid != 0)
+            )
+            floor = HuntCrossleyFloor(m, spheres, load_body(scene.body).contact, self.up_axis)
+        if scene.joint_limits == "opensim":
+            springs = LimitSprings(m, opensim_limits(scene, self.dof_names))
+        return floor, springs
+
+    def _advance(self, steps: int) -> None:
+        """``steps`` MuJoCo steps; forces that follow OpenSim's laws are set anew between
+        each step's position-velocity stage and the rest (``mj_step1``/``mj_step2``)."""
+        m, d = self.model, self.data
+        if self._floor is None and self._springs is None:
+            mujoco.mj_step(m, d, nstep=steps)
+            return
+        for _ in range(steps):
+            mujoco.mj_step1(m, d)
+            self._opensim_forces_now()
+            mujoco.mj_step2(m, d)
+
+    def _opensim_forces_now(self) -> None:
+        """``data.qfrc_applied``: the forces that follow OpenSim's laws at the present
+        positions and speeds (after ``mj_step1`` or ``mj_forward``; at a reset it is what
+        ``state().foot_forces`` reports before the next step)."""
+        self._applied[:] = 0.0
+        for force in (self._floor, self._springs):
+            if force is not None:
+                force.add(self.model, self.data, self._applied)
+        self.data.qfrc_applied[:] = self._applied
 
     def _start_step(self) -> float:
         for warning in WATCHED_WARNINGS.values():
@@ -228,6 +273,7 @@ class MujocoSimulator:
         """See ``Simulator.set_pose`` and ``workers.sim.mujoco_pose``."""
         check_pose_names(pose, self.scene.body, self.dof_names, self._locked)
         self._poser.apply(self.data, pose)
+        self._opensim_forces_now()
 
     def foot_positions(self) -> dict[str, np.ndarray]:
         d = self.data
@@ -263,6 +309,7 @@ class MujocoSimulator:
         self._apply_contact_timeconst(float(state["contact_timeconst"][0]))
         mujoco.mj_setState(m, d, state["physics"], mujoco.mjtState.mjSTATE_INTEGRATION)
         mujoco.mj_forward(m, d)
+        self._opensim_forces_now()
 
     def poison(self) -> None:
         self.data.qvel[:] = np.nan
@@ -393,4 +440,8 @@ class MujocoSimulator:
             if foot >= 0:
                 mujoco.mj_contactForce(m, d, i, wrench)
                 forces[foot] += abs(wrench[0])
+        if self._floor is not None:  # the floor's part, from the last step's forces
+            feet = self._geom_foot[self._floor.spheres]
+            on_foot = feet >= 0
+            np.add.at(forces, feet[on_foot], self._floor.normal_forces[on_foot])
         return forces

@@ -4,7 +4,8 @@ The body's unpruned model is the source (a neutral body built by ``mujoco_build`
 MyoSuite MJCF); pruning welds the scene's locked joints, removes muscles, restricts contacts,
 adds the scene's obstacles and strips visuals, then sets the fidelity profile's integrator
 and timestep (and, where the scene asks, the muscles' active force curves fitted to
-OpenSim's, or their passive curve fitted to Thelen's over its whole strain).
+OpenSim's, or their passive curve fitted to Thelen's over its whole strain, or the floor's
+contact left to ``hunt_crossley``).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from functools import lru_cache
 
 import mujoco
 from gaitforge.workers.bodies import load_body
+from gaitforge.workers.bodies.schema import JointLimit
 from gaitforge.workers.bodies.topology import Topology, topology_for
 from gaitforge.workers.scenes import PrunePlan, Scene, plan_pruning
 from gaitforge.workers.sim.base import CompileReport
@@ -121,6 +123,28 @@ def _fit_passive_to_thelen_whole(model: mujoco.MjModel, scene: Scene) -> None:
             model.actuator_biasprm[actuator, 7] = fpmax
 
 
+def _need_body_file(scene: Scene, option: str, what: str) -> None:
+    """Raises ValueError: the scene's body is a MuJoCo MJCF, without the body file's ``what``
+    that ``option`` needs."""
+    if scene.body in MJCF_SOURCES:
+        raise ValueError(
+            f"scene {scene.name!r}: {option} needs a body file with {what} (such as gait2d); "
+            f"{scene.body!r} is a MuJoCo MJCF"
+        )
+
+
+def opensim_limits(scene: Scene, dofs: list[str]) -> dict[str, JointLimit]:
+    """Of ``dofs``, those whose body-file dof has a passive ``limit`` (OpenSim's
+    ``CoordinateLimitForce``), by name (``joint_limits: opensim``).
+
+    Raises:
+        ValueError: the scene's body is a MuJoCo MJCF.
+    """
+    _need_body_file(scene, "joint_limits 'opensim'", "passive limits")
+    limits = {d.name: d.limit for j in load_body(scene.body).joints for d in j.dofs if d.limit}
+    return {name: limits[name] for name in dofs if name in limits}
+
+
 def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology]:
     """Compile ``scene`` to a pruned model, with the report of what was removed."""
     topology = topology_for(scene.body)
@@ -145,6 +169,12 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
         muscles = model.actuator_gaintype == mujoco.mjtGain.mjGAIN_MUSCLE
         model.actuator_ctrllimited[muscles] = 1
         model.actuator_ctrlrange[muscles] = (scene.muscle_min_activation, 1.0)
+    if scene.contact_model == "hunt-crossley":  # the floor's contact is workers.sim.hunt_crossley's
+        _need_body_file(scene, "contact_model 'hunt-crossley'", "contact parameters")
+        model.geom_conaffinity[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR)] = 0
+    if scene.joint_limits == "opensim":  # the limits are workers.sim.limit_springs'
+        for name in opensim_limits(scene, list(plan.kept_dofs)):
+            model.jnt_limited[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)] = 0
     if scene.contact_solimp is not None:
         model.geom_solimp[:] = scene.contact_solimp
         model.pair_solimp[:] = scene.contact_solimp

@@ -39,6 +39,7 @@ import numpy as np
 import opensim
 from gaitforge.workers.bodies.schema import GROUND, Body, Dof, Joint, PathPoint, WrapObject
 from gaitforge.workers.scenes.prune import PrunePlan
+from gaitforge.workers.sim.hunt_crossley import TRANSITION_VELOCITY
 from gaitforge.workers.sim.muscle_curves import thelen_passive, thelen_passive_stiffness_at_one
 
 logger = logging.getLogger(__name__)
@@ -60,8 +61,6 @@ OBSTACLE_PREFIX = "obstacle_"
 PARKED = -100.0
 """Forward position (m) of obstacle spheres until the simulator places them."""
 CONTROLLER = "excitations"
-TRANSITION_VELOCITY = 0.1
-"""m/s: slip speed of peak static friction (the reference's HuntCrossleyForce value)."""
 DEG = math.pi / 180.0
 
 

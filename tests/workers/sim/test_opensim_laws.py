@@ -1,0 +1,144 @@
+"""MuJoCo's forces on OpenSim's laws (session 35): ``contact_model: hunt-crossley``
+(``workers.sim.hunt_crossley``) and ``joint_limits: opensim`` (``workers.sim.limit_springs``).
+
+The laws are checked against real OpenSim, gait2d as ``opensim_build`` builds it, in states
+set by hand: a heel sphere pressed into the floor while moving and turning, a knee past its
+limit while moving; then the options on a real MuJoCo gait2d.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import opensim
+import pytest
+from gaitforge.workers.bodies import load_body
+from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.sim import make_simulator
+from gaitforge.workers.sim.hunt_crossley import hertz_coefficient, sphere_force
+from gaitforge.workers.sim.limit_springs import limit_torque
+from gaitforge.workers.sim.mujoco_compile import compile_scene
+from pydantic import ValidationError
+
+GAIT2D = load_body("gait2d")
+
+
+def _scene(**options) -> Scene:
+    scene = load_scene("walk-2d-clock")
+    return Scene.model_validate({**scene.model_dump(), **options})
+
+
+@pytest.fixture(scope="module")
+def opensim_gait2d():
+    """walk-2d-clock on OpenSim, reset by each test that uses it."""
+    return make_simulator(_scene(), "opensim")
+
+
+def _heel_on_opensim(sim, lift_m: float, speeds: dict[str, float]):
+    """OpenSim's right heel sphere with the body lowered by ``-lift_m`` and the given
+    coordinate speeds: (its depth m, its overlap middle's velocity [3] m/s, OpenSim's
+    Hunt-Crossley force on it [3] N)."""
+    sim.reset(0)
+    state, coords = sim.osim_state, sim._coords
+    lift = coords["pelvis_ty"]
+    lift.setValue(state, lift.getValue(state) + lift_m, False)
+    for name, speed in speeds.items():
+        coords[name].setSpeedValue(state, speed)
+    sim.model.realizeDynamics(state)
+    sphere = opensim.ContactSphere.safeDownCast(sim.model.getContactGeometrySet().get("r_heel"))
+    frame = sphere.getFrame()
+    centre = frame.findStationLocationInGround(state, sphere.get_location()).to_numpy()
+    depth = sphere.getRadius() - centre[1]
+    middle = centre.copy()
+    middle[1] = -0.5 * depth
+    ground = sim.model.getGround()
+    station = ground.findStationLocationInAnotherFrame(state, opensim.Vec3(*middle), frame)
+    velocity = frame.findStationVelocityInGround(state, station).to_numpy()
+    force = sim.model.getForceSet().get("contact_r_heel")
+    labels, values = force.getRecordLabels(), force.getRecordValues(state)
+    record = {labels.get(j): values.get(j) for j in range(labels.size())}
+    on_heel = np.array([record[f"contact_r_heel.calcn_r.force.{a}"] for a in "XYZ"])
+    return depth, velocity, on_heel
+
+
+@pytest.mark.parametrize(
+    ("lift_m", "speeds"),
+    [
+        (-0.02, {}),  # pressed in, at rest
+        (-0.03, {"pelvis_ty": -0.2, "pelvis_tx": 0.05}),  # landing, slipping slowly
+        (-0.02, {"pelvis_ty": 0.1, "pelvis_tx": 0.6, "ankle_angle_r": 3.0}),  # lifting, sliding
+    ],
+)
+def test_the_heel_force_is_opensims_hunt_crossley(opensim_gait2d, lift_m, speeds) -> None:
+    depth, velocity, opensim_force = _heel_on_opensim(opensim_gait2d, lift_m, speeds)
+    assert depth > 0.005
+    radius = next(s.radius for s in GAIT2D.contact_spheres if s.name == "r_heel")
+    coefficient = hertz_coefficient(GAIT2D.contact.stiffness, radius)
+    ours = sphere_force(depth, velocity, 1, coefficient, GAIT2D.contact)
+    assert opensim_force[1] > 10.0  # it carries load
+    np.testing.assert_allclose(ours, opensim_force, rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize(("angle", "speed"), [(0.1, 0.0), (0.25, -0.5), (0.3, 1.0), (-2.5, -1.0)])
+def test_the_knee_spring_is_opensims_coordinate_limit_force(opensim_gait2d, angle, speed) -> None:
+    opensim_gait2d.reset(0)
+    state = opensim_gait2d.osim_state
+    knee = opensim_gait2d._coords["knee_angle_r"]
+    knee.setValue(state, angle, False)
+    knee.setSpeedValue(state, speed)
+    opensim_gait2d.model.realizeDynamics(state)
+    force = opensim_gait2d.model.getForceSet().get("knee_angle_r_limit")
+    theirs = opensim.CoordinateLimitForce.safeDownCast(force).calcLimitForce(state)
+    limit = next(d.limit for j in GAIT2D.joints for d in j.dofs if d.name == "knee_angle_r")
+    assert limit_torque(angle, speed, limit) == pytest.approx(theirs, rel=1e-9, abs=1e-9)
+
+
+def test_on_mujoco_the_floor_is_left_to_the_law_and_the_limits_to_the_springs() -> None:
+    scene = _scene(
+        contact_model="hunt-crossley", joint_limits="opensim", muscle_min_activation=0.01
+    )
+    model, _, _ = compile_scene(scene)
+    floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "floor")
+    assert model.geom_conaffinity[floor] == 0
+    knee = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "knee_angle_r")
+    assert model.jnt_limited[knee] == 0
+    sim = make_simulator(scene, "mujoco")
+    sim.reset(0)
+    for _ in range(10):  # 0.4 s relaxed
+        assert sim.step(np.zeros(len(sim.muscle_names)), 0.04).ok
+    assert sim.data.ncon == 0  # no MuJoCo contact with the floor
+    weight = sim.report.mass * 9.81
+    assert 0.5 < sim.state().foot_forces.sum() / weight < 2.0  # the law carries the body
+    assert np.abs(sim.data.qfrc_applied).max() > 10.0
+
+
+def test_the_relaxed_body_sinks_as_on_opensim() -> None:
+    """Let go relaxed for 0.2 s: the pelvis ends within 5 mm of OpenSim's."""
+    heights = {}
+    for name, scene, backend in [
+        ("opensim", _scene(), "opensim"),
+        ("laws", _scene(contact_model="hunt-crossley", joint_limits="opensim",
+                        muscle_min_activation=0.01), "mujoco"),
+    ]:  # fmt: skip
+        sim = make_simulator(scene, backend)
+        sim.reset(0)
+        for _ in range(10):
+            assert sim.step(np.zeros(len(sim.muscle_names)), 0.02).ok
+        heights[name] = float(sim.state().pelvis_pos[sim.up_axis])
+    assert abs(heights["laws"] - heights["opensim"]) < 0.005, heights
+
+
+@pytest.mark.parametrize(
+    ("option", "value"), [("contact_model", "hunt-crossley"), ("joint_limits", "opensim")]
+)
+def test_a_mujoco_mjcf_body_is_refused_with_the_option_named(option: str, value: str) -> None:
+    scene = load_scene("walk-3d")
+    bad = Scene.model_validate({**scene.model_dump(), option: value})
+    with pytest.raises(ValueError, match=option):
+        compile_scene(bad)
+
+
+@pytest.mark.parametrize(("field", "bad"), [("contact_model", "hertz"), ("joint_limits", "soft")])
+def test_unknown_values_name_the_field(field: str, bad: str) -> None:
+    with pytest.raises(ValidationError, match=field):
+        _scene(**{field: bad})
