@@ -1,7 +1,7 @@
 """Env steps/s on one core for every catalogue scene and backend, and what pruning saves.
 
 Usage: python bench/env_speed.py [--seconds S] [--repeats R] [--no-opensim]
-                                 [--only env|actions|pruning]
+                                 [--only env|actions|pruning|laws]
 
 Table 1: each scene on MuJoCo at its profile and, for scenes that name OpenSim, on OpenSim
 at the ``default`` profile and at the 2017 challenge's setting (Runge-Kutta-Merson,
@@ -17,6 +17,12 @@ second, each update a separate simulator call).
 Table 3: the raw ``mj_step`` rate of the pruned ``walk-3d`` and ``walk-3d-planar`` models
 against MyoLeg as shipped (nothing removed), alternated in one run so that machine noise
 hits all alike; each restarts standing whenever it falls, as training episodes do.
+
+Table 4: what MuJoCo's forces on OpenSim's laws cost (``contact_model: hunt-crossley``,
+``joint_limits: opensim``, computed in Python every physics step): walk-2d-clock (joint
+targets, 25 Hz) on MuJoCo as it is, with each option and with both, and on OpenSim at the
+profile the fidelity sweep recommends (semi-explicit Euler, fixed 1 ms), random actions, R
+repeats interleaved; the ratio is over MuJoCo as it is.
 """
 
 from __future__ import annotations
@@ -144,12 +150,43 @@ def pruning_table(seconds: float, repeats: int) -> Table:
     return table
 
 
+LAWS = {
+    "MuJoCo as it is": ("mujoco", {}),
+    "contact_model: hunt-crossley": ("mujoco", {"contact_model": "hunt-crossley"}),
+    "joint_limits: opensim": ("mujoco", {"joint_limits": "opensim"}),
+    "both": ("mujoco", {"contact_model": "hunt-crossley", "joint_limits": "opensim"}),
+    "OpenSim, semi-explicit Euler 1 ms": (
+        "opensim",
+        {"fidelity": {"mujoco": "default", "opensim": {
+            "integrator": "semi-explicit-euler2", "timestep": 0.001, "fixed_step": True}}},
+    ),
+}  # fmt: skip
+
+
+def laws_table(seconds: float, repeats: int, opensim: bool) -> Table:
+    base = load_scene("walk-2d-clock")
+    envs = {label: MuscleEnv(Scene.model_validate({**base.model_dump(), **options}), backend)
+            for label, (backend, options) in LAWS.items()
+            if opensim or backend == "mujoco"}  # fmt: skip
+    rates: dict[str, list[float]] = {label: [] for label in envs}
+    for r in range(repeats):
+        for label, env in envs.items():
+            rates[label].append(random_excitations(env, seconds, seed=r).steps_per_s)
+    table = Table("walk-2d-clock", "env steps/s", "vs MuJoCo as it is",
+                  title="MuJoCo on OpenSim's laws, one core (median)")  # fmt: skip
+    first = statistics.median(rates["MuJoCo as it is"])
+    for label in envs:
+        rate = statistics.median(rates[label])
+        table.add_row(label, f"{rate:.1f}", f"{rate / first:.2f}")
+    return table
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-opensim", action="store_true")
-    parser.add_argument("--only", choices=["env", "actions", "pruning"],
+    parser.add_argument("--only", choices=["env", "actions", "pruning", "laws"],
                         help="print one table only")  # fmt: skip
     args = parser.parse_args()
     console.print(f"machine: {platform.machine()}, {os.cpu_count()} cores, "
@@ -160,6 +197,8 @@ def main() -> None:
         console.print(action_table(args.seconds, args.repeats, not args.no_opensim))
     if args.only in (None, "pruning"):
         console.print(pruning_table(args.seconds, args.repeats))
+    if args.only in (None, "laws"):
+        console.print(laws_table(args.seconds, args.repeats, not args.no_opensim))
 
 
 if __name__ == "__main__":

@@ -1,15 +1,18 @@
-"""bench/same_state.py: MuJoCo put in OpenSim's relaxed state 0.02 s after the reset; the two
-simulators' mass matrices agree, and the table gives both accelerations, MuJoCo's with
-OpenSim's contact forces, the generalized force left and both muscle moments (real
-simulators)."""
+"""bench/same_state.py: MuJoCo put in OpenSim's state (relaxed 0.02 s after the reset, or
+driven by a policy); the two simulators' mass matrices agree, and the tables give both
+accelerations, MuJoCo's with OpenSim's contact forces, the generalized force left, both
+muscle moments and each body's contact force on both (real simulators)."""
 
 from __future__ import annotations
 
 import re
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from conftest import RunBench
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 def test_the_same_state_on_both_simulators_gives_the_table(run_bench: RunBench) -> None:
@@ -19,3 +22,29 @@ def test_the_same_state_on_both_simulators_gives_the_table(run_bench: RunBench) 
     assert gap and float(gap.group(1)) < 1e-9, done.stdout[:400]
     for row in ("MuJoCo, OpenSim's contacts", "force left, N m", "muscles OpenSim, N m"):
         assert row in done.stdout
+
+
+def test_under_the_walker_the_contact_on_opensims_law_equals_opensims(
+    tmp_path: Path, run_bench: RunBench
+) -> None:
+    """OpenSim driven by the shipped walker for 0.2 s; MuJoCo, with the floor's contact on
+    OpenSim's law, given that state: both tables, and each body's contact force the same."""
+    scene = tmp_path / "laws.yaml"
+    walk = (REPO / "workers/scenes/catalogue/walk-2d-clock.yaml").read_text()
+    scene.write_text(walk.replace("name: walk-2d-clock", "name: laws") + "\n"
+                     "contact_model: hunt-crossley\njoint_limits: opensim\n")  # fmt: skip
+    done = run_bench(
+        "same_state.py", "--policy", str(REPO / "examples/policies/walk-2d"), "--at-s", "0.2",
+        "--mujoco-scene", str(scene), columns=250,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "driven by" in done.stdout and "force left, N m" in done.stdout
+    rows = re.findall(
+        r"│ (calcn_[lr]|toes_[lr]) +│ +(\S+) │ +(\S+) │ +(\S+) │ +(\S+) │", done.stdout
+    )
+    assert len(rows) == 4, done.stdout[-3000:]
+    loaded = 0.0
+    for _, opensim_forward, opensim_up, mujoco_forward, mujoco_up in rows:
+        assert (opensim_forward, opensim_up) == (mujoco_forward, mujoco_up)
+        loaded += float(opensim_up)
+    assert loaded > 0.5  # body weights: the feet carry the body
