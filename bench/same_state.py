@@ -33,6 +33,7 @@ from gaitforge.workers.episode import Observer
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.base import Pose
+from gaitforge.workers.sim.opensim_muscles import OpenSimMuscles
 from passive_moments import opensim_muscle_moments  # bench/ (this folder is on sys.path)
 from relaxed_drop import lift
 from rich.console import Console
@@ -132,15 +133,16 @@ def compare(op: Any, mujoco_scene: Scene, title: str) -> tuple[Table, Table]:
     op.model.realizeAcceleration(st)
     rows["OpenSim"] = np.array([coords[n].getAccelerationValue(st) for n in joints])
     muscle_moments = {
-        "MuJoCo": d.qfrc_actuator[index[3:]].copy(),
+        "MuJoCo": (d.qfrc_actuator + _mujoco_opensim_muscles(mj))[index[3:]],
         "OpenSim": opensim_muscle_moments(op),
     }
 
     m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     d.xfrc_applied[:] = 0.0
-    d.qfrc_applied[:] = 0.0  # MuJoCo's own floor forces out, its limit springs (if any) kept
-    if mj._springs is not None:
-        mj._springs.add(m, d, d.qfrc_applied)
+    d.qfrc_applied[:] = 0.0  # MuJoCo's own floor forces out, its other OpenSim laws kept
+    for law in mj._opensim_laws:
+        if law is not mj._floor:
+            law.add(m, d, d.qfrc_applied)
     for body, (force, torque) in contacts["OpenSim"].items():
         b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body)
         d.xfrc_applied[b, :3] = force  # OpenSim's torque is about the body origin; MuJoCo's
@@ -245,6 +247,16 @@ def _opensim_contact_wrenches(op, state) -> dict[str, tuple[np.ndarray, np.ndarr
             old_f, old_t = wrenches.get(body, (np.zeros(3), np.zeros(3)))
             wrenches[body] = (old_f + f, old_t + t)
     return wrenches
+
+
+def _mujoco_opensim_muscles(mj) -> np.ndarray:
+    """[nv] the generalized forces of MuJoCo's muscles on OpenSim's laws
+    (``muscle_curves``/``muscle_passive: opensim``), none otherwise."""
+    torques = np.zeros(mj.model.nv)
+    for law in mj._opensim_laws:
+        if isinstance(law, OpenSimMuscles):
+            law.add(mj.model, mj.data, torques)
+    return torques
 
 
 def _mujoco_contact_forces(mj) -> dict[str, tuple[np.ndarray, None]]:

@@ -9,6 +9,8 @@ import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 if TYPE_CHECKING:
     from conftest import RunBench
 
@@ -24,15 +26,17 @@ def test_the_same_state_on_both_simulators_gives_the_table(run_bench: RunBench) 
         assert row in done.stdout
 
 
-def test_under_the_walker_the_contact_on_opensims_law_equals_opensims(
+def test_under_the_walker_mujoco_on_opensims_laws_pushes_and_pulls_as_opensim(
     tmp_path: Path, run_bench: RunBench
 ) -> None:
-    """OpenSim driven by the shipped walker for 0.2 s; MuJoCo, with the floor's contact on
-    OpenSim's law, given that state: both tables, and each body's contact force the same."""
+    """OpenSim driven by the shipped walker for 0.2 s; MuJoCo, with its contact, limits and
+    muscles on OpenSim's laws, given that state: both tables, each body's contact force and
+    each joint's muscle moment the same."""
     scene = tmp_path / "laws.yaml"
     walk = (REPO / "workers/scenes/catalogue/walk-2d-clock.yaml").read_text()
     scene.write_text(walk.replace("name: walk-2d-clock", "name: laws") + "\n"
-                     "contact_model: hunt-crossley\njoint_limits: opensim\n")  # fmt: skip
+                     "contact_model: hunt-crossley\njoint_limits: opensim\n"
+                     "muscle_curves: opensim\nmuscle_passive: opensim\n")  # fmt: skip
     done = run_bench(
         "same_state.py", "--policy", str(REPO / "examples/policies/walk-2d"), "--at-s", "0.2",
         "--mujoco-scene", str(scene), columns=250,
@@ -48,3 +52,9 @@ def test_under_the_walker_the_contact_on_opensims_law_equals_opensims(
         assert (opensim_forward, opensim_up) == (mujoco_forward, mujoco_up)
         loaded += float(opensim_up)
     assert loaded > 0.5  # body weights: the feet carry the body
+    moments = {
+        name: [float(v) for v in re.findall(r"[+-]\d+\.\d", row)]
+        for name, row in re.findall(r"│ muscles (MuJoCo|OpenSim), N m +│(.*)", done.stdout)
+    }
+    assert len(moments["OpenSim"]) == 6, done.stdout[-3000:]
+    assert np.abs(np.subtract(moments["MuJoCo"], moments["OpenSim"])).max() <= 0.3

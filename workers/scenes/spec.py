@@ -238,25 +238,29 @@ class Scene(_Strict):
         "whose active force at rest (gait2d's vasti 1 % of 9594 N) holds a relaxed knee "
         "straight where MuJoCo's at 0 buckles; 0.01 matches it (OpenSim: ignored)",
     )
-    muscle_curves: Literal["mujoco", "millard"] = Field(
+    muscle_curves: Literal["mujoco", "millard", "opensim"] = Field(
         default="mujoco",
         description="MuJoCo: its muscles' active force-length and force-velocity curves, "
         "MuJoCo's own or 'millard': lmin, lmax, vmax and fvmax fitted to Millard 2012's "
         "(OpenSim's muscle; the constants in workers.sim.muscle_curves), RMS 0.05 of "
         "isometric force off it where MuJoCo's own are 0.15 (length) and 0.14 (velocity) "
-        "off (OpenSim: ignored)",
+        "off, or 'opensim': no fit, Millard's own curves, with the fibre's pennation, "
+        "applied as forces every MuJoCo step (workers.sim.opensim_muscles; body files only) "
+        "(OpenSim: ignored)",
     )
-    muscle_passive: Literal["gait", "thelen", "thelen-fibre"] = Field(
+    muscle_passive: Literal["gait", "thelen", "thelen-fibre", "opensim"] = Field(
         default="gait",
         description="MuJoCo, body files only: its muscles' passive force-length curve fitted "
         "to Thelen 2003's (OpenSim's and the reference's) over the first 0.6 of its strain, "
         "'gait' (lmax shared with the active curve; softer beyond: gait2d's gastrocnemius "
         "at 1.6 optimal length 0.44 of peak force against Thelen's 1.0), 'thelen': lmax "
-        "and fpmax of the passive force fitted over the whole strain (0.77 there), or "
+        "and fpmax of the passive force fitted over the whole strain (0.77 there), "
         "'thelen-fibre': that fit to Thelen's curve of the pennated fibre's own length, "
         "projected on the tendon, as OpenSim's rigid-tendon muscle pulls (MuJoCo's muscle "
         "has no pennation: its normalised length runs ahead of the fibre's past optimal "
-        "length, gait2d's standing gastrocnemius 1.458 against 1.425) (OpenSim: ignored)",
+        "length, gait2d's standing gastrocnemius 1.458 against 1.425), or 'opensim': no fit, "
+        "OpenSim's own passive fibre force (its curve, pennation and fibre damping) applied "
+        "as forces every MuJoCo step (workers.sim.opensim_muscles) (OpenSim: ignored)",
     )
     rebuild_every: Annotated[int, Field(ge=1)] = Field(
         default=100, description="OpenSim: episodes between model rebuilds (a memory bound)"

@@ -31,6 +31,7 @@ from gaitforge.workers.sim.mjcf_contacts import CONTACT_BIT
 from gaitforge.workers.sim.mujoco_compile import OBSTACLE_PREFIX, compile_scene, opensim_limits
 from gaitforge.workers.sim.mujoco_pose import PoseSetter
 from gaitforge.workers.sim.mujoco_warnings import route_warnings
+from gaitforge.workers.sim.opensim_muscles import OpenSimMuscles
 
 logger = logging.getLogger(__name__)
 route_warnings()  # MuJoCo's warnings to logging, not to MUJOCO_LOG.TXT in the cwd
@@ -105,7 +106,7 @@ class MujocoSimulator:
             dtype=int,
         )
         self._lift_adr = self._root_slide_along(self.up_axis)
-        self._floor, self._springs = self._opensim_forces()
+        self._floor, self._opensim_laws = self._opensim_forces()
         self._applied = np.zeros(m.nv)
         self._stand_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, STAND_KEY)
         self._muscle_act = m.actuator_actadr[
@@ -173,11 +174,14 @@ class MujocoSimulator:
                 break
         return total / done, self._health(t0)
 
-    def _opensim_forces(self) -> tuple[HuntCrossleyFloor | None, LimitSprings | None]:
+    def _opensim_forces(
+        self,
+    ) -> tuple[HuntCrossleyFloor | None, list[HuntCrossleyFloor | LimitSprings | OpenSimMuscles]]:
         """The forces the scene asks to follow OpenSim's laws (``contact_model``,
-        ``joint_limits``; ``mujoco_compile`` has taken MuJoCo's own out), or None each."""
+        ``joint_limits``, ``muscle_passive`` and ``muscle_curves`` ``opensim``;
+        ``mujoco_compile`` has taken MuJoCo's own out): the floor's (or None) and all."""
         m, scene = self.model, self.scene
-        floor = springs = None
+        floor, laws = None, []
         if scene.contact_model == "hunt-crossley":
             spheres = np.flatnonzero(
                 (m.geom_type == mujoco.mjtGeom.mjGEOM_SPHERE)
@@ -185,15 +189,20 @@ class MujocoSimulator:
                 & (m.geom_bodyid != 0)
             )
             floor = HuntCrossleyFloor(m, spheres, load_body(scene.body).contact, self.up_axis)
+            laws.append(floor)
         if scene.joint_limits == "opensim":
-            springs = LimitSprings(m, opensim_limits(scene, self.dof_names))
-        return floor, springs
+            laws.append(LimitSprings(m, opensim_limits(scene, self.dof_names)))
+        active, passive = scene.muscle_curves == "opensim", scene.muscle_passive == "opensim"
+        if active or passive:
+            muscles = load_body(scene.body).muscles
+            laws.append(OpenSimMuscles(m, muscles, active=active, passive=passive))
+        return floor, laws
 
     def _advance(self, steps: int) -> None:
         """``steps`` MuJoCo steps; forces that follow OpenSim's laws are set anew between
         each step's position-velocity stage and the rest (``mj_step1``/``mj_step2``)."""
         m, d = self.model, self.data
-        if self._floor is None and self._springs is None:
+        if not self._opensim_laws:
             mujoco.mj_step(m, d, nstep=steps)
             return
         for _ in range(steps):
@@ -206,9 +215,8 @@ class MujocoSimulator:
         positions and speeds (after ``mj_step1`` or ``mj_forward``; at a reset it is what
         ``state().foot_forces`` reports before the next step)."""
         self._applied[:] = 0.0
-        for force in (self._floor, self._springs):
-            if force is not None:
-                force.add(self.model, self.data, self._applied)
+        for force in self._opensim_laws:
+            force.add(self.model, self.data, self._applied)
         self.data.qfrc_applied[:] = self._applied
 
     def _start_step(self) -> float:

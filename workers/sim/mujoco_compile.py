@@ -165,8 +165,8 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
     spec.option.integrator = INTEGRATORS[profile.integrator]
     spec.option.timestep = profile.timestep
     model = spec.compile()
+    muscles = model.actuator_gaintype == mujoco.mjtGain.mjGAIN_MUSCLE
     if scene.muscle_min_activation > 0:
-        muscles = model.actuator_gaintype == mujoco.mjtGain.mjGAIN_MUSCLE
         model.actuator_ctrllimited[muscles] = 1
         model.actuator_ctrlrange[muscles] = (scene.muscle_min_activation, 1.0)
     if scene.contact_model == "hunt-crossley":  # the floor's contact is workers.sim.hunt_crossley's
@@ -180,7 +180,14 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
         model.pair_solimp[:] = scene.contact_solimp
     if scene.muscle_curves == "millard":
         _fit_muscle_curves_to_millard(model)
-    if scene.muscle_passive != "gait":
+    elif scene.muscle_curves == "opensim":  # the active force is workers.sim.opensim_muscles'
+        _need_body_file(scene, "muscle_curves 'opensim'", "muscle parameters")
+        model.actuator_gaintype[muscles] = mujoco.mjtGain.mjGAIN_FIXED
+        model.actuator_gainprm[muscles] = 0.0
+    if scene.muscle_passive == "opensim":  # the passive force is workers.sim.opensim_muscles'
+        _need_body_file(scene, "muscle_passive 'opensim'", "muscle parameters")
+        model.actuator_biasprm[muscles, 7] = 0.0
+    elif scene.muscle_passive != "gait":
         _fit_passive_to_thelen_whole(model, scene)
     report = CompileReport(
         scene=scene.name,

@@ -225,7 +225,7 @@ def _add_wraps(body: Body, bodies: dict[str, opensim.Body], used: set[str]) -> d
     return objects
 
 
-def _fit_passive_curve(curve: opensim.FiberForceLengthCurve, strain: float, shape: float) -> None:
+def fit_passive_curve(curve: opensim.FiberForceLengthCurve, strain: float, shape: float) -> None:
     """Shape Millard's passive curve after Thelen 2003's: same strain at one norm force and
     slope there; low-force stiffness and curviness picked on a small grid to follow it."""
     curve.set_strain_at_one_norm_force(strain)
@@ -270,7 +270,7 @@ def _add_muscles(
         om.set_default_activation(om.get_minimum_activation())
         om.set_ignore_tendon_compliance(tendon == "rigid")
         om.upd_TendonForceLengthCurve().set_strain_at_one_norm_force(m.tendon_strain_at_fmax)
-        _fit_passive_curve(om.upd_FiberForceLengthCurve(), m.passive_fibre_strain, m.passive_shape)
+        fit_passive_curve(om.upd_FiberForceLengthCurve(), m.passive_fibre_strain, m.passive_shape)
         n_points, path = 0, om.updGeometryPath()
         for element in m.path:  # a wrap acts between its neighbouring points (1-based)
             if isinstance(element, PathPoint):

@@ -1,9 +1,11 @@
 """MuJoCo's forces on OpenSim's laws (session 35): ``contact_model: hunt-crossley``
-(``workers.sim.hunt_crossley``) and ``joint_limits: opensim`` (``workers.sim.limit_springs``).
+(``workers.sim.hunt_crossley``), ``joint_limits: opensim`` (``workers.sim.limit_springs``),
+``muscle_curves`` and ``muscle_passive: opensim`` (``workers.sim.opensim_muscles``).
 
 The laws are checked against real OpenSim, gait2d as ``opensim_build`` builds it, in states
 set by hand: a heel sphere pressed into the floor while moving and turning, a knee past its
-limit while moving; then the options on a real MuJoCo gait2d.
+limit while moving, every muscle active in a bent, moving pose; then the options on a real
+MuJoCo gait2d.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.hunt_crossley import hertz_coefficient, sphere_force
 from gaitforge.workers.sim.limit_springs import limit_torque
 from gaitforge.workers.sim.mujoco_compile import compile_scene
+from gaitforge.workers.sim.opensim_muscles import OpenSimMuscles
 from pydantic import ValidationError
 
 GAIT2D = load_body("gait2d")
@@ -129,7 +132,13 @@ def test_the_relaxed_body_sinks_as_on_opensim() -> None:
 
 
 @pytest.mark.parametrize(
-    ("option", "value"), [("contact_model", "hunt-crossley"), ("joint_limits", "opensim")]
+    ("option", "value"),
+    [
+        ("contact_model", "hunt-crossley"),
+        ("joint_limits", "opensim"),
+        ("muscle_curves", "opensim"),
+        ("muscle_passive", "opensim"),
+    ],
 )
 def test_a_mujoco_mjcf_body_is_refused_with_the_option_named(option: str, value: str) -> None:
     scene = load_scene("walk-3d")
@@ -142,3 +151,42 @@ def test_a_mujoco_mjcf_body_is_refused_with_the_option_named(option: str, value:
 def test_unknown_values_name_the_field(field: str, bad: str) -> None:
     with pytest.raises(ValidationError, match=field):
         _scene(**{field: bad})
+
+
+def test_the_muscles_pull_as_opensims_millard_muscles(opensim_gait2d) -> None:
+    """A pose with the knees and ankles bent, moving, and every muscle at its own activation:
+    each tendon force on MuJoCo (``muscle_curves`` and ``muscle_passive: opensim``) is
+    OpenSim's within 0.5 % (the two simulators' path lengths differ by micrometres)."""
+    pose = {"hip_flexion_r": 0.4, "knee_angle_r": -0.6, "ankle_angle_r": 0.15,
+            "hip_flexion_l": -0.2, "knee_angle_l": -0.1, "ankle_angle_l": -0.2}  # fmt: skip
+    speeds = {"hip_flexion_r": 1.5, "knee_angle_r": -2.0, "ankle_angle_r": 1.0,
+              "hip_flexion_l": -1.0, "knee_angle_l": 0.5, "ankle_angle_l": -2.0}  # fmt: skip
+    op = opensim_gait2d
+    op.reset(0)
+    state = op.osim_state
+    for name, angle in pose.items():
+        op._coords[name].setValue(state, angle, False)
+        op._coords[name].setSpeedValue(state, speeds[name])
+    activation = {m.getName(): 0.05 + 0.05 * i for i, m in enumerate(op._muscles)}
+    for muscle in op._muscles:
+        muscle.setActivation(state, activation[muscle.getName()])
+    op.model.realizeDynamics(state)
+    theirs = {m.getName(): m.getActuation(state) for m in op._muscles}
+
+    scene = _scene(muscle_curves="opensim", muscle_passive="opensim")
+    sim = make_simulator(scene, "mujoco")
+    sim.reset(0)
+    m, d = sim.model, sim.data
+    for name, angle in pose.items():
+        joint = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+        d.qpos[m.jnt_qposadr[joint]] = angle
+        d.qvel[m.jnt_dofadr[joint]] = speeds[name]
+    for k, name in enumerate(sim.muscle_names):
+        d.act[m.actuator_actadr[k]] = activation[name]
+    mujoco.mj_forward(m, d)
+    (muscles,) = [law for law in sim._opensim_laws if isinstance(law, OpenSimMuscles)]
+    muscles.add(m, d, np.zeros(m.nv))
+    ours = dict(zip(sim.muscle_names, muscles.tension, strict=True))
+    assert np.abs(d.actuator_force).max() == 0.0  # MuJoCo's own curves are out
+    for name, force in theirs.items():
+        assert ours[name] == pytest.approx(force, rel=0.005, abs=1.0), name
