@@ -109,9 +109,9 @@ class MujocoSimulator:
         self._floor, self._opensim_laws = self._opensim_forces()
         self._applied = np.zeros(m.nv)
         self._stand_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, STAND_KEY)
-        self._muscle_act = m.actuator_actadr[
-            (m.actuator_gaintype == mujoco.mjtGain.mjGAIN_MUSCLE) & (m.actuator_actadr >= 0)
-        ]
+        self._muscle_act = m.actuator_actadr[  # by their dynamics: muscle_curves: opensim
+            (m.actuator_dyntype == mujoco.mjtDyn.mjDYN_MUSCLE) & (m.actuator_actadr >= 0)
+        ]  # leaves their activation MuJoCo's and makes their gain fixed
         self._rng = np.random.default_rng(0)
         self._contact_timeconst = float("nan")
         self._set_contact_timeconst(self._rng)

@@ -4,8 +4,9 @@ The body's unpruned model is the source (a neutral body built by ``mujoco_build`
 MyoSuite MJCF); pruning welds the scene's locked joints, removes muscles, restricts contacts,
 adds the scene's obstacles and strips visuals, then sets the fidelity profile's integrator
 and timestep (and, where the scene asks, the muscles' active force curves fitted to
-OpenSim's, or their passive curve fitted to Thelen's over its whole strain, or the floor's
-contact left to ``hunt_crossley``).
+OpenSim's, or their passive curve fitted to Thelen's over its whole strain; or MuJoCo's own
+floor contact, joint limits or muscle curves taken out where the scene puts them on
+OpenSim's laws: ``hunt_crossley``, ``limit_springs``, ``opensim_muscles``).
 """
 
 from __future__ import annotations

@@ -96,10 +96,14 @@ def test_the_knee_spring_is_opensims_coordinate_limit_force(opensim_gait2d, angl
     assert limit_torque(angle, speed, limit) == pytest.approx(theirs, rel=1e-9, abs=1e-9)
 
 
-def test_on_mujoco_the_floor_is_left_to_the_law_and_the_limits_to_the_springs() -> None:
+def test_on_mujoco_mujocos_own_versions_are_taken_out() -> None:
+    """The floor collides with no sphere, the limited joints have no MuJoCo limit, the
+    muscles no MuJoCo force; the laws carry the body, and the muscles still start at their
+    least activation."""
     scene = _scene(
-        contact_model="hunt-crossley", joint_limits="opensim", muscle_min_activation=0.01
-    )
+        contact_model="hunt-crossley", joint_limits="opensim", muscle_min_activation=0.01,
+        muscle_curves="opensim", muscle_passive="opensim",
+    )  # fmt: skip
     model, _, _ = compile_scene(scene)
     floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "floor")
     assert model.geom_conaffinity[floor] == 0
@@ -107,9 +111,11 @@ def test_on_mujoco_the_floor_is_left_to_the_law_and_the_limits_to_the_springs() 
     assert model.jnt_limited[knee] == 0
     sim = make_simulator(scene, "mujoco")
     sim.reset(0)
+    np.testing.assert_allclose(sim.state().activations, 0.01)
     for _ in range(10):  # 0.4 s relaxed
         assert sim.step(np.zeros(len(sim.muscle_names)), 0.04).ok
     assert sim.data.ncon == 0  # no MuJoCo contact with the floor
+    assert np.abs(sim.data.actuator_force).max() == 0.0  # no MuJoCo muscle force
     weight = sim.report.mass * 9.81
     assert 0.5 < sim.state().foot_forces.sum() / weight < 2.0  # the law carries the body
     assert np.abs(sim.data.qfrc_applied).max() > 10.0
