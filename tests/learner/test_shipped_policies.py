@@ -7,7 +7,8 @@ run-2d-clock-one-leg, run-2d's scene option whose clock leads with the same leg 
 obstacles-2d-clock-one-leg, obstacles-2d's ten spheres on that clock (8 % falls at
 3.23 m/s: obstacles-2d's target is 2 m/s at 10 %), and the obstacle runner that slows when
 asked runs obstacles-2d-clock-overspeed, the target speed drawn from 2 to 3 m/s (0 % falls at
-2.26 m/s)."""
+2.26 m/s); the walker fine-tuned on OpenSim walks there (real OpenSim, 23 % falls at
+1.19 m/s)."""
 
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ POLICIES = Path(__file__).resolve().parents[2] / "examples" / "policies"
 WALKER, RUNNER = POLICIES / "walk-2d", POLICIES / "run-2d"
 OBSTACLE_RUNNER = POLICIES / "obstacles-2d"
 SPEED_RUNNER = POLICIES / "obstacles-2d-speeds"
+OPENSIM_WALKER = POLICIES / "walk-2d-opensim"
 
 
 def judged_provenance(policy: Path, scene: str, min_speed_m_s: float) -> dict:
@@ -122,3 +124,26 @@ def test_the_shipped_speed_runner_runs_slower_when_asked() -> None:
     assert [point.target_speed_m_s for point in report.sweep] == pytest.approx([3.0, 2.4])
     assert fast.fall_rate.count <= 1 and slow.fall_rate.count <= 1
     assert fast.mean_speed_m_s.mean - slow.mean_speed_m_s.mean >= 0.25
+
+
+def test_the_shipped_opensim_walker_names_its_making() -> None:
+    """It names the OpenSim fine-tune that made it and its evaluation on 100 OpenSim episodes
+    of walk-2d-clock at the recommended profile: a walk (walk-2d's 1 m/s), not yet within
+    walk-2d's 10 % falls (23 %)."""
+    provenance = json.loads((OPENSIM_WALKER / "meta.json").read_text())["provenance"]
+    evaluation = provenance["evaluation"]
+    assert evaluation["backend"] == "opensim" and evaluation["episodes"] == 100
+    assert evaluation["scene"] == "walk-2d-clock-recommended"
+    assert evaluation["fall_rate"] <= 0.3 and evaluation["mean_speed_m_s"] >= 1.0
+    assert "opensim-finetune/walker-opensim.yaml" in provenance["command"]
+    assert not (OPENSIM_WALKER / "optimizer.safetensors").exists()
+
+
+def test_the_shipped_opensim_walker_walks_on_opensim() -> None:
+    """Episodes 1-3 on OpenSim, the checkpoint's own scene and backend (each walked the whole
+    10 s in its 100-episode evaluation): at most one falls, and the body walks."""
+    report = evaluate_checkpoint(OPENSIM_WALKER, episodes=3, seed=1)
+    result = report.results["deterministic"]
+    assert report.backend == "opensim"
+    assert result.fall_rate.count <= 1, result.fall_rate
+    assert result.mean_speed_m_s.mean >= 0.9
