@@ -107,11 +107,11 @@ class MujocoSimulator:
         )
         self._lift_adr = self._root_slide_along(self.up_axis)
         self._floor, self._opensim_laws = self._opensim_forces()
-        self._applied = np.zeros(m.nv)
         self._stand_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, STAND_KEY)
-        self._muscle_act = m.actuator_actadr[  # by their dynamics: muscle_curves: opensim
+        # muscles found by their activation dynamics: muscle_curves: opensim fixes their gain
+        self._muscle_act = m.actuator_actadr[
             (m.actuator_dyntype == mujoco.mjtDyn.mjDYN_MUSCLE) & (m.actuator_actadr >= 0)
-        ]  # leaves their activation MuJoCo's and makes their gain fixed
+        ]
         self._rng = np.random.default_rng(0)
         self._contact_timeconst = float("nan")
         self._set_contact_timeconst(self._rng)
@@ -214,10 +214,10 @@ class MujocoSimulator:
         """``data.qfrc_applied``: the forces that follow OpenSim's laws at the present
         positions and speeds (after ``mj_step1`` or ``mj_forward``; at a reset it is what
         ``state().foot_forces`` reports before the next step)."""
-        self._applied[:] = 0.0
+        applied = self.data.qfrc_applied
+        applied[:] = 0.0
         for force in self._opensim_laws:
-            force.add(self.model, self.data, self._applied)
-        self.data.qfrc_applied[:] = self._applied
+            force.add(self.model, self.data, applied)
 
     def _start_step(self) -> float:
         for warning in WATCHED_WARNINGS.values():
