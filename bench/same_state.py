@@ -140,8 +140,8 @@ def compare(op: Any, mujoco_scene: Scene, title: str) -> tuple[Table, Table]:
     m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     d.xfrc_applied[:] = 0.0
     d.qfrc_applied[:] = 0.0  # MuJoCo's own floor forces out, its other OpenSim laws kept
-    for law in mj._opensim_laws:
-        if law is not mj._floor:
+    for law in mj.opensim_laws.laws:
+        if law is not mj.opensim_laws.floor:
             law.add(m, d, d.qfrc_applied)
     for body, (force, torque) in contacts["OpenSim"].items():
         b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body)
@@ -203,7 +203,7 @@ def _put_in_state(mj, op) -> None:
         d.act[m.actuator_actadr[i]] = activation[name]
     mujoco.mj_forward(m, d)  # set_pose lifts feet out of the floor: put it back
     lift(mj, "mujoco", op.state().pelvis_pos[op.up_axis] - mj.state().pelvis_pos[mj.up_axis])
-    mj._opensim_forces_now()  # forces on OpenSim's laws (if any) at this state, their qacc
+    mj.opensim_laws.apply(m, d)  # forces on OpenSim's laws (if any) at this state, their qacc
     mujoco.mj_forward(m, d)
 
 
@@ -253,7 +253,7 @@ def _mujoco_opensim_muscles(mj) -> np.ndarray:
     """[nv] the generalized forces of MuJoCo's muscles on OpenSim's laws
     (``muscle_curves``/``muscle_passive: opensim``), none otherwise."""
     torques = np.zeros(mj.model.nv)
-    for law in mj._opensim_laws:
+    for law in mj.opensim_laws.laws:
         if isinstance(law, OpenSimMuscles):
             law.add(mj.model, mj.data, torques)
     return torques
@@ -264,8 +264,9 @@ def _mujoco_contact_forces(mj) -> dict[str, tuple[np.ndarray, None]]:
     contacts' and, with ``contact_model: hunt-crossley``, the floor's forces."""
     m, d = mj.model, mj.data
     forces: dict[str, tuple[np.ndarray, None]] = {}
-    if mj._floor is not None:
-        for body, force in zip(mj._floor.bodies, mj._floor.forces, strict=True):
+    floor = mj.opensim_laws.floor
+    if floor is not None:
+        for body, force in zip(floor.bodies, floor.forces, strict=True):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(body))
             forces[name] = (forces.get(name, (np.zeros(3), None))[0] + force, None)
     local = np.zeros(6)

@@ -111,7 +111,8 @@ class Job(StrictSpec):
         return self.stages[index].backend or self.backend
 
     def stage_ppo(self, index: int) -> PPOSettings:
-        """The PPO settings of stage ``index``: the job's, with the stage's own schedules."""
+        """The PPO settings of stage ``index``: the job's, with the stage's own schedules and
+        batch."""
         return self.ppo.model_copy(update=self.stages[index].ppo.model_dump(exclude_none=True))
 
     @model_validator(mode="after")

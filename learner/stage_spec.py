@@ -121,9 +121,14 @@ class StageEvaluation(StrictSpec):
 
 
 class StagePPO(StrictSpec):
-    """A stage's own PPO schedules, in place of the job's ``ppo`` ones (each field left out
-    keeps the job's): fine-tuning a trained policy at a lower learning rate, for example."""
+    """A stage's own PPO schedules and batch, in place of the job's ``ppo`` ones (each field
+    left out keeps the job's): fine-tuning a trained policy at a lower learning rate, or a
+    stage on a slower simulator with smaller batches, for example."""
 
+    batch_env_steps: Annotated[int, Field(ge=1)] | None = None
+    """env steps gathered per update in this stage (``learner.ppo.PPOSettings.batch_env_steps``)"""
+    minibatch_size: Annotated[int, Field(ge=1)] | None = None
+    """samples per minibatch in this stage (``learner.ppo.PPOSettings.minibatch_size``)"""
     lr: LearningRate | None = None
     """Adam learning rate at the stage's start"""
     lr_end: LearningRate | None = None

@@ -92,8 +92,8 @@ def test_bad_job_files_fail_early_in_one_line(tmp_path: Path, body: str, message
 
 def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> None:
     """Stand for one fast stage, promote on a rule that any episode passes, then the same
-    scene at the accurate profile (a fidelity curriculum) with its own learning rate and its
-    action noise started anew."""
+    scene at the accurate profile (a fidelity curriculum) with its own learning rate, batch
+    and its action noise started anew."""
     job = Job.model_validate({
         "name": "fidelity-curriculum",
         "workers": {"num_workers": 0, "envs_per_worker": 4, "fragment_length": 100},
@@ -102,10 +102,13 @@ def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> 
             {"scene": "stand-2d", "fidelity": "fast", "env_steps": 100_000,
              "promote": "length >= 0 over 2"},
             {"scene": "stand-2d", "fidelity": "accurate", "env_steps": 400,
-             "ppo": {"lr": 1e-4, "lr_end": 5e-5, "decoupled": True}, "action_std": 0.6},
+             "ppo": {"lr": 1e-4, "lr_end": 5e-5, "decoupled": True, "batch_env_steps": 800,
+                     "minibatch_size": 400}, "action_std": 0.6},
         ],
     })  # fmt: skip
     assert [job.stage_ppo(i).decoupled for i in (0, 1)] == [False, True]
+    assert [job.stage_ppo(i).batch_env_steps for i in (0, 1)] == [400, 800]
+    assert [job.stage_ppo(i).minibatch_size for i in (0, 1)] == [200, 400]
     trainer = Trainer(job, tmp_path, tensorboard=False)
     assert [s.profile("mujoco").timestep for s in trainer.scenes] == [0.005, 0.0005]
     history = trainer.run()
@@ -113,6 +116,8 @@ def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> 
     assert [h["stage"] for h in ends] == [0, 1]
     assert ends[0]["verdict"].startswith("promoted: length")
     assert ends[0]["env_steps"] < 100_000 and ends[1]["verdict"] == "budget spent"
+    # the second stage's budget (400) spent in one update of its own batch (800 env steps)
+    assert ends[1]["env_steps"] - ends[0]["env_steps"] == 800
     # the job's learning rate, then the second stage's own schedule (its end: one batch)
     assert all(h["lr"] == pytest.approx(1e-3) for h in history if h["stage"] == 0)
     assert ends[1]["lr"] == pytest.approx(5e-5)

@@ -10,6 +10,15 @@ from gaitforge.workers.bodies.topology import MJCF_BODIES
 from gaitforge.workers.scenes import saved_profiles
 from gaitforge.workers.scenes.action import ActionSpec
 from gaitforge.workers.scenes.imitate import Imitate
+from gaitforge.workers.scenes.mujoco_options import (
+    ContactModel,
+    ContactSolimp,
+    ContactTimeconst,
+    JointLimits,
+    MuscleCurves,
+    MuscleMinActivation,
+    MusclePassive,
+)
 from gaitforge.workers.scenes.profiles import (
     BACKENDS,
     NAMED_PROFILES,
@@ -21,10 +30,6 @@ from gaitforge.workers.scenes.profiles import (
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 NonNegative = Annotated[float, Field(ge=0)]
-Timeconst = Annotated[float, Field(gt=0, le=1)]
-Impedance = Annotated[float, Field(gt=0, lt=1)]
-Width = Annotated[float, Field(gt=0, le=0.2)]
-Power = Annotated[float, Field(ge=1, le=20)]
 
 
 class _Strict(BaseModel):
@@ -198,70 +203,13 @@ class Scene(_Strict):
     tendon: Literal["rigid", "compliant"] = Field(
         default="rigid", description="OpenSim muscles' tendons (MuJoCo's are always rigid)"
     )
-    contact_timeconst_s: Timeconst | tuple[Timeconst, Timeconst] | None = Field(
-        default=None,
-        description="MuJoCo: the contacts' time constant (solref[0], s; larger is softer), or "
-        "a [low, high] range drawn anew each episode; None keeps MuJoCo's 0.02 s. About 0.12 "
-        "sinks gait2d's feet as deep as OpenSim's Hunt-Crossley spheres (OpenSim: ignored)",
-    )
-    contact_solimp: tuple[Impedance, Impedance, Width, Impedance, Power] | None = Field(
-        default=None,
-        description="MuJoCo: the contacts' impedance against penetration depth (solimp: "
-        "[dmin, dmax, width m, midpoint, power]; dmin at the surface rising to dmax at width "
-        "deep), so that a contact can stiffen with depth as a Hunt-Crossley sphere does; "
-        "None keeps MuJoCo's [0.9, 0.95, 0.001, 0.5, 2] (OpenSim: ignored)",
-    )
-    contact_model: Literal["mujoco", "hunt-crossley"] = Field(
-        default="mujoco",
-        description="MuJoCo: the contact spheres' floor contact, MuJoCo's soft constraint or "
-        "'hunt-crossley': OpenSim's law (Simbody's HuntCrossleyForce with the body's contact "
-        "parameters: a Hertz force growing with depth^1.5, its dissipation and its friction "
-        "against slip), applied as forces every MuJoCo step (workers.sim.hunt_crossley); "
-        "obstacles keep MuJoCo's contact, and contact_timeconst_s and contact_solimp apply "
-        "only to them. Body files only (OpenSim: ignored)",
-    )
-    joint_limits: Literal["mujoco", "opensim"] = Field(
-        default="mujoco",
-        description="MuJoCo: how kept dofs with a body-file passive limit are held past it, "
-        "MuJoCo's joint-limit constraint or 'opensim': OpenSim's CoordinateLimitForce spring "
-        "(stiffness ramping up over the limit's transition, with damping; "
-        "workers.sim.limit_springs), applied as forces every MuJoCo step. gait2d's knee goes "
-        "past its 10-degree limit on OpenSim while walking; MuJoCo's constraint stops it. "
-        "Body files only (OpenSim: ignored)",
-    )
-    muscle_min_activation: float = Field(
-        default=0.0,
-        ge=0.0,
-        le=0.05,
-        description="MuJoCo: the least activation its muscles keep (their excitations raised to "
-        "it, their activation starting there); OpenSim's Millard muscle never goes below 0.01, "
-        "whose active force at rest (gait2d's vasti 1 % of 9594 N) holds a relaxed knee "
-        "straight where MuJoCo's at 0 buckles; 0.01 matches it (OpenSim: ignored)",
-    )
-    muscle_curves: Literal["mujoco", "millard", "opensim"] = Field(
-        default="mujoco",
-        description="MuJoCo: its muscles' active force-length and force-velocity curves, "
-        "MuJoCo's own or 'millard': lmin, lmax, vmax and fvmax fitted to Millard 2012's "
-        "(OpenSim's muscle; the constants in workers.sim.muscle_curves), RMS 0.05 of "
-        "isometric force off it where MuJoCo's own are 0.15 (length) and 0.14 (velocity) "
-        "off, or 'opensim': no fit, Millard's own curves, with the fibre's pennation, "
-        "applied as forces every MuJoCo step (workers.sim.opensim_muscles; body files only) "
-        "(OpenSim: ignored)",
-    )
-    muscle_passive: Literal["gait", "thelen", "thelen-fibre", "opensim"] = Field(
-        default="gait",
-        description="MuJoCo, body files only: its muscles' passive force-length curve fitted "
-        "to Thelen 2003's (OpenSim's and the reference's) over the first 0.6 of its strain, "
-        "'gait' (lmax shared with the active curve; softer beyond: gait2d's gastrocnemius "
-        "at 1.6 optimal length 0.44 of peak force against Thelen's 1.0), 'thelen': lmax "
-        "and fpmax of the passive force fitted over the whole strain (0.77 there), "
-        "'thelen-fibre': that fit to Thelen's curve of the pennated fibre's own length, "
-        "projected on the tendon, as OpenSim's rigid-tendon muscle pulls (MuJoCo's muscle "
-        "has no pennation: its normalised length runs ahead of the fibre's past optimal "
-        "length, gait2d's standing gastrocnemius 1.458 against 1.425), or 'opensim': no fit, "
-        "OpenSim's own passive fibre force (its curve, pennation and fibre damping) applied "
-        "as forces every MuJoCo step (workers.sim.opensim_muscles) (OpenSim: ignored)",
-    )
+    contact_timeconst_s: ContactTimeconst = None
+    contact_solimp: ContactSolimp = None
+    contact_model: ContactModel = "mujoco"
+    joint_limits: JointLimits = "mujoco"
+    muscle_min_activation: MuscleMinActivation = 0.0
+    muscle_curves: MuscleCurves = "mujoco"
+    muscle_passive: MusclePassive = "gait"
     rebuild_every: Annotated[int, Field(ge=1)] = Field(
         default=100, description="OpenSim: episodes between model rebuilds (a memory bound)"
     )

@@ -13,7 +13,6 @@ import logging
 
 import mujoco
 import numpy as np
-from gaitforge.workers.bodies import load_body
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.sim.base import (
     HEALTHY,
@@ -25,13 +24,10 @@ from gaitforge.workers.sim.base import (
     SimState,
     check_pose_names,
 )
-from gaitforge.workers.sim.hunt_crossley import HuntCrossleyFloor
-from gaitforge.workers.sim.limit_springs import LimitSprings
-from gaitforge.workers.sim.mjcf_contacts import CONTACT_BIT
-from gaitforge.workers.sim.mujoco_compile import OBSTACLE_PREFIX, compile_scene, opensim_limits
+from gaitforge.workers.sim.mujoco_compile import OBSTACLE_PREFIX, compile_scene
 from gaitforge.workers.sim.mujoco_pose import PoseSetter
 from gaitforge.workers.sim.mujoco_warnings import route_warnings
-from gaitforge.workers.sim.opensim_muscles import OpenSimMuscles
+from gaitforge.workers.sim.opensim_laws import OpenSimLaws
 
 logger = logging.getLogger(__name__)
 route_warnings()  # MuJoCo's warnings to logging, not to MUJOCO_LOG.TXT in the cwd
@@ -106,7 +102,8 @@ class MujocoSimulator:
             dtype=int,
         )
         self._lift_adr = self._root_slide_along(self.up_axis)
-        self._floor, self._opensim_laws = self._opensim_forces()
+        self.opensim_laws = OpenSimLaws(m, scene, self.dof_names, self.up_axis)
+        """the forces the scene asks to follow OpenSim's laws (``workers.sim.opensim_laws``)"""
         self._stand_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, STAND_KEY)
         # muscles found by their activation dynamics: muscle_curves: opensim fixes their gain
         self._muscle_act = m.actuator_actadr[
@@ -147,13 +144,13 @@ class MujocoSimulator:
         if floor > 0:  # the muscles start at their least activation, as OpenSim's do
             d.act[self._muscle_act] = np.maximum(d.act[self._muscle_act], floor)
         mujoco.mj_forward(m, d)
-        self._opensim_forces_now()
+        self.opensim_laws.apply(self.model, self.data)
 
     def step(self, excitations: np.ndarray, duration: float) -> Health:
         m, d = self.model, self.data
         t0 = self._start_step()
         d.ctrl[:] = np.clip(np.nan_to_num(excitations, nan=0.0), 0.0, 1.0)
-        self._advance(max(1, round(duration / m.opt.timestep)))
+        self.opensim_laws.advance(m, d, max(1, round(duration / m.opt.timestep)))
         return self._health(t0)
 
     def step_reflex(
@@ -169,55 +166,10 @@ class MujocoSimulator:
             excitation = reflex(qpos[self._qadr], qvel[self._vadr])  # finite while the state is
             total += excitation
             d.ctrl[:] = excitation
-            self._advance(substeps)
+            self.opensim_laws.advance(m, d, substeps)
             if not np.isfinite(qvel).all():
                 break
         return total / done, self._health(t0)
-
-    def _opensim_forces(
-        self,
-    ) -> tuple[HuntCrossleyFloor | None, list[HuntCrossleyFloor | LimitSprings | OpenSimMuscles]]:
-        """The forces the scene asks to follow OpenSim's laws (``contact_model``,
-        ``joint_limits``, ``muscle_passive`` and ``muscle_curves`` ``opensim``;
-        ``mujoco_compile`` has taken MuJoCo's own out): the floor's (or None) and all."""
-        m, scene = self.model, self.scene
-        floor, laws = None, []
-        if scene.contact_model == "hunt-crossley":
-            spheres = np.flatnonzero(
-                (m.geom_type == mujoco.mjtGeom.mjGEOM_SPHERE)
-                & (m.geom_contype & CONTACT_BIT != 0)
-                & (m.geom_bodyid != 0)
-            )
-            floor = HuntCrossleyFloor(m, spheres, load_body(scene.body).contact, self.up_axis)
-            laws.append(floor)
-        if scene.joint_limits == "opensim":
-            laws.append(LimitSprings(m, opensim_limits(scene, self.dof_names)))
-        active, passive = scene.muscle_curves == "opensim", scene.muscle_passive == "opensim"
-        if active or passive:
-            muscles = load_body(scene.body).muscles
-            laws.append(OpenSimMuscles(m, muscles, active=active, passive=passive))
-        return floor, laws
-
-    def _advance(self, steps: int) -> None:
-        """``steps`` MuJoCo steps; forces that follow OpenSim's laws are set anew between
-        each step's position-velocity stage and the rest (``mj_step1``/``mj_step2``)."""
-        m, d = self.model, self.data
-        if not self._opensim_laws:
-            mujoco.mj_step(m, d, nstep=steps)
-            return
-        for _ in range(steps):
-            mujoco.mj_step1(m, d)
-            self._opensim_forces_now()
-            mujoco.mj_step2(m, d)
-
-    def _opensim_forces_now(self) -> None:
-        """``data.qfrc_applied``: the forces that follow OpenSim's laws at the present
-        positions and speeds (after ``mj_step1`` or ``mj_forward``; at a reset it is what
-        ``state().foot_forces`` reports before the next step)."""
-        applied = self.data.qfrc_applied
-        applied[:] = 0.0
-        for force in self._opensim_laws:
-            force.add(self.model, self.data, applied)
 
     def _start_step(self) -> float:
         for warning in WATCHED_WARNINGS.values():
@@ -281,7 +233,7 @@ class MujocoSimulator:
         """See ``Simulator.set_pose`` and ``workers.sim.mujoco_pose``."""
         check_pose_names(pose, self.scene.body, self.dof_names, self._locked)
         self._poser.apply(self.data, pose)
-        self._opensim_forces_now()
+        self.opensim_laws.apply(self.model, self.data)
 
     def foot_positions(self) -> dict[str, np.ndarray]:
         d = self.data
@@ -317,7 +269,7 @@ class MujocoSimulator:
         self._apply_contact_timeconst(float(state["contact_timeconst"][0]))
         mujoco.mj_setState(m, d, state["physics"], mujoco.mjtState.mjSTATE_INTEGRATION)
         mujoco.mj_forward(m, d)
-        self._opensim_forces_now()
+        self.opensim_laws.apply(self.model, self.data)
 
     def poison(self) -> None:
         self.data.qvel[:] = np.nan
@@ -448,8 +400,5 @@ class MujocoSimulator:
             if foot >= 0:
                 mujoco.mj_contactForce(m, d, i, wrench)
                 forces[foot] += abs(wrench[0])
-        if self._floor is not None:  # the floor's part, from the last step's forces
-            feet = self._geom_foot[self._floor.spheres]
-            on_foot = feet >= 0
-            np.add.at(forces, feet[on_foot], self._floor.normal_forces[on_foot])
+        self.opensim_laws.add_foot_forces(forces, self._geom_foot)  # from the last step's forces
         return forces

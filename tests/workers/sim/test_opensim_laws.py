@@ -190,7 +190,7 @@ def test_the_muscles_pull_as_opensims_millard_muscles(opensim_gait2d) -> None:
     for k, name in enumerate(sim.muscle_names):
         d.act[m.actuator_actadr[k]] = activation[name]
     mujoco.mj_forward(m, d)
-    (muscles,) = [law for law in sim._opensim_laws if isinstance(law, OpenSimMuscles)]
+    (muscles,) = [law for law in sim.opensim_laws.laws if isinstance(law, OpenSimMuscles)]
     muscles.add(m, d, np.zeros(m.nv))
     ours = dict(zip(sim.muscle_names, muscles.tension, strict=True))
     assert np.abs(d.actuator_force).max() == 0.0  # MuJoCo's own curves are out
