@@ -188,6 +188,9 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
     if scene.muscle_passive == "opensim":  # the passive force is workers.sim.opensim_muscles'
         _need_body_file(scene, "muscle_passive 'opensim'", "muscle parameters")
         model.actuator_biasprm[muscles, 7] = 0.0
+        # the fibre damping too: without this the tendons kept mujoco_build's and the
+        # muscles damped twice (session 36: 32 N m more at a fast push-off ankle)
+        model.tendon_damping[model.actuator_trnid[muscles, 0]] = 0.0
     elif scene.muscle_passive != "gait":
         _fit_passive_to_thelen_whole(model, scene)
     report = CompileReport(

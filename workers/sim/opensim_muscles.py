@@ -18,8 +18,8 @@ activation ``act``:
 - active: ``F act fl(l / l_opt) fv(v~)``, Millard's default active force-length and
   force-velocity curves (MuJoCo's own shapes are 0.14-0.15 of peak force off them; fitted,
   ``muscle_curves: millard``, still 0.05);
-- the tendon carries their sum times ``cos(a)``, turned into joint torques by MuJoCo's moment
-  arms.
+- the tendon carries their sum times ``cos(a)`` (none where the sum is negative: a tendon
+  does not push, as OpenSim's does not), turned into joint torques by MuJoCo's moment arms.
 
 OpenSim's curves are tabulated once from its own curve objects (:data:`LENGTHS`,
 :data:`SPEEDS`) and interpolated linearly.
@@ -120,7 +120,9 @@ class OpenSimMuscles:
                 * interpolate(self.length_curve, LENGTHS, length)
                 * interpolate(self.speed_curve, SPEEDS, speed)
             )
-        self.tension[:] = self.peak * force * cos
+        # a tendon pulls and never pushes: as OpenSim's muscle, none where the fibre's
+        # damping outweighs the rest (a relaxed fibre shortening fast)
+        self.tension[:] = self.peak * np.maximum(force, 0.0) * cos
         mujoco.mju_sparse2dense(
             self._moment, data.actuator_moment, data.moment_rownnz, data.moment_rowadr,
             data.moment_colind,
