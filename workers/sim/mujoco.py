@@ -25,6 +25,7 @@ from gaitforge.workers.sim.base import (
     check_pose_names,
 )
 from gaitforge.workers.sim.mujoco_compile import OBSTACLE_PREFIX, compile_scene
+from gaitforge.workers.sim.mujoco_drawing import body_frames, muscle_paths
 from gaitforge.workers.sim.mujoco_pose import PoseSetter
 from gaitforge.workers.sim.mujoco_warnings import route_warnings
 from gaitforge.workers.sim.opensim_laws import OpenSimLaws
@@ -274,33 +275,15 @@ class MujocoSimulator:
     def poison(self) -> None:
         self.data.qvel[:] = np.nan
 
-    # ---- read-outs for drawing (positions as of the last kinematics pass: mj_step computes
-    # them at the start of its last substep, so they lag the state by one timestep at most)
+    # ---- read-outs for drawing (``workers.sim.mujoco_drawing``: positions as of the last
+    # kinematics pass, lagging the state by one timestep at most)
 
     def body_frames(self) -> dict[str, BodyPose]:
-        m, d = self.model, self.data
-        names = [m.body(i).name or f"body{i}" for i in range(m.nbody)]
-        return {
-            names[i]: BodyPose(
-                d.xpos[i].copy(), d.xquat[i].copy(), names[p] if (p := m.body_parentid[i]) else ""
-            )
-            for i in range(1, m.nbody)
-        }
+        return body_frames(self.model, self.data)
 
     def muscle_paths(self) -> dict[str, np.ndarray]:
         """Tendon path points (sites and wrap tangent points; pulley markers dropped)."""
-        m, d = self.model, self.data
-        points = d.wrap_xpos.reshape(-1, 3)
-        kinds = d.wrap_obj.ravel()
-        paths = {}
-        for i, name in enumerate(self.muscle_names):
-            if int(m.actuator_trntype[i]) != int(mujoco.mjtTrn.mjTRN_TENDON):
-                paths[name] = np.zeros((0, 3))
-                continue
-            tendon = m.actuator_trnid[i, 0]
-            span = slice(d.ten_wrapadr[tendon], d.ten_wrapadr[tendon] + d.ten_wrapnum[tendon])
-            paths[name] = points[span][kinds[span] != -2].copy()
-        return paths
+        return muscle_paths(self.model, self.data, self.muscle_names)
 
     def contact_spheres(self) -> dict[str, np.ndarray]:
         m, d = self.model, self.data
