@@ -3,6 +3,11 @@
     start_ray()                       # a local Ray, its daemons in a process group of their own
     start_ray("10.0.0.5:6379")        # join a cluster
 
+With no address a driver joins only the cluster that ``RAY_ADDRESS`` names (as under a Ray job,
+whose supervisor sets it); otherwise it starts a Ray of its own, never the cluster a ``ray
+start`` left on the machine, which ``ray.init()`` alone would join unasked (a training run
+beside someone else's head then dies with it).
+
 A local Ray's daemons (GCS, raylet, and the workers the raylet starts) are children of the
 driver. By default they share its process group, so a signal to the group (GNU ``timeout``,
 ``kill -- -PGID``) stops them together with the driver: the driver, asked to stop with a
@@ -19,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import sys
 from collections.abc import Iterator
 
@@ -28,16 +34,17 @@ logger = logging.getLogger(__name__)
 
 
 def start_ray(address: str | None = None, **init_kwargs) -> None:
-    """``ray.init`` joining ``address``, or starting a local Ray (without its dashboard) whose
-    daemons run in a process group of their own (see the module docstring); ``init_kwargs``
-    go to ``ray.init``."""
+    """``ray.init`` joining ``address`` (else ``RAY_ADDRESS``), or starting a local Ray
+    (without its dashboard) whose daemons run in a process group of their own (see the module
+    docstring); ``init_kwargs`` go to ``ray.init``."""
     init_kwargs.setdefault("logging_level", logging.WARNING)
-    if address is not None:
+    address = address or os.environ.get("RAY_ADDRESS") or "local"
+    if address != "local":
         ray.init(address=address, **init_kwargs)
         return
     init_kwargs.setdefault("include_dashboard", False)
     with _daemons_in_their_own_process_group():
-        ray.init(**init_kwargs)
+        ray.init(address="local", **init_kwargs)
 
 
 @contextlib.contextmanager

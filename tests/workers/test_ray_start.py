@@ -1,6 +1,7 @@
 """A local Ray started by ``start_ray`` runs its daemons in process groups apart from the
 driver's, so a signal to the driver's group reaches the driver alone; the daemons still end
-with the driver (real Ray, in a driver process of its own)."""
+with the driver; and with no address it starts its own Ray rather than join the cluster a
+``ray start`` left on the machine (real Ray, in driver processes of their own)."""
 
 from __future__ import annotations
 
@@ -8,9 +9,11 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
+from gaitforge.service.jobs.local_cluster import LocalCluster
 from gaitforge.service.jobs.procs import alive, descendants, pgid_of
 
 DRIVER = """
@@ -54,3 +57,35 @@ def test_a_signal_to_the_drivers_group_leaves_ray_to_the_driver_which_takes_it_d
     finally:
         if driver.poll() is None:
             driver.kill()
+
+
+ADDRESS_OF = """
+import ray
+from gaitforge.workers.ray_start import start_ray
+
+{start}
+print(ray.get_runtime_context().gcs_address, flush=True)
+"""
+
+
+def _gcs_address_of_driver(start: str, env: dict[str, str]) -> str:
+    """The GCS address (host:port) a driver that runs ``start`` ends up on."""
+    driver = subprocess.run([sys.executable, "-c", ADDRESS_OF.format(start=start)], env=env,
+                            capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert driver.returncode == 0, driver.stderr[-2000:]
+    return driver.stdout.strip().splitlines()[-1]
+
+
+def test_with_no_address_a_driver_starts_its_own_ray_not_the_machines_last_cluster() -> None:
+    with LocalCluster() as cluster, tempfile.TemporaryDirectory(prefix="gf-rt-") as tmp:
+        cluster.start_head(num_cpus=0)
+        # what `ray start --head` leaves in the default temp dir, here RAY_TMPDIR's
+        (Path(tmp) / "ray").mkdir()
+        (Path(tmp) / "ray" / "ray_current_cluster").write_text(cluster.address)
+        env = cluster.env({"RAY_TMPDIR": tmp})
+        assert _gcs_address_of_driver("ray.init()", env) == cluster.address, (
+            "plain ray.init() joins the machine's last cluster (what the test guards against)"
+        )
+        assert _gcs_address_of_driver("start_ray(num_cpus=1)", env) != cluster.address
+        joined = _gcs_address_of_driver("start_ray()", {**env, "RAY_ADDRESS": cluster.address})
+        assert joined == cluster.address, "RAY_ADDRESS (as under a Ray job) is still joined"
