@@ -23,67 +23,57 @@ from rich.console import Console
 from rich.table import Table
 
 
-def falls_per_point(report: dict[str, Any]) -> dict[float, list[dict[str, Any]]]:
-    """{target speed (m/s, rounded to 0.01): the episodes that fell there} of a sweep report."""
+def sweep_points(report: dict[str, Any]) -> dict[float, dict[str, Any]]:
+    """{target speed (m/s, rounded to 0.01): the evaluation there} of a sweep report; each
+    evaluation's ``fall_rate`` holds its falls (``count``) of ``n`` episodes."""
     if not report.get("sweep"):
         raise SystemExit(f"{report.get('checkpoint')}: not a sweep (gaitforge evaluate --sweep)")
-    return {
-        round(point["target_speed_m_s"], 2): [e for e in point["result"]["episodes"] if e["fell"]]
-        for point in report["sweep"]
-    }
+    return {round(point["target_speed_m_s"], 2): point["result"] for point in report["sweep"]}
 
 
-def episodes_per_point(report: dict[str, Any]) -> int:
+def episodes_per_point(points: dict[float, dict[str, Any]]) -> int:
     """Episodes at each sweep point (the same at every point)."""
-    return len(report["sweep"][0]["result"]["episodes"])
+    return next(iter(points.values()))["fall_rate"]["n"]
 
 
-def speeds_per_point(report: dict[str, Any]) -> dict[float, float]:
-    """{target speed: the run's mean speed there (m/s)}."""
-    return {
-        round(point["target_speed_m_s"], 2): point["result"]["mean_speed_m_s"]["mean"]
-        for point in report["sweep"]
-    }
-
-
-def falls_table(reports: list[dict[str, Any]], labels: list[str]) -> Table:
+def falls_table(runs: list[dict[float, dict[str, Any]]], labels: list[str]) -> Table:
     """Falls (count of the episodes per point) and mean speed per run, the median over runs
     and the sum over runs (with its percentage)."""
-    counts = [{t: len(f) for t, f in falls_per_point(r).items()} for r in reports]
-    speeds = [speeds_per_point(r) for r in reports]
-    targets = list(counts[0])
-    episodes = episodes_per_point(reports[0])
+    targets = list(runs[0])
+    episodes = episodes_per_point(runs[0])
     table = Table(title=f"Falls in {episodes} episodes at each target speed")
     table.add_column("run")
     for target in targets:
         table.add_column(f"{target:.2f} m/s", justify="right")
-    for label, count, speed in zip(labels, counts, speeds, strict=True):
-        table.add_row(label, *(f"{count[t]} ({speed[t]:.2f} m/s)" for t in targets))
+    for label, points in zip(labels, runs, strict=True):
+        table.add_row(label, *(
+            f"{points[t]['fall_rate']['count']} ({points[t]['mean_speed_m_s']['mean']:.2f} m/s)"
+            for t in targets
+        ))  # fmt: skip
+    counts = {t: [points[t]["fall_rate"]["count"] for points in runs] for t in targets}
     table.add_row(
-        f"median of {len(reports)}",
-        *(f"{statistics.median(c[t] for c in counts):g}" for t in targets),
+        f"median of {len(runs)}", *(f"{statistics.median(counts[t]):g}" for t in targets),
         style="bold",
-    )
-    pooled = len(reports) * episodes
-    sums = {t: sum(c[t] for c in counts) for t in targets}
-    table.add_row(
-        f"all (of {pooled})", *(f"{sums[t]} ({100 * sums[t] / pooled:.1f} %)" for t in targets)
-    )
+    )  # fmt: skip
+    pooled = len(runs) * episodes
+    table.add_row(f"all (of {pooled})", *(
+        f"{sum(counts[t])} ({100 * sum(counts[t]) / pooled:.1f} %)" for t in targets
+    ))  # fmt: skip
     return table
 
 
 def fallen_episodes_table(
-    reports: list[dict[str, Any]], labels: list[str], targets: list[float]
+    runs: list[dict[float, dict[str, Any]]], labels: list[str], targets: list[float]
 ) -> Table:
     """Each fall at ``targets``: run, target, episode seed, time (s), distance (m), first
     touch of a sphere (s; "-" when none before the fall)."""
     table = Table(title="Episodes that fell")
     for column in ("run", "target m/s", "episode seed", "fell at s", "distance m", "first touch s"):
         table.add_column(column, justify="right")
-    for label, report in zip(labels, reports, strict=True):
-        per_point = falls_per_point(report)
+    for label, points in zip(labels, runs, strict=True):
         for target in targets:
-            for e in per_point.get(round(target, 2), []):
+            point = points.get(round(target, 2), {"episodes": []})
+            for e in (e for e in point["episodes"] if e["fell"]):
                 touch = e.get("first_obstacle_touch_s")
                 table.add_row(
                     label, f"{target:.2f}", str(e["seed"]), f"{e['time_s']:.2f}",
@@ -92,27 +82,23 @@ def fallen_episodes_table(
     return table
 
 
-def plot(reports: list[dict[str, Any]], labels: list[str], out: Path) -> None:
+def plot(runs: list[dict[float, dict[str, Any]]], labels: list[str], out: Path) -> None:
     """Falls (% of the episodes) against target speed: each run thin, all runs pooled bold."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    episodes = episodes_per_point(reports[0])
+    targets = sorted(runs[0])
+    episodes = episodes_per_point(runs[0])
+    counts = [[points[t]["fall_rate"]["count"] for t in targets] for points in runs]
     fig, ax = plt.subplots(figsize=(6, 4))
-    pooled: dict[float, int] = {}
-    for label, report in zip(labels, reports, strict=True):
-        per_point = falls_per_point(report)
-        targets = sorted(per_point)
-        ax.plot(targets, [100 * len(per_point[t]) / episodes for t in targets], "o-", lw=1,
-                alpha=0.6, label=label)  # fmt: skip
-        for t in targets:
-            pooled[t] = pooled.get(t, 0) + len(per_point[t])
-    targets = sorted(pooled)
-    total = episodes * len(reports)
-    ax.plot(targets, [100 * pooled[t] / total for t in targets], "k-s", lw=2.5,
-            label=f"all {len(reports)} ({total} episodes per point)")  # fmt: skip
+    for label, run_counts in zip(labels, counts, strict=True):
+        ax.plot(targets, [100 * c / episodes for c in run_counts], "o-", lw=1, alpha=0.6,
+                label=label)  # fmt: skip
+    total = episodes * len(runs)
+    ax.plot(targets, [100 * sum(c) / total for c in zip(*counts, strict=True)], "k-s", lw=2.5,
+            label=f"all {len(runs)} ({total} episodes per point)")  # fmt: skip
     ax.set_xlabel("target speed (m/s)")
     ax.set_ylabel("falls (% of episodes)")
     ax.set_title("Speed against safety")
@@ -134,15 +120,17 @@ def main() -> None:
     labels = args.labels or [path.stem for path in args.sweeps]
     if len(labels) != len(args.sweeps):
         raise SystemExit(f"--labels: {len(labels)} given for {len(args.sweeps)} files")
-    reports = [json.loads(path.read_text()) for path in args.sweeps]
-    if len({episodes_per_point(r) for r in reports}) != 1:
-        raise SystemExit("the sweeps differ in episodes per point; compare like with like")
+    runs = [sweep_points(json.loads(path.read_text())) for path in args.sweeps]
+    if len({(tuple(points), episodes_per_point(points)) for points in runs}) != 1:
+        raise SystemExit(
+            "the sweeps differ in points or episodes per point; compare like with like"
+        )
     console = Console(width=120)
-    console.print(falls_table(reports, labels))
+    console.print(falls_table(runs, labels))
     if args.episodes_at:
-        console.print(fallen_episodes_table(reports, labels, args.episodes_at))
+        console.print(fallen_episodes_table(runs, labels, args.episodes_at))
     if args.out:
-        plot(reports, labels, args.out)
+        plot(runs, labels, args.out)
         console.print(f"plot: {args.out}")
 
 
