@@ -20,7 +20,7 @@ by each transition for ``--to-steps`` env steps (warm-up rollouts included):
 
 With ``--job FILE`` the transition is a real one of the curriculum: the job file's first
 stage starts from its ``init_from`` checkpoint (e.g. ``examples/obstacles-2d.yaml``: the
-shipped runner onto obstacles-2d-clock), and each transition grows ``--big`` from it there
+shipped runner onto obstacles-2d+clock), and each transition grows ``--big`` from it there
 for ``--to-steps`` env steps with the job's own PPO and worker settings (no stage 0 is
 trained); ``--transitions`` may add ``continue`` (the checkpoint's network, not grown) as a
 baseline.

@@ -5,7 +5,7 @@ and each muscle's activation, against time (the median over the episodes still u
 policy is the same and the body is the same, what differs is the simulators' own modelling
 (contact above all: MuJoCo's soft constraints against the reference's Hunt-Crossley spheres).
 
-Usage: python bench/cross_sim.py CHECKPOINT [--scene walk-2d-clock] [--episodes 5]
+Usage: python bench/cross_sim.py CHECKPOINT [--scene walk-2d+clock] [--episodes 5]
            [--seed 0] [--every-s 0.2] [--until-s 3] [--out cross-sim.png]
 """
 
@@ -114,7 +114,7 @@ def plot_grid(t: np.ndarray, logs: dict[str, np.ndarray], median: dict[str, np.n
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("checkpoint", type=Path)
-    parser.add_argument("--scene", default="walk-2d-clock")
+    parser.add_argument("--scene", default="walk-2d+clock")
     parser.add_argument("--episodes", type=int, default=5)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--every-s", type=float, default=0.2, help="table rows every so many s")

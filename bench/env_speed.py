@@ -14,13 +14,13 @@ excitations on the same scenes at the same control rate, random actions, R repea
 interleaved (the ratio is the one to read: the layer updates the excitations 500 times a
 second, each update a separate simulator call).
 
-Table 3: the raw ``mj_step`` rate of the pruned ``walk-3d`` and ``walk-3d-planar`` models
+Table 3: the raw ``mj_step`` rate of the pruned ``walk-3d`` and ``walk-3d+planar`` models
 against MyoLeg as shipped (nothing removed), alternated in one run so that machine noise
 hits all alike; each restarts standing whenever it falls, as training episodes do.
 
 Table 4: what MuJoCo's forces on OpenSim's laws cost (``contact_model: hunt-crossley``,
 ``joint_limits: opensim``, ``muscle_curves`` and ``muscle_passive: opensim``, computed in
-Python every physics step): walk-2d-clock (joint targets, 25 Hz) on MuJoCo as it is, with
+Python every physics step): walk-2d+clock (joint targets, 25 Hz) on MuJoCo as it is, with
 each option, with all four, with all four stepped as OpenSim (semi-implicit Euler, 1 ms,
 what a policy for OpenSim trains on), and on OpenSim at the profile the fidelity sweep
 recommends (semi-explicit Euler, fixed 1 ms), random actions, R repeats interleaved; the
@@ -133,7 +133,7 @@ def pruning_table(seconds: float, repeats: int) -> Table:
     full_spec.option.timestep = profile.timestep
     full_report = MujocoSimulator(walk).report
     models = {"MyoLeg as shipped": (full_spec.compile(), full_report.size_full)}
-    for name in ("walk-3d", "walk-3d-planar"):
+    for name in ("walk-3d", "walk-3d+planar"):
         sim = MujocoSimulator(load_scene(name))
         models[f"{name} pruned"] = (sim.model, sim.report.size)
     rates: dict[str, list[float]] = {label: [] for label in models}
@@ -177,7 +177,7 @@ LAWS = {
 
 
 def laws_table(seconds: float, repeats: int, opensim: bool) -> Table:
-    base = load_scene("walk-2d-clock")
+    base = load_scene("walk-2d+clock")
     envs = {label: MuscleEnv(Scene.model_validate({**base.model_dump(), **options}), backend)
             for label, (backend, options) in LAWS.items()
             if opensim or backend == "mujoco"}  # fmt: skip
@@ -185,7 +185,7 @@ def laws_table(seconds: float, repeats: int, opensim: bool) -> Table:
     for r in range(repeats):
         for label, env in envs.items():
             rates[label].append(random_excitations(env, seconds, seed=r).steps_per_s)
-    table = Table("walk-2d-clock", "env steps/s", "vs MuJoCo as it is",
+    table = Table("walk-2d+clock", "env steps/s", "vs MuJoCo as it is",
                   title="MuJoCo on OpenSim's laws, one core (median)")  # fmt: skip
     first = statistics.median(rates["MuJoCo as it is"])
     for label in envs:

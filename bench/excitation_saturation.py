@@ -1,6 +1,6 @@
 """How often a joint-target policy's muscles are fully excited: is its gait muscle-limited?
 
-Usage: python bench/excitation_saturation.py CHECKPOINT [--scene run-2d-clock] [--episodes 10]
+Usage: python bench/excitation_saturation.py CHECKPOINT [--scene run-2d+clock] [--episodes 10]
            [--after-s 5] [--json-out FILE]
 
 Runs the policy's mean action on deterministic episodes (seeds 0..N-1) of a scene with
@@ -79,7 +79,7 @@ def record(
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("checkpoint", type=Path)
-    parser.add_argument("--scene", default="run-2d-clock")
+    parser.add_argument("--scene", default="run-2d+clock")
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--after-s", type=float, default=5.0)
     parser.add_argument("--json-out", type=Path)

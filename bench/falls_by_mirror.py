@@ -4,7 +4,7 @@ images may run well on one side and fall on the other. Reads ``gaitforge evaluat
 --json-out`` files (deterministic mode) and draws each episode's mirroring again from its
 seed with the scene's own reset.
 
-Usage: python bench/falls_by_mirror.py EVAL.json [EVAL.json ...] [--scene run-2d-clock]
+Usage: python bench/falls_by_mirror.py EVAL.json [EVAL.json ...] [--scene run-2d+clock]
            [--out split.json]
 
 ``--scene`` is the scene whose resets decide the mirroring (the evaluation's scene by

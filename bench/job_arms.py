@@ -6,7 +6,7 @@ seeds.
 
 Usage:
     python bench/job_arms.py JOB.yaml --out DIR --arm NAME [KEY=VALUE ...] [--arm ...]
-        [--seeds 0 1 2] [--scene run-2d-clock | stage] [--episodes 200] [--judge-seed 0]
+        [--seeds 0 1 2] [--scene run-2d+clock | stage] [--episodes 200] [--judge-seed 0]
         [--side-by-side N] [--train-minutes M]
 
 An arm is a name and dotted overrides of the job file, values read as YAML:
@@ -14,7 +14,7 @@ An arm is a name and dotted overrides of the job file, values read as YAML:
 no override is the job as it is (the control). Relative paths in the job and in the overrides
 (``init_from``, a stage's scene or evaluation scene given as a YAML file) are taken from the
 job file's directory. ``--scene stage`` judges each run on its last stage's own scene (arms
-that train on different scenes with the same falls and speed, such as run-2d-clock variants
+that train on different scenes with the same falls and speed, such as run-2d+clock variants
 with other clocks); ``--judge-seed`` is the first episode seed judged. Writes
 ``DIR/ARM/seed-S.yaml``, ``.log``, the run under ``DIR/ARM/seed-S/``, its judgement
 ``DIR/ARM/seed-S.json`` and ``.txt``, and ``DIR/arms.json``; a seed already judged is not run
@@ -161,7 +161,7 @@ def main() -> None:
     parser.add_argument("--arm", nargs="+", action="append", required=True,
                         metavar="WORD", help="an arm: NAME [KEY=VALUE ...]")  # fmt: skip
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--scene", default="run-2d-clock",
+    parser.add_argument("--scene", default="run-2d+clock",
                         help="the scene judged on (stage: each run's last stage's)")  # fmt: skip
     parser.add_argument("--episodes", type=int, default=200)
     parser.add_argument("--judge-seed", type=int, default=0,

@@ -4,7 +4,7 @@ mirrored observation and the mirror of its mean action (per action, in action un
 its action standard deviations), and how much less likely its mirrored samples are than its
 own (mean log-probability, nats).
 
-Usage: python bench/mirror_asymmetry.py CHECKPOINT --scene run-2d-clock [--envs 4] [--steps 250]
+Usage: python bench/mirror_asymmetry.py CHECKPOINT --scene run-2d+clock [--envs 4] [--steps 250]
 """
 
 from __future__ import annotations

@@ -93,7 +93,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--scene", default="walk-2d-clock")
+    parser.add_argument("--scene", default="walk-2d+clock")
     args = parser.parse_args()
     scene = load_scene(args.scene)
     reference = state_after(make_env(scene, REFERENCE, old=True))

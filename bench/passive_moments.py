@@ -5,7 +5,7 @@ from all the muscles (N m; MuJoCo ``qfrc_actuator``, OpenSim the tendon forces t
 moment arms), MuJoCo once per ``muscle_passive`` option. How hard the stretched, relaxed
 muscles pull is what the options fit; this says where each agrees with OpenSim's.
 
-Usage: python bench/passive_moments.py [--scene walk-2d-clock] [--joint ankle_angle_r]
+Usage: python bench/passive_moments.py [--scene walk-2d+clock] [--joint ankle_angle_r]
            [--degrees -20 -10 0 10 15] [--options gait thelen thelen-fibre]
 """
 
@@ -77,7 +77,7 @@ def opensim_muscle_moments(sim) -> np.ndarray:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--scene", default="walk-2d-clock", help="a catalogue name or a file")
+    parser.add_argument("--scene", default="walk-2d+clock", help="a catalogue name or a file")
     parser.add_argument("--joint", default="ankle_angle_r", help="the kept joint swept")
     parser.add_argument("--degrees", type=float, nargs="+", default=[-20, -10, 0, 10, 15])
     parser.add_argument("--options", nargs="+", default=["gait", "thelen", "thelen-fibre"],

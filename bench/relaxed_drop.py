@@ -7,7 +7,7 @@ ankle and knee angles (degrees) and the pelvis height (m). What differs is the s
 own modelling of the contact and the passive body, with no policy to react to it
 (`bench/cross_sim.py` runs a policy on both).
 
-Usage: python bench/relaxed_drop.py [--scene walk-2d-clock] [--excitation 0]
+Usage: python bench/relaxed_drop.py [--scene walk-2d+clock] [--excitation 0]
            [--timeconst 0.02 0.12] [--every-s 0.01] [--until-s 0.06] [--seed 0]
            [--lift-m 0]
 """
@@ -76,7 +76,7 @@ def lift(sim, backend: str, lift_m: float) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--scene", default="walk-2d-clock", help="a catalogue name or a file")
+    parser.add_argument("--scene", default="walk-2d+clock", help="a catalogue name or a file")
     parser.add_argument("--excitation", type=float, default=0.0, help="every muscle's, 0-1")
     parser.add_argument(
         "--timeconst",

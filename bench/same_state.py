@@ -11,7 +11,7 @@ same is the muscles' and joints' own modelling; the contact rows are the contact
 own difference in the same state (MuJoCo's built from ``--mujoco-scene``, e.g. a scene with
 MuJoCo's contact options).
 
-Usage: python bench/same_state.py [--scene walk-2d-clock] [--at-s 0.03 ...]
+Usage: python bench/same_state.py [--scene walk-2d+clock] [--at-s 0.03 ...]
            [--policy CHECKPOINT --seed 0] [--mujoco-scene SCENE]
 """
 
@@ -48,7 +48,7 @@ Visit = Callable[[Any, float], None]
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--scene", default="walk-2d-clock", help="a catalogue name or a file")
+    parser.add_argument("--scene", default="walk-2d+clock", help="a catalogue name or a file")
     parser.add_argument("--at-s", type=float, nargs="+", default=[0.03],
                         help="OpenSim's times compared, s from the reset")  # fmt: skip
     parser.add_argument("--policy", type=Path, default=None,

@@ -4,7 +4,7 @@ from the reset, per time bin, over deterministic episodes of a scene (the median
 asks for there (a clock's, with ``speed_target_from_clock``), and where the falls come; in a
 scene whose policy paces its clock (``clock_rate_span``), the clock's rate per bin too.
 
-Usage: python bench/speed_profile.py CHECKPOINT [CHECKPOINT ...] [--scene run-2d-clock]
+Usage: python bench/speed_profile.py CHECKPOINT [CHECKPOINT ...] [--scene run-2d+clock]
            [--episodes 30] [--seed 0] [--bin-s 0.4] [--labels A B ...] [--out profile.png]
 """
 
@@ -151,7 +151,7 @@ def plot(labels: list[str], profiles: list[Profile], scene: str, out: Path) -> N
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("checkpoints", type=Path, nargs="+")
-    parser.add_argument("--scene", default="run-2d-clock")
+    parser.add_argument("--scene", default="run-2d+clock")
     parser.add_argument("--episodes", type=int, default=30)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--bin-s", type=float, default=0.4, help="s; whole control steps")

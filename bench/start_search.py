@@ -12,7 +12,7 @@ speed, distance by 1.2, 2 and 4 s) and, with ``--out``, writes the offsets and f
 (``start-search.json``, which ``bench/start_distil.py`` reads) and the speed profiles
 (``start-search.png``).
 
-Usage: python bench/start_search.py [CHECKPOINT] [--scene run-2d-clock] [--knots-s 0.4 0.8
+Usage: python bench/start_search.py [CHECKPOINT] [--scene run-2d+clock] [--knots-s 0.4 0.8
            1.2 1.6 2.0] [--seeds 0 1] [--horizon-s 5] [--fall-penalty-m 5] [--generations 40]
            [--sigma 0.1] [--cma-seed 1] [--judge 50] [--processes 2] [--out DIR]
 """
@@ -62,7 +62,7 @@ def score(args: tuple[np.ndarray | None, tuple[int, ...], float]) -> tuple[float
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("checkpoint", nargs="?", default="examples/policies/run-2d")
-    parser.add_argument("--scene", default="run-2d-clock")
+    parser.add_argument("--scene", default="run-2d+clock")
     parser.add_argument(
         "--knots-s",
         type=float,

@@ -18,9 +18,9 @@ def test_the_walker_on_both_simulators_gives_a_table_a_plot_and_medians(
 ) -> None:
     out = tmp_path / "cross.png"
     scene = tmp_path / "short.yaml"
-    walk = (REPO / "workers/scenes/catalogue/walk-2d-clock.yaml").read_text()
+    walk = (REPO / "workers/scenes/catalogue/walk-2d+clock.yaml").read_text()
     scene.write_text(
-        walk.replace("name: walk-2d-clock", "name: short").replace(
+        walk.replace("name: walk-2d+clock", "name: short").replace(
             "episode_s: 10", "episode_s: 1.0"
         )
     )

@@ -19,7 +19,7 @@ from excitation_saturation import record  # noqa: E402
 def test_every_reflex_update_after_the_time_is_recorded() -> None:
     """The walker walks 10 s, so from 9 s on: 25 steps at 25 Hz, 20 reflex updates each."""
     excitations, actions, muscles, dofs = record(
-        REPO / "examples/policies/walk-2d", "walk-2d-clock", episodes=1, after_s=9.0
+        REPO / "examples/policies/walk-2d", "walk-2d+clock", episodes=1, after_s=9.0
     )
     assert actions.shape == (25, len(dofs)) and len(dofs) == 6
     assert excitations.shape == (25 * 20, len(muscles)) and len(muscles) == 18

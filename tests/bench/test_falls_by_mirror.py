@@ -16,20 +16,20 @@ from falls_by_mirror import mirrored_by_seed, split  # noqa: E402
 
 
 def test_the_shipped_walkers_episodes_split_by_their_resets_mirroring(tmp_path: Path) -> None:
-    """8 deterministic walk-2d-clock episodes (its clock mirrored half the time): each side
+    """8 deterministic walk-2d+clock episodes (its clock mirrored half the time): each side
     has the episodes whose reset mirrored, with their own falls and speeds."""
     report_path = tmp_path / "eval.json"
     subprocess.run(
         [sys.executable, "-m", "gaitforge.service.cli", "evaluate",
-         str(REPO / "examples/policies/walk-2d"), "--scene", "walk-2d-clock", "--episodes", "8",
+         str(REPO / "examples/policies/walk-2d"), "--scene", "walk-2d+clock", "--episodes", "8",
          "--seed", "3", "--json-out", str(report_path)],
         check=True, capture_output=True, timeout=600,
     )  # fmt: skip
     report = json.loads(report_path.read_text())
     episodes = report["results"]["deterministic"]["episodes"]
-    mirrored = mirrored_by_seed("walk-2d-clock", list(range(3, 11)))
+    mirrored = mirrored_by_seed("walk-2d+clock", list(range(3, 11)))
     assert set(mirrored.values()) == {True, False}, "both sides among 8 resets"
-    parts = split(report, "walk-2d-clock")
+    parts = split(report, "walk-2d+clock")
     for name, side in (("mirrored", True), ("not mirrored", False)):
         mine = [e for e in episodes if mirrored[e["seed"]] is side]
         assert parts[name]["episodes"] == len(mine)

@@ -33,7 +33,7 @@ backend: mujoco
 init_from: policies/walk-2d
 ppo: {gamma: 0.95}
 stages:
-  - scene: walk-2d-clock
+  - scene: walk-2d+clock
     env_steps: 1000
     evaluate: {scene: walk-2d, episodes: 2, every_env_steps: 1000}
 """
@@ -60,7 +60,7 @@ def test_arm_job_sets_seed_and_overrides_and_loads_from_elsewhere(tmp_path):
     (tmp_path / "policies" / "walk-2d").symlink_to(walker)  # the job's relative init_from
     template = tmp_path / "job.yaml"
     template.write_text(JOB)
-    data = yaml.safe_load((REPO / "workers/scenes/catalogue/walk-2d-clock.yaml").read_text())
+    data = yaml.safe_load((REPO / "workers/scenes/catalogue/walk-2d+clock.yaml").read_text())
     (tmp_path / "short.yaml").write_text(
         yaml.safe_dump({**data, "name": "walk-2d-clock-2s", "episode_s": 2})
     )
@@ -76,8 +76,8 @@ def test_arm_job_sets_seed_and_overrides_and_loads_from_elsewhere(tmp_path):
 
 
 def test_judging_scene_is_the_given_one_or_the_last_stages():
-    job = {"stages": [{"scene": "walk-2d-clock"}, {"scene": "/jobs/run-fast.yaml"}]}
-    assert job_arms.judging_scene(job, "run-2d-clock") == "run-2d-clock"
+    job = {"stages": [{"scene": "walk-2d+clock"}, {"scene": "/jobs/run-fast.yaml"}]}
+    assert job_arms.judging_scene(job, "run-2d+clock") == "run-2d+clock"
     assert job_arms.judging_scene(job, "stage") == "/jobs/run-fast.yaml"
 
 

@@ -19,7 +19,7 @@ def test_standing_the_default_fit_pulls_as_opensim_and_thelen_harder(
     (-127); bent up 10 deg, OpenSim's moment is more than the default's (-249 against -160)."""
     out = tmp_path / "moments.json"
     done = run_bench(
-        "passive_moments.py", "--scene", "walk-2d-clock", "--degrees", "0", "10",
+        "passive_moments.py", "--scene", "walk-2d+clock", "--degrees", "0", "10",
         "--options", "gait", "thelen", "--json-out", str(out),
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]

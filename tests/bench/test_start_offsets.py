@@ -73,7 +73,7 @@ def test_summary_counts_falls_and_speeds_as_evaluate_does():
 
 @pytest.fixture(scope="module")
 def runner_and_policy():
-    policy, runner, _ = open_runner(REPO / "examples/policies/run-2d", "run-2d-clock")
+    policy, runner, _ = open_runner(REPO / "examples/policies/run-2d", "run-2d+clock")
     yield runner, policy
     runner.close()
 
@@ -120,7 +120,7 @@ def test_a_wider_target_span_leaves_the_policy_alone_as_it_was():
     distances = {}
     for range_rad in (None, 1.2):
         runner_ckpt = str(REPO / "examples/policies/run-2d")
-        start_offsets.open_worker(runner_ckpt, "run-2d-clock", (0.0, 0.4), range_rad)
+        start_offsets.open_worker(runner_ckpt, "run-2d+clock", (0.0, 0.4), range_rad)
         assert start_offsets._worker["runner"].scene.action.range_rad == (range_rad or 0.6)
         distances[range_rad], _ = start_offsets.worker_episode(None, 3, 1.0)
         start_offsets._worker["runner"].close()

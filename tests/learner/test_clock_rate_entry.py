@@ -61,9 +61,9 @@ def test_init_from_adds_the_clock_rate_to_the_shipped_runner(tmp_path: Path) -> 
 
 def test_the_shipped_runner_runs_the_paced_scene_as_the_plain_one(tmp_path: Path) -> None:
     """Evaluated on a paced scene, a network that never paced keeps the clock at its own rate:
-    the same episodes as on run-2d-clock (the effort leaves the clock_rate entry out)."""
+    the same episodes as on run-2d+clock (the effort leaves the clock_rate entry out)."""
     paced = evaluate_checkpoint(RUNNER, scene=load_scene(_paced(tmp_path)), episodes=2, seed=1)
-    plain = evaluate_checkpoint(RUNNER, scene="run-2d-clock", episodes=2, seed=1)
+    plain = evaluate_checkpoint(RUNNER, scene="run-2d+clock", episodes=2, seed=1)
     for a, b in zip(
         paced.results["deterministic"].episodes, plain.results["deterministic"].episodes,
         strict=True,
@@ -88,11 +88,11 @@ def _two_stages(first: str, second: str, transition: str = "continue") -> Job:
 
 
 def test_a_later_stage_starts_pacing_with_the_entry_added(tmp_path: Path) -> None:
-    """run-2d-clock, then its paced copy: ``continue`` adds ``clock_rate`` at 0.5 with the
+    """run-2d+clock, then its paced copy: ``continue`` adds ``clock_rate`` at 0.5 with the
     network's init_std (the other entries' noise reset to the stage's action_std), trains
     it and checkpoints it."""
     paced = str(_paced(tmp_path))
-    trainer = Trainer(_two_stages("run-2d-clock", paced), tmp_path / "run", tensorboard=False)
+    trainer = Trainer(_two_stages("run-2d+clock", paced), tmp_path / "run", tensorboard=False)
     history = trainer.run()
     assert [h["stage"] for h in history if h["verdict"]] == [0, 1]
     weights, meta = load_checkpoint(latest_checkpoint(tmp_path / "run" / "checkpoints"))
@@ -105,6 +105,6 @@ def test_a_later_stage_starts_pacing_with_the_entry_added(tmp_path: Path) -> Non
 def test_pacing_may_start_by_continue_only_and_never_stop(tmp_path: Path) -> None:
     paced = str(_paced(tmp_path))
     with pytest.raises(SpecError, match=r"stages\.1: stage 0's policy paces its clock"):
-        Trainer(_two_stages(paced, "run-2d-clock"), tmp_path / "a", tensorboard=False)
+        Trainer(_two_stages(paced, "run-2d+clock"), tmp_path / "a", tensorboard=False)
     with pytest.raises(SpecError, match="only with transition continue, not blend"):
-        Trainer(_two_stages("run-2d-clock", paced, "blend"), tmp_path / "b", tensorboard=False)
+        Trainer(_two_stages("run-2d+clock", paced, "blend"), tmp_path / "b", tensorboard=False)

@@ -30,7 +30,7 @@ from gaitforge.learner.stats import Rate, Stat
 from gaitforge.service.cli import app
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.episode import EpisodeSummary, Observer
-from gaitforge.workers.scenes import Scene, catalogue_file, load_scene
+from gaitforge.workers.scenes import Scene, load_scene, scene_fields
 from typer.testing import CliRunner
 
 from tests.workers.test_obstacle_touch import obstacle_scene
@@ -41,7 +41,7 @@ WALK_OBS, WALK_ACT = 61, 18
 
 def short_scene(tmp_path: Path, name: str = "walk-2d", episode_s: float = 1.5) -> Path:
     """A catalogue scene with a shorter episode, as a YAML file under ``tmp_path``."""
-    data = yaml.safe_load(catalogue_file(name).read_text())
+    data = scene_fields(name)
     data["episode_s"] = episode_s
     path = tmp_path / f"{name}-short.yaml"
     path.write_text(yaml.safe_dump(data))
@@ -214,8 +214,8 @@ def test_a_scene_that_observes_more_gets_zero_weights_for_it(
     added with zero weights (its actions are those it takes without them)."""
     runner = Path(__file__).parents[2] / "examples" / "policies" / "run-2d"
     with caplog.at_level(logging.WARNING, logger="gaitforge.learner.evaluate"):
-        report = evaluate_checkpoint(runner, scene="obstacles-2d-clock", episodes=1)
-    assert report.scene == "obstacles-2d-clock"
+        report = evaluate_checkpoint(runner, scene="obstacles-2d+clock", episodes=1)
+    assert report.scene == "obstacles-2d+clock"
     assert "obstacle_dx" in caplog.text and "zero weights" in caplog.text
     assert report.results["deterministic"].episodes[0].steps > 25  # it got going
 

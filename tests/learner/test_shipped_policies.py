@@ -1,14 +1,13 @@
 """The policies shipped in ``examples/policies/`` work on a fresh clone: each loads, says
 where it came from and does its scene's 10 s from standing on the catalogue's clock scene
 (real MuJoCo, deterministic episodes; the 100-episode evaluation each was shipped with is in
-its meta.json): the walker walks walk-2d-clock (6 % falls at 1.29 m/s), the runner runs
-run-2d-clock-one-leg, run-2d's scene option whose clock leads with the same leg every start
-(5 % falls at 3.03 m/s: run-2d's target is 3 m/s at 10 %), and the obstacle runner runs
-obstacles-2d-clock-one-leg, obstacles-2d's ten spheres on that clock (8 % falls at
-3.23 m/s: obstacles-2d's target is 2 m/s at 10 %), and the obstacle runner that slows when
-asked runs obstacles-2d-clock-overspeed, the target speed drawn from 2 to 3 m/s (0 % falls at
-2.26 m/s); the walker fine-tuned on OpenSim walks there (real OpenSim, 23 % falls at
-1.19 m/s)."""
+its meta.json): the walker walks walk-2d+clock (6 % falls at 1.29 m/s); the runner runs
+run-2d+clock+one-leg+forward, the clock leading with the same leg every start (5 % falls at
+3.03 m/s: run-2d's target is 3 m/s at 10 %); the obstacle runner runs that scene with
+obstacles (8 % falls at 3.23 m/s: obstacles-2d's target is 2 m/s at 10 %); the obstacle
+runner that slows when asked runs it with speed-range in place of forward, the target speed
+drawn from 2 to 3 m/s (0 % falls at 2.26 m/s); the walker fine-tuned on OpenSim walks there
+(real OpenSim, 23 % falls at 1.19 m/s)."""
 
 from __future__ import annotations
 
@@ -18,6 +17,7 @@ from pathlib import Path
 import pytest
 from gaitforge.learner.evaluate import evaluate_checkpoint
 from gaitforge.learner.evaluate_results import ModeResult
+from gaitforge.workers.scenes.compose import FORMER_NAMES
 
 POLICIES = Path(__file__).resolve().parents[2] / "examples" / "policies"
 WALKER, RUNNER = POLICIES / "walk-2d", POLICIES / "run-2d"
@@ -33,7 +33,8 @@ def judged_provenance(policy: Path, scene: str, min_speed_m_s: float) -> dict:
     provenance = json.loads((policy / "meta.json").read_text())["provenance"]
     evaluation = provenance["evaluation"]
     assert provenance["commit"]
-    assert evaluation["scene"] == scene and evaluation["episodes"] == 100
+    assert FORMER_NAMES.get(evaluation["scene"], evaluation["scene"]) == scene
+    assert evaluation["episodes"] == 100
     assert evaluation["fall_rate"] <= 0.1
     assert evaluation["mean_speed_m_s"] >= min_speed_m_s
     assert not (policy / "optimizer.safetensors").exists()
@@ -41,12 +42,12 @@ def judged_provenance(policy: Path, scene: str, min_speed_m_s: float) -> dict:
 
 
 def test_the_shipped_walker_names_its_making() -> None:
-    provenance = judged_provenance(WALKER, "walk-2d-clock-paced", min_speed_m_s=1.0)
+    provenance = judged_provenance(WALKER, "walk-2d+clock", min_speed_m_s=1.0)
     assert provenance["seed"] == 0
     assert "bench/learning.py" in provenance["command"]
 
 
-@pytest.mark.parametrize("scene", [None, "walk-2d-clock"])
+@pytest.mark.parametrize("scene", [None, "walk-2d+clock"])
 def test_the_shipped_walker_walks_from_standing(scene: str | None) -> None:
     """Episodes 0-9, on the checkpoint's recorded scene and on the catalogue's: at most 3
     falls (walk-2d allows 10 % over 100; the walker falls in 6-9 %) and faster than walk-2d's
@@ -66,7 +67,7 @@ def test_the_shipped_runner_names_its_making() -> None:
     """It names the commands that made it (the 60-minute bench run whose imitation
     checkpoint it went on from, then the jobs and the lent machine's run that went on) and
     its evaluation, on the 100 episodes run-2d is judged on."""
-    provenance = judged_provenance(RUNNER, "run-2d-clock-one-leg", min_speed_m_s=3.0)
+    provenance = judged_provenance(RUNNER, "run-2d+clock+one-leg+forward", min_speed_m_s=3.0)
     assert provenance["seed"] == 0
     assert "bench/learning.py" in provenance["command"]
     assert "gaitforge train" in provenance["command"]
@@ -74,10 +75,10 @@ def test_the_shipped_runner_names_its_making() -> None:
 
 
 def test_the_shipped_runner_runs_from_standing() -> None:
-    """Episodes 0-9 of run-2d-clock-one-leg: at most half fall (it fell in 5 of episodes
+    """Episodes 0-9 of run-2d+clock+one-leg+forward: at most half fall (it fell in 5 of episodes
     0-99, 1 of them among 0-9, and in 12 of 100-299) and those that stand run: the whole 10 s
     at a mean of at least 2.5 m/s (they run about 3.1; the walker walks 1.3)."""
-    report = evaluate_checkpoint(RUNNER, scene="run-2d-clock-one-leg", episodes=10)
+    report = evaluate_checkpoint(RUNNER, scene="run-2d+clock+one-leg+forward", episodes=10)
     result = report.results["deterministic"]
     assert result.fall_rate.count <= 5, result.fall_rate
     runs = [e for e in result.episodes if not e.fell]
@@ -88,17 +89,19 @@ def test_the_shipped_runner_runs_from_standing() -> None:
 def test_the_shipped_obstacle_runner_names_its_making() -> None:
     """It names the A/B that made it from the shipped runner and its evaluation on the 100
     episodes obstacles-2d is judged on."""
-    provenance = judged_provenance(OBSTACLE_RUNNER, "obstacles-2d-clock-one-leg", 2.0)
+    provenance = judged_provenance(OBSTACLE_RUNNER, "run-2d+clock+one-leg+forward+obstacles", 2.0)
     assert provenance["seed"] == 1
     assert "bench/job_arms.py" in provenance["command"]
     assert "init_from_action_std=0.1" in provenance["command"]
 
 
 def test_the_shipped_obstacle_runner_runs_over_the_spheres() -> None:
-    """Episodes 0-9 of obstacles-2d-clock-one-leg: its feet meet the spheres, and at most
-    half the episodes fall (none of 0-9 fell, 8 of 0-99); those that stand run the whole
+    """Episodes 0-9 of run-2d+clock+one-leg+forward+obstacles: its feet meet the spheres,
+    and at most half the episodes fall (none of 0-9 fell, 8 of 0-99); those that stand run the whole
     10 s at a mean of at least 2.5 m/s (they run about 3.3)."""
-    report = evaluate_checkpoint(OBSTACLE_RUNNER, scene="obstacles-2d-clock-one-leg", episodes=10)
+    report = evaluate_checkpoint(
+        OBSTACLE_RUNNER, scene="run-2d+clock+one-leg+forward+obstacles", episodes=10
+    )
     result = report.results["deterministic"]
     assert result.touched_rate.count >= 5, result.touched_rate
     assert result.fall_rate.count <= 5, result.fall_rate
@@ -111,18 +114,21 @@ def test_the_shipped_speed_runner_names_its_making() -> None:
     """It names the A/B arm that made it from the shipped obstacle runner (the draw at
     1.5-3 m/s, 40 minutes) and its evaluation on the 100 episodes of the catalogue's sweep
     scene (draws 2-3 m/s)."""
-    provenance = judged_provenance(SPEED_RUNNER, "obstacles-2d-clock-overspeed", 2.0)
+    provenance = judged_provenance(SPEED_RUNNER, "run-2d+clock+one-leg+speed-range+obstacles", 2.0)
     assert provenance["seed"] == 0
     assert "bench/results/obstacles-2d/real/overspeed-lower/job.yaml" in provenance["command"]
 
 
 def test_the_shipped_speed_runner_runs_slower_when_asked() -> None:
-    """Episodes 0-4 of obstacles-2d-clock-overspeed swept at 3.0 and 2.1 m/s: asked for
-    2.1 it runs slower (2.60 and 1.91 m/s over episodes 0-299), by at least 0.3 m/s over the
+    """Episodes 0-4 of run-2d+clock+one-leg+speed-range+obstacles swept at 3.0 and 2.1 m/s:
+    asked for 2.1 it runs slower (2.60 and 1.91 m/s over episodes 0-299), by at least 0.3 m/s over the
     episodes that stand, and no more than two of five fall at either speed (21 and 0 of 300:
     which single episodes fall differs between machines, so the bound leaves room)."""
     report = evaluate_checkpoint(
-        SPEED_RUNNER, scene="obstacles-2d-clock-overspeed", episodes=5, sweep=[0.0, 0.3]
+        SPEED_RUNNER,
+        scene="run-2d+clock+one-leg+speed-range+obstacles",
+        episodes=5,
+        sweep=[0.0, 0.3],
     )
     fast, slow = (point.result for point in report.sweep)
     assert [point.target_speed_m_s for point in report.sweep] == pytest.approx([3.0, 2.1])
@@ -138,7 +144,7 @@ def test_the_shipped_speed_runner_runs_slower_when_asked() -> None:
 
 def test_the_shipped_opensim_walker_names_its_making() -> None:
     """It names the OpenSim fine-tune that made it and its evaluation on 100 OpenSim episodes
-    of walk-2d-clock at the recommended profile: a walk (walk-2d's 1 m/s), not yet within
+    of walk-2d+clock at the recommended profile: a walk (walk-2d's 1 m/s), not yet within
     walk-2d's 10 % falls (23 %)."""
     provenance = json.loads((OPENSIM_WALKER / "meta.json").read_text())["provenance"]
     evaluation = provenance["evaluation"]

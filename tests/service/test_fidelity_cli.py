@@ -10,7 +10,7 @@ import pytest
 import yaml
 from gaitforge.service.cli import app
 from gaitforge.workers.fidelity.sweep import remeasure
-from gaitforge.workers.scenes import catalogue_file, load_scene
+from gaitforge.workers.scenes import load_scene, scene_fields
 from gaitforge.workers.scenes.saved_profiles import ENV_DIR
 from gaitforge.workers.spec_io import SpecError
 from typer.testing import CliRunner
@@ -59,7 +59,7 @@ def test_quick_sweep_recommends_a_profile_within_tolerance_when_measured_again(
     assert all(not r["within"] for r in faster)  # nothing faster was within tolerance
 
     # a scene asks for it with fidelity: auto, or by name
-    raw = yaml.safe_load(catalogue_file("walk-2d").read_text())
+    raw = scene_fields("walk-2d")
     raw.update(backends=["mujoco"], fidelity="auto", fidelity_tolerance=tolerance)
     path = tmp_path / "auto.yaml"
     path.write_text(yaml.safe_dump(raw))

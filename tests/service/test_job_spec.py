@@ -12,7 +12,7 @@ import yaml
 from gaitforge.learner.job import load_job
 from gaitforge.service.jobs.layout import JobLayout
 from gaitforge.service.jobs.spec import SubmissionError, prepare_submission, write_job_files
-from gaitforge.workers.scenes import catalogue_file
+from gaitforge.workers.scenes import scene_fields
 from gaitforge.workers.spec_io import SpecError
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "stand-2d.yaml"
@@ -24,7 +24,7 @@ def _stage(scene: object, **stage: object) -> dict:
 
 
 def _scene(name: str = "my-stand", base: str = "stand-2d", **changes: object) -> dict:
-    scene = yaml.safe_load(catalogue_file(base).read_text())
+    scene = scene_fields(base)
     return {**scene, "name": name, **changes}
 
 
@@ -79,7 +79,7 @@ def test_an_inline_motion_or_excitations_path_is_refused() -> None:
 
 
 def test_an_evaluation_scene_is_a_catalogue_name_that_fits_the_stage() -> None:
-    path = {"evaluate": {"scene": "../run-2d-clock.yaml"}}
+    path = {"evaluate": {"scene": "../run-2d+clock.yaml"}}
     assert _refused(_stage("stand-2d", **path)).field == "stages.0.evaluate.scene"
     other_body = _refused(_stage("stand-2d", evaluate={"scene": "elbow-reach"}))
     assert other_body.field == "stages.0.evaluate.scene" and "other names" in str(other_body)

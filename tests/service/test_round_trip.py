@@ -21,7 +21,7 @@ import yaml
 from gaitforge.learner.checkpoint import load_checkpoint
 from gaitforge.service.cli import app
 from gaitforge.service.client.round_trip import free_port, start_service
-from gaitforge.workers.scenes import catalogue_file
+from gaitforge.workers.scenes import scene_fields
 from typer.testing import CliRunner
 
 runner = CliRunner()
@@ -85,7 +85,7 @@ def test_submit_follow_download_and_load(
     svc = service()
     (tmp_path / "scenes").mkdir()
     (tmp_path / "scenes" / "my-stand.yaml").write_text(
-        catalogue_file("stand-2d").read_text().replace("name: stand-2d", "name: my-stand")
+        yaml.safe_dump({**scene_fields("stand-2d"), "name": "my-stand"})
     )
     spec = tiny_job(name="round-trip", env_steps=1024)
     spec["stages"][0]["scene"] = "scenes/my-stand.yaml"

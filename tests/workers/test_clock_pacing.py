@@ -19,7 +19,7 @@ def _paced(tmp_path: Path, span: object = 0.5) -> Path:
         raw["name"] = "run-2d-clock-paced"
         raw["task"]["imitate"]["clock_rate_span"] = span
 
-    return _write(tmp_path, "run-2d-clock", edit)
+    return _write(tmp_path, "run-2d+clock", edit)
 
 
 @pytest.mark.parametrize("span", [0.0, 0.95, "fast"])
@@ -30,7 +30,7 @@ def test_a_span_outside_its_range_names_the_field(tmp_path: Path, span: object) 
 def test_the_clock_rate_is_the_last_action_entry(tmp_path: Path) -> None:
     scene = load_scene(_paced(tmp_path))
     env = MuscleEnv(scene)
-    plain = MuscleEnv("run-2d-clock")
+    plain = MuscleEnv("run-2d+clock")
     assert env.act_names == [*plain.act_names, CLOCK_RATE_ACTION]
     assert action_names(scene) == env.act_names
     assert env.action_space.shape == (len(plain.act_names) + 1,)
@@ -39,7 +39,7 @@ def test_the_clock_rate_is_the_last_action_entry(tmp_path: Path) -> None:
 
 def test_at_one_half_the_clock_runs_with_the_envs_time(tmp_path: Path) -> None:
     """a = 0.5 is rate 1: the same episode, observation for observation, as without pacing."""
-    paced, plain = MuscleEnv(load_scene(_paced(tmp_path))), MuscleEnv("run-2d-clock")
+    paced, plain = MuscleEnv(load_scene(_paced(tmp_path))), MuscleEnv("run-2d+clock")
     obs_paced, _ = paced.reset(seed=3)
     obs_plain, _ = plain.reset(seed=3)
     rng = np.random.default_rng(0)
@@ -56,7 +56,7 @@ def test_a_faster_clock_plays_the_lead_in_and_its_speeds_faster(tmp_path: Path) 
     """At a = 1 (rate 1.5 with span 0.5) 10 steps play what 15 play at the env's time: the same
     phase and standing ramp; the reference's speeds are 1.5 times as fast; the target speed
     the clock sets keeps the env's time (the task does not bend to the pace)."""
-    paced, plain = MuscleEnv(load_scene(_paced(tmp_path))), MuscleEnv("run-2d-clock")
+    paced, plain = MuscleEnv(load_scene(_paced(tmp_path))), MuscleEnv("run-2d+clock")
     paced.reset(seed=0)
     plain.reset(seed=0)
     targets = np.full(len(plain.act_names), 0.5)
@@ -95,7 +95,7 @@ def test_a_slower_clock_holds_the_standing_ramp_longer(tmp_path: Path) -> None:
 
 
 def test_an_unpaced_clock_refuses_a_pace() -> None:
-    env = MuscleEnv("run-2d-clock")
+    env = MuscleEnv("run-2d+clock")
     env.reset(seed=0)
     assert env.imitation is not None and not env.imitation.paced
     with pytest.raises(RuntimeError, match="env's time"):

@@ -200,9 +200,9 @@ def test_mujoco_and_opensim_start_from_the_same_pose() -> None:
 def test_catalogue_imitation_scenes_target_their_motions_speed() -> None:
     """Scenes that reward imitation target their motion's speed at its tempo, within 2 % (a
     scene that uses a motion only as a clock, with every weight 0, keeps its own task's
-    target; imitate-walk-2d-start observes walk-2d's 1.25 m/s for its 1.27), except
-    imitate-run-2d-start, which observes run-2d's 3 m/s (the target its next stage,
-    run-2d-clock, observes) while it imitates the run at 3.63."""
+    target; imitate-walk-2d+standing-starts observes walk-2d's 1.25 m/s for its 1.27), except
+    imitate-run-2d+standing-starts, which observes run-2d's 3 m/s (the target its next stage,
+    run-2d+clock, observes) while it imitates the run at 3.63."""
     from gaitforge.workers.motions import load_motion
 
     def rewards_imitation(name: str) -> bool:
@@ -211,7 +211,7 @@ def test_catalogue_imitation_scenes_target_their_motions_speed() -> None:
 
     names = [n for n in catalogue() if rewards_imitation(n)]
     assert {"imitate-walk-2d", "imitate-run-2d", "imitate-walk-3d"} <= set(names)
-    observes_next_stages_target = {"imitate-run-2d-start": load_scene("run-2d-clock")}
+    observes_next_stages_target = {"imitate-run-2d+standing-starts": load_scene("run-2d+clock")}
     for name in names:
         scene = load_scene(name)
         if name in observes_next_stages_target:

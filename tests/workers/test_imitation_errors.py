@@ -8,12 +8,12 @@ from pathlib import Path
 import pytest
 import yaml
 from gaitforge.workers.motions import motion_file
-from gaitforge.workers.scenes import catalogue_file, load_scene
+from gaitforge.workers.scenes import load_scene, scene_fields
 from gaitforge.workers.spec_io import SpecError
 
 
 def _write(tmp_path: Path, base: str, edit) -> Path:
-    raw = yaml.safe_load(catalogue_file(base).read_text())
+    raw = scene_fields(base)
     edit(raw)
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(raw))

@@ -59,7 +59,7 @@ def test_the_state_is_the_walk_then_a_blend_then_the_run() -> None:
 
 
 def test_run_2d_clock_starts_walking_and_its_targets_and_clock_follow_the_fade() -> None:
-    env = MuscleEnv("run-2d-clock")
+    env = MuscleEnv("run-2d+clock")
     obs, _ = env.reset(seed=0)
     imitation = env.imitation
     assert imitation.standing_start and imitation.crossfade is not None
@@ -95,7 +95,7 @@ def test_run_2d_clock_starts_walking_and_its_targets_and_clock_follow_the_fade()
 
 
 def test_each_start_plays_its_clock_standing_part_way_along_the_lead_in_or_in_the_run() -> None:
-    env = MuscleEnv("imitate-run-2d-start")  # 35 % standing, 35 % along the lead-in
+    env = MuscleEnv("imitate-run-2d+standing-starts")  # 35 % standing, 35 % along the lead-in
     init = env.scene.task.imitate.init
     kinds = []
     for seed in range(40):
@@ -137,17 +137,17 @@ def test_each_start_plays_its_clock_standing_part_way_along_the_lead_in_or_in_th
             ["task.imitate", "lead_in: only with standing starts"],
         ),
         (
-            "run-2d-clock",
+            "run-2d+clock",
             lambda i: i["lead_in"].update(motion="skip"),
             ["task.imitate.lead_in.motion", "no such motion", "available: run, walk"],
         ),
         (
-            "run-2d-clock",
+            "run-2d+clock",
             lambda i: i["lead_in"].update(crossfade_s=0),
             ["task.imitate.lead_in.crossfade_s", "greater than 0"],
         ),
         (
-            "run-2d-clock",
+            "run-2d+clock",
             lambda i: i["lead_in"].pop("hold_s"),
             ["task.imitate.lead_in.hold_s", "required"],
         ),
@@ -157,12 +157,12 @@ def test_each_start_plays_its_clock_standing_part_way_along_the_lead_in_or_in_th
             ["task.imitate.init.lead_in_fraction", "only with a task.imitate.lead_in"],
         ),
         (
-            "imitate-run-2d-start",
+            "imitate-run-2d+standing-starts",
             lambda i: i["init"].update(standing_fraction=0.5, lead_in_fraction=0.6),
             ["task.imitate.init.lead_in_fraction", "1.1", "at most 1"],
         ),
         (
-            "run-2d-clock",
+            "run-2d+clock",
             lambda i: i["init"].update(lead_in_fraction=0.2),
             ["task.imitate.init.lead_in_fraction", "only with start: motion"],
         ),
@@ -173,7 +173,7 @@ def test_bad_lead_ins_name_the_field(tmp_path: Path, base: str, edit, fragments)
 
 
 def test_the_position_and_lag_terms_charge_a_body_for_lagging_the_clock() -> None:
-    scene = load_scene("imitate-run-2d-start")
+    scene = load_scene("imitate-run-2d+standing-starts")
     imitate = scene.task.imitate
     imitate = imitate.model_copy(
         update={

@@ -59,7 +59,7 @@ def test_a_fraction_of_episodes_starts_standing_at_phase_zero() -> None:
 
 
 def test_the_fraction_is_refused_with_a_standing_start() -> None:
-    raw = load_scene("walk-2d-clock").model_dump()
+    raw = load_scene("walk-2d+clock").model_dump()
     raw["task"]["imitate"]["init"]["standing_fraction"] = 0.3
     with pytest.raises(SpecError, match=r"standing_fraction: only with start: motion"):
         validate_model(raw, Scene, "scene")

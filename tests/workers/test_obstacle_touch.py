@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 from gaitforge.workers.env import MuscleEnv
-from gaitforge.workers.scenes import catalogue_file, load_scene
+from gaitforge.workers.scenes import load_scene, scene_fields
 from gaitforge.workers.scenes.spec import Scene
 
 
@@ -18,7 +18,7 @@ def obstacle_scene(
 ) -> Scene:
     """obstacles-2d for 0.3 s with its 10 spheres, each 10 cm, centred on the ground within
     ``x_range`` (m ahead of the start), the obstacle_touch term at ``touch_weight``."""
-    data = yaml.safe_load(catalogue_file("obstacles-2d").read_text())
+    data = scene_fields("obstacles-2d")
     data.update(name=name, episode_s=0.3)
     data["obstacles"].update(x_range=x_range, radius_range=[0.1, 0.1], height_range=[0, 0])
     data["task"]["reward"]["obstacle_touch"] = touch_weight
@@ -50,7 +50,7 @@ def test_steps_ending_on_a_sphere_are_charged_and_others_are_not(tmp_path: Path)
 
 
 def test_a_scene_without_obstacles_cannot_weigh_the_touch(tmp_path: Path) -> None:
-    data = yaml.safe_load(catalogue_file("run-2d").read_text())
+    data = scene_fields("run-2d")
     data["task"]["reward"]["obstacle_touch"] = 1.0
     path = tmp_path / "no-spheres.yaml"
     path.write_text(yaml.safe_dump(data))

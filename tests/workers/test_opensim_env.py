@@ -97,13 +97,13 @@ def test_model_is_rebuilt_every_n_episodes() -> None:
 
 def test_a_step_reads_no_freed_state_under_a_poisoning_allocator() -> None:
     """``Manager.integrate`` returns a reference into its Manager; reading it once that
-    Manager is freed read garbage now and then (a pickled run-2d-clock diverged in CI). With
+    Manager is freed read garbage now and then (a pickled run-2d+clock diverged in CI). With
     glibc filling freed memory with a pattern (tcache off, so every free is filled), such a
     read segfaults or goes wrong every time rather than now and then."""
     script = (
         "import numpy as np\n"
         "from gaitforge.workers.env import MuscleEnv\n"
-        "env = MuscleEnv('run-2d-clock', 'opensim')\n"
+        "env = MuscleEnv('run-2d+clock', 'opensim')\n"
         "env.reset(seed=3)\n"
         "for _ in range(4):\n"
         "    before = env.sim.state().time\n"
@@ -122,7 +122,7 @@ def test_a_step_reads_no_freed_state_under_a_poisoning_allocator() -> None:
 
 
 def _clock_scene(profile: FidelityProfile) -> Scene:
-    scene = load_scene("walk-2d-clock")
+    scene = load_scene("walk-2d+clock")
     return scene.model_copy(update={"fidelity": {"opensim": profile}, "backends": ["opensim"]})
 
 

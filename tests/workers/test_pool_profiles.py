@@ -13,7 +13,7 @@ import yaml
 from gaitforge.learner.job import load_job
 from gaitforge.workers.policy_api import UniformExcitationPolicy
 from gaitforge.workers.pool import WorkerPool
-from gaitforge.workers.scenes import catalogue_file, saved_profiles
+from gaitforge.workers.scenes import saved_profiles, scene_fields
 from gaitforge.workers.scenes.profiles import FidelityProfile
 from gaitforge.workers.scenes.saved_profiles import ENV_DIR, SavedProfile
 from ray.cluster_utils import Cluster
@@ -44,7 +44,7 @@ def _node_view(raw_scene: dict) -> tuple[str, list[str], str]:
 
 def _job(tmp_path: Path) -> Path:
     """A one-stage job on elbow-reach with ``fidelity: auto`` (tolerance 0.05 rad)."""
-    raw = yaml.safe_load(catalogue_file("elbow-reach").read_text())
+    raw = scene_fields("elbow-reach")
     raw.update(fidelity="auto", fidelity_tolerance=0.05)
     (tmp_path / "elbow-auto.yaml").write_text(yaml.safe_dump(raw))
     job = {"name": "auto", "stages": [{"scene": "elbow-auto.yaml", "env_steps": 1000}]}

@@ -145,9 +145,9 @@ def test_a_stage_can_switch_to_joint_targets(tmp_path) -> None:
 
 
 def test_the_clock_scene_starts_standing_and_rewards_no_imitation() -> None:
-    """walk-2d-clock: the reset pose is walk-2d's (no reference state), the phase starts at
+    """walk-2d+clock: the reset pose is walk-2d's (no reference state), the phase starts at
     0, the imitation terms weigh 0 and a drifting pose does not end the episode."""
-    clock, plain = MuscleEnv("walk-2d-clock"), MuscleEnv("walk-2d")
+    clock, plain = MuscleEnv("walk-2d+clock"), MuscleEnv("walk-2d")
     for seed in range(3):
         clock.reset(seed=seed)
         plain.reset(seed=seed)

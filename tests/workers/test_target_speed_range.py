@@ -11,7 +11,7 @@ import pytest
 import yaml
 from gaitforge.learner.evaluate_episodes import with_target_speed
 from gaitforge.workers.env import MuscleEnv
-from gaitforge.workers.scenes import catalogue_file, load_scene
+from gaitforge.workers.scenes import load_scene, scene_fields
 from gaitforge.workers.scenes.spec import Scene
 from gaitforge.workers.spec_io import SpecError
 
@@ -19,7 +19,7 @@ NOMINAL = 3.0
 
 
 def _ranged(low: float, high: float) -> Scene:
-    data = load_scene("run-2d-clock-one-leg").model_dump(mode="json")
+    data = load_scene("run-2d+clock+one-leg+forward").model_dump(mode="json")
     assert data["task"]["target_speed"] == NOMINAL
     data["task"]["target_speed_range"] = (low, high)
     return Scene.model_validate(data)
@@ -72,7 +72,7 @@ def test_the_sweep_pins_a_drawn_target_and_scales_the_clock_from_the_nominal() -
     assert [_drawn(env, seed) for seed in range(3)] == pytest.approx([2.4] * 3)
     assert env.scene.task.target_speed == NOMINAL
     assert env.imitation.tempo == pytest.approx(env.imitation.spec.tempo * 0.8)
-    fixed = with_target_speed(load_scene("run-2d-clock-one-leg"), 2.4)
+    fixed = with_target_speed(load_scene("run-2d+clock+one-leg+forward"), 2.4)
     assert fixed.task.target_speed == 2.4 and fixed.task.target_speed_range is None
 
 
@@ -80,7 +80,7 @@ def test_the_sweep_pins_a_drawn_target_and_scales_the_clock_from_the_nominal() -
     ("speeds", "target"), [((3.0, 2.0), 3.0), ((0.0, 2.0), 3.0), ((1.0, 2.0), None)]
 )
 def test_a_bad_range_fails_with_one_line(tmp_path: Path, speeds, target) -> None:
-    raw = yaml.safe_load(catalogue_file("walk-2d").read_text())
+    raw = scene_fields("walk-2d")
     raw["task"].update(target_speed=target, target_speed_range=list(speeds))
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(raw))

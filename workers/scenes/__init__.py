@@ -1,48 +1,90 @@
-"""Scenes: the spec, the shipped catalogue, and pruning."""
+"""Scenes: the spec, the shipped catalogue (bases and options, composed), and pruning.
+
+load_scene("walk-2d")                                   # a base
+load_scene("run-2d+clock+one-leg")                      # a base and options
+load_scene("run-2d+clock", {"task.target_speed": 2.5})  # and dotted overrides
+load_scene("my-scene.yaml")                             # a file (whole, or base: ...)
+"""
 
 from __future__ import annotations
 
-from importlib import resources
 from pathlib import Path
+from typing import Any
 
+import yaml
 from gaitforge.workers.bodies.topology import topology_for
+from gaitforge.workers.scenes.compose import (
+    SceneOption,
+    base_names,
+    compose,
+    compose_file,
+    load_option,
+    option_names,
+    parse_assignments,
+    set_fields,
+)
 from gaitforge.workers.scenes.prune import PrunePlan, check_names, plan_pruning
 from gaitforge.workers.scenes.spec import Scene
-from gaitforge.workers.spec_io import SpecError, load_yaml_model
+from gaitforge.workers.spec_io import SpecError, validate_model
 
-__all__ = ["PrunePlan", "Scene", "catalogue", "catalogue_file", "load_scene", "plan_pruning"]
-
-
-def _catalogue_dir() -> Path:
-    return Path(str(resources.files("gaitforge.workers.scenes") / "catalogue"))
-
-
-def catalogue_file(name: str) -> Path:
-    """Path of a shipped scene's YAML file."""
-    return _catalogue_dir() / f"{name}.yaml"
+__all__ = [
+    "PrunePlan",
+    "Scene",
+    "SceneOption",
+    "catalogue",
+    "load_option",
+    "load_scene",
+    "option_names",
+    "parse_assignments",
+    "plan_pruning",
+    "scene_fields",
+]
 
 
 def catalogue() -> list[str]:
-    """Names of the shipped scenes."""
-    return sorted(p.stem for p in _catalogue_dir().glob("*.yaml"))
+    """Names of the shipped base scenes (options compose onto them: :func:`option_names`)."""
+    return base_names()
 
 
-def load_scene(name_or_path: str | Path) -> Scene:
-    """Load a catalogue scene by name, or a scene file by path, and check it against its body.
+def scene_fields(ref: str) -> dict[str, Any]:
+    """The fields of catalogue scene ``ref`` (``base`` or ``base+option+...``) as composed,
+    before validation: a starting point for a scene of one's own."""
+    return compose(ref).raw
+
+
+def load_scene(name_or_path: str | Path, overrides: dict[str, Any] | None = None) -> Scene:
+    """Load a catalogue scene (``base`` or ``base+option+...``) or a scene file by path,
+    with ``overrides`` (dotted field path -> value) set last, and check it against its body.
 
     Raises:
-        SpecError: one line naming the file, the field and what is allowed.
+        SpecError: one line naming the scene or file, the field and what is allowed.
     """
     path = Path(name_or_path)
-    if path.suffix not in {".yaml", ".yml"}:
-        path = catalogue_file(str(name_or_path))
-        if not path.exists():
-            raise SpecError(f"scene {str(name_or_path)!r}: unknown; catalogue: {catalogue()}")
-    scene = load_yaml_model(path, Scene)
+    if path.suffix in {".yaml", ".yml"}:
+        source = str(path)
+        raw = compose_file(_read_file(path), source).raw
+        if overrides:
+            raw = set_fields(raw, overrides, where=source)
+    else:
+        source = f"scene {str(name_or_path)!r}"
+        raw = compose(str(name_or_path), overrides).raw
+    scene = validate_model(raw, Scene, source)
     try:
         check_names(scene, topology_for(scene.body))
     except SpecError as exc:
-        raise SpecError(f"{path}: body: {exc}") from None
+        raise SpecError(f"{source}: body: {exc}") from None
     except ValueError as exc:
-        raise SpecError(f"{path}: {exc}") from None
+        raise SpecError(f"{source}: {exc}") from None
     return scene
+
+
+def _read_file(path: Path) -> dict[str, Any]:
+    try:
+        raw = yaml.safe_load(path.read_text())
+    except FileNotFoundError:
+        raise SpecError(f"{path}: file not found") from None
+    except yaml.YAMLError as exc:
+        raise SpecError(f"{path}: not valid YAML: {str(exc).splitlines()[0]}") from None
+    if not isinstance(raw, dict):
+        raise SpecError(f"{path}: <root>: expected a mapping of fields, got {type(raw).__name__}")
+    return raw

@@ -1,4 +1,5 @@
-"""Walk the whole catalogue: every scene compiles, resets, steps, checks, seeds and pickles."""
+"""Walk the whole catalogue (bases, and the compositions recipes use): every scene
+compiles, resets, steps, checks, seeds and pickles."""
 
 from __future__ import annotations
 
@@ -8,10 +9,13 @@ import numpy as np
 import pytest
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import catalogue, load_scene
+from gaitforge.workers.scenes.compose import FORMER_NAMES
 from gaitforge.workers.scenes.spec import Scene
 from gymnasium.utils.env_checker import check_env
 
-CASES = [(name, b) for name in catalogue() for b in load_scene(name).backends]
+SCENES = catalogue() + sorted(set(FORMER_NAMES.values()))
+"""the bases, and the compositions the former catalogue listed"""
+CASES = [(name, b) for name in SCENES for b in load_scene(name).backends]
 
 
 def _rollout(env: MuscleEnv, seed: int, steps: int) -> tuple[np.ndarray, np.ndarray]:

@@ -9,6 +9,7 @@ import sys
 import pytest
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import catalogue, load_scene
+from gaitforge.workers.scenes.compose import FORMER_NAMES
 from gaitforge.workers.scenes.io_names import (
     action_names,
     lateral_axis,
@@ -18,7 +19,8 @@ from gaitforge.workers.scenes.io_names import (
 )
 from gaitforge.workers.sim.mujoco_compile import planar_muscles_of
 
-CASES = [(name, backend) for name in catalogue() for backend in load_scene(name).backends]
+SCENES = catalogue() + sorted(set(FORMER_NAMES.values()))
+CASES = [(name, backend) for name in SCENES for backend in load_scene(name).backends]
 
 
 @pytest.mark.parametrize(("name", "backend"), CASES)
@@ -38,7 +40,7 @@ def test_names_equal_the_built_envs(name: str, backend: str) -> None:
 
 
 def test_a_planar_scene_on_mujoco_asks_for_the_measured_muscles() -> None:
-    scene = load_scene("walk-3d-planar")
+    scene = load_scene("walk-3d+planar")
     assert needs_planar_muscles(scene, "mujoco")
     with pytest.raises(ValueError, match="planar"):
         observation_names(scene, "mujoco")

@@ -6,12 +6,12 @@ from pathlib import Path
 
 import pytest
 import yaml
-from gaitforge.workers.scenes import catalogue_file, load_scene
+from gaitforge.workers.scenes import load_scene, scene_fields
 from gaitforge.workers.spec_io import SpecError
 
 
 def _write(tmp_path: Path, edit) -> Path:
-    raw = yaml.safe_load(catalogue_file("walk-2d").read_text())
+    raw = scene_fields("walk-2d")
     edit(raw)
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(raw))

@@ -27,13 +27,13 @@ GAIT2D = load_body("gait2d")
 
 
 def _scene(**options) -> Scene:
-    scene = load_scene("walk-2d-clock")
+    scene = load_scene("walk-2d+clock")
     return Scene.model_validate({**scene.model_dump(), **options})
 
 
 @pytest.fixture(scope="module")
 def opensim_gait2d():
-    """walk-2d-clock on OpenSim, reset by each test that uses it."""
+    """walk-2d+clock on OpenSim, reset by each test that uses it."""
     return make_simulator(_scene(), "opensim")
 
 

@@ -23,7 +23,7 @@ SHELL = [0.2, 0.95, 0.03, 0.9, 2]
 
 
 def _scene(**options) -> Scene:
-    scene = load_scene("walk-2d-clock")
+    scene = load_scene("walk-2d+clock")
     return Scene.model_validate({**scene.model_dump(), **options})
 
 
