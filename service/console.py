@@ -12,12 +12,33 @@ from typing import Any
 import typer
 from gaitforge.service.ops import InputError
 from pydantic_core import to_jsonable_python
-from rich.console import Console
+from rich.console import Console, ConsoleDimensions
 from rich.logging import RichHandler
 from rich.markup import escape
 from rich.table import Column, Table
 
-out = Console()
+UNWRAPPED_WIDTH = 10_000
+"""columns of stdout off a terminal: wider than any table, so that no row wraps"""
+
+
+class ResultConsole(Console):
+    """stdout's console. On a terminal, or where ``COLUMNS`` sets a width, rich's own width
+    (cells wrap between words); off a terminal with no width set (a pipe, a file), one no
+    table reaches, so that a row is one line and no word or number is ever split."""
+
+    @property
+    def size(self) -> ConsoleDimensions:
+        dimensions = super().size
+        if self._width is not None or "COLUMNS" in self._environ or self.file.isatty():
+            return dimensions
+        return ConsoleDimensions(UNWRAPPED_WIDTH, dimensions.height)
+
+    @size.setter
+    def size(self, new_size: tuple[int, int]) -> None:
+        self._width, self._height = new_size
+
+
+out = ResultConsole()
 """results: tables and final lines (stdout)"""
 err = Console(stderr=True)
 """errors, progress bars, live displays and log lines (stderr)"""

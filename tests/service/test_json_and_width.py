@@ -4,6 +4,9 @@ user needs is cut (no "…")."""
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -14,6 +17,7 @@ from typer.testing import CliRunner
 
 runner = CliRunner()
 NARROW = {"COLUMNS": "80"}
+POLICIES = Path(__file__).resolve().parents[2] / "examples" / "policies"
 
 
 def test_scenes_list_json_is_the_catalogue() -> None:
@@ -117,3 +121,28 @@ def test_evaluate_at_80_columns_cuts_nothing(walk_run: Path) -> None:
     for needed in ("deterministic", "stochastic", "health failures", "fall rate", "survival",
                    "30 %", "Speed against safety", "distance", "return", "effort"):  # fmt: skip
         assert needed in text, needed
+
+
+def piped(*args: str) -> str:
+    """``gaitforge ARGS`` in a real process whose stdout is a pipe (as ``| cat``), with no
+    ``COLUMNS`` in its environment: what a script reading the output sees."""
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}
+    result = subprocess.run(
+        [sys.executable, "-m", "gaitforge.service.cli", *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+        stdin=subprocess.DEVNULL,
+    )
+    assert result.returncode == 0, result.stderr
+    return result.stdout
+
+
+def test_off_a_terminal_a_table_row_is_one_line() -> None:
+    """No row wraps into a second line (where a word or a number would be split)."""
+    rows = [line for line in piped("scenes", "list").splitlines() if line.startswith("│")]
+    assert [row.split("│")[1].strip() for row in rows] == catalogue()
+    report = piped("evaluate", str(POLICIES / "walk-2d"), "--episodes", "1")
+    rows = [line for line in report.splitlines() if line.startswith("│")]
+    assert len(rows) == 1 and rows[0].startswith("│ deterministic ")
