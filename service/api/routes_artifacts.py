@@ -2,24 +2,44 @@
 
 Only names the job's layout lists are served (``JobLayout.resolve_artifact``): a name is
 looked up, never joined into a path, so ``../``, encoded and absolute names answer 404 and
-read nothing. Downloads are ``FileResponse``s (HTTP Range) with the whole file's sha256 in
+read nothing. No symbolic link below the job's folder is followed (:mod:`.files`): a link at
+an artifact, or in place of a folder above it, answers 404 like a missing artifact and is left
+out of the listing; a checkpoint's zip leaves links out. Downloads stream the descriptor that
+was checked (:class:`OpenedFileResponse`, HTTP Range) with the whole file's sha256 in
 ``X-Content-SHA256``; a checkpoint downloads as a zip built once into the job's downloads.
 """
 
 from __future__ import annotations
 
+import logging
+import os
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Annotated, Literal
 
+import anyio
 from fastapi import APIRouter, Request
 from fastapi import Path as PathParam
 from fastapi.responses import FileResponse
 from gaitforge.service.api.deps import Layout, OwnedJob
-from gaitforge.service.api.files import checkpoint_zip, sha256_of
+from gaitforge.service.api.files import (
+    SHA256_CACHE,
+    NotServed,
+    OpenedFile,
+    checkpoint_stat,
+    checkpoint_zip,
+    open_job_file,
+    sha256_of,
+    stat_job_file,
+)
 from gaitforge.service.api.problems import ProblemError, problem_responses
 from gaitforge.service.api.schemas import Artifact, ArtifactList
 from gaitforge.service.jobs.layout import JobLayout
+from starlette.types import Receive, Scope, Send
+
+logger = logging.getLogger(__name__)
 
 Kind = Literal["checkpoints", "recordings", "reports"]
 SHA_HEADER = "X-Content-SHA256"
@@ -45,48 +65,114 @@ def _listing(layout: JobLayout, kind: Kind) -> list[tuple[str, Path]]:
     return found
 
 
-def _artifact(job_id: str, kind: Kind, name: str, path: Path) -> Artifact | None:
-    try:
-        if path.is_dir():
-            files = [p.stat() for p in path.rglob("*") if p.is_file()]
-            size, mtime = sum(s.st_size for s in files), path.stat().st_mtime
-            media = MEDIA_TYPES[".zip"]
-        else:
-            stat = path.stat()
-            size, mtime = stat.st_size, stat.st_mtime
-            media = MEDIA_TYPES.get(path.suffix, "application/octet-stream")
-    except FileNotFoundError:  # rotated out while listed
-        return None
+def _artifact(layout: JobLayout, kind: Kind, name: str, path: Path) -> Artifact | None:
+    """The listing's entry for ``path`` (None: gone, a link, or under one)."""
+    if kind == "checkpoints":
+        try:
+            size, mtime = checkpoint_stat(layout.dir, path)
+        except (FileNotFoundError, NotServed):  # rotated out while listed, or a link
+            return None
+        media = MEDIA_TYPES[".zip"]
+    else:
+        info = stat_job_file(layout.dir, path)
+        if info is None:
+            return None
+        size, mtime = info.st_size, info.st_mtime
+        media = MEDIA_TYPES.get(path.suffix, "application/octet-stream")
     return Artifact(
-        name=name, kind=kind, size_bytes=size, media_type=media,
+        name=name,
+        kind=kind,
+        size_bytes=size,
+        media_type=media,
         modified_at=datetime.fromtimestamp(mtime, UTC),
-        href=f"/v1/jobs/{job_id}/{kind}/{name}",
-    )  # fmt: skip
+        href=f"/v1/jobs/{layout.job_id}/{kind}/{name}",
+    )
 
 
 def list_artifacts(job: OwnedJob, layout: Layout, kind: Kind) -> ArtifactList:
     """The job's artifacts of ``kind``."""
-    items = [_artifact(job.id, kind, n, p) for n, p in _listing(layout, kind)]
+    items = [_artifact(layout, kind, n, p) for n, p in _listing(layout, kind)]
     return ArtifactList(job_id=job.id, kind=kind, items=[a for a in items if a is not None])
 
 
-def download(request: Request, layout: Layout, kind: Kind, name: str) -> FileResponse:
-    """The file of artifact ``name`` (404 unless the layout lists it)."""
+if not callable(getattr(FileResponse, "_open_file", None)):  # what the subclass overrides
+    raise ImportError("starlette's FileResponse no longer opens files in _open_file")
+
+
+class OpenedFileResponse(FileResponse):
+    """A ``FileResponse`` (HTTP Range, ETag, Last-Modified) of a file the route has already
+    opened and checked: it streams that descriptor and never opens the path again, so a
+    file swapped for a link after the check is not read. The descriptor is closed once the
+    response is sent."""
+
+    def __init__(
+        self, opened: OpenedFile, media_type: str, filename: str, headers: dict[str, str]
+    ) -> None:
+        super().__init__(
+            opened.path,
+            media_type=media_type,
+            filename=filename,
+            headers=headers,
+            stat_result=opened.stat,
+        )
+        self.opened = opened
+
+    @asynccontextmanager
+    async def _open_file(self) -> AsyncIterator[anyio.AsyncFile[bytes]]:
+        file = anyio.wrap_file(os.fdopen(os.dup(self.opened.fd), "rb"))
+        try:
+            await file.seek(0)
+            yield file
+        finally:
+            with anyio.CancelScope(shield=True):
+                await file.aclose()
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        extensions = dict(scope.get("extensions") or {})
+        extensions.pop("http.response.pathsend", None)  # a path would be opened again
+        try:
+            await super().__call__({**scope, "extensions": extensions}, receive, send)
+        finally:
+            self.opened.close()
+
+
+def _open_artifact(layout: JobLayout, kind: Kind, name: str) -> OpenedFile:
+    """The download of artifact ``name``, open (a checkpoint: its zip).
+
+    Raises:
+        ProblemError: 404 when the layout does not list it, it is gone, or it (or a folder
+            above it) is a link.
+    """
+    missing = ProblemError(404, f"no {kind[:-1]} {name!r} in job {layout.job_id}")
     path = layout.resolve_artifact(kind, name)
     if path is None:
-        raise ProblemError(404, f"no {kind[:-1]} {name!r} in job {layout.job_id}")
+        raise missing
     try:
-        if path.is_dir():
-            path = checkpoint_zip(path, layout.downloads_dir)
-        digest = sha256_of(path, layout.downloads_dir / "sha256")
-        size = path.stat().st_size
+        if kind == "checkpoints":
+            return checkpoint_zip(layout.dir, path, layout.downloads_dir)
+        return open_job_file(layout.dir, path)
     except FileNotFoundError:
         raise ProblemError(404, f"{kind[:-1]} {name!r} is gone (rotated out)") from None
-    _check_range(request.headers.get("range"), size)
-    return FileResponse(
-        path, media_type=MEDIA_TYPES.get(path.suffix, "application/octet-stream"),
-        filename=path.name, headers={SHA_HEADER: digest},
-    )  # fmt: skip
+    except NotServed as exc:
+        logger.warning("job %s: %s", layout.job_id, exc)
+        raise missing from None
+
+
+def download(request: Request, layout: Layout, kind: Kind, name: str) -> FileResponse:
+    """The file of artifact ``name`` (404 unless the layout lists it and it is a plain file
+    reached without a link)."""
+    opened = _open_artifact(layout, kind, name)
+    try:
+        digest = sha256_of(layout.dir, opened, layout.downloads_dir / SHA256_CACHE)
+        _check_range(request.headers.get("range"), opened.stat.st_size)
+    except BaseException:
+        opened.close()
+        raise
+    if kind == "checkpoints":
+        media, filename = MEDIA_TYPES[".zip"], f"{name}.zip"
+    else:
+        media, filename = MEDIA_TYPES.get(opened.path.suffix, "application/octet-stream"), name
+    return OpenedFileResponse(opened, media, filename, {SHA_HEADER: digest})
 
 
 def _check_range(http_range: str | None, size: int) -> None:

@@ -6,12 +6,13 @@ thread pool), so the event loop never waits on SQLite, Ray or files.
 
 from __future__ import annotations
 
+import logging
 from typing import Annotated
 
 from fastapi import APIRouter, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from gaitforge.service.api.deps import Layout, OwnedJob, Owner, app_runner, app_store, missing_job
-from gaitforge.service.api.files import read_log, read_metrics
+from gaitforge.service.api.files import NotServed, read_log, read_metrics
 from gaitforge.service.api.problems import ProblemError, problem_responses
 from gaitforge.service.api.schemas import JobList, JobStatus, LogChunk, MetricsSeries, job_status
 from gaitforge.service.api.submission import (
@@ -24,6 +25,7 @@ from gaitforge.service.jobs.runner import JobStateError, LimitError
 from gaitforge.service.ops import SpecError
 from gaitforge.service.store import TERMINAL, JobRecord, JobState
 
+logger = logging.getLogger(__name__)
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"], responses=problem_responses(401))
 JOB_ERRORS = problem_responses(404, 422)
 
@@ -117,7 +119,10 @@ def get_metrics(
 ) -> MetricsSeries:
     """The job's metrics, one point per PPO iteration (for plotting); page on with
     ``since=last_iteration``."""
-    points = read_metrics(layout.metrics_file, since)[:limit]
+    try:
+        points = read_metrics(layout.dir, layout.metrics_file, since)[:limit]
+    except NotServed as exc:
+        raise _not_served(job.id, "metrics", exc) from None
     last = points[-1].get("iteration") if points else since
     return MetricsSeries(job_id=job.id, since=since, points=points, last_iteration=last)
 
@@ -132,8 +137,17 @@ def get_logs(
     """Bytes of the trainer's log from ``offset``; follow by asking again at ``next_offset``
     until ``eof``."""
     ended = job.state in TERMINAL  # looked at before reading: the log is whole then
-    text, next_offset, at_end = read_log(layout.log_file, offset, limit)
+    try:
+        text, next_offset, at_end = read_log(layout.dir, layout.log_file, offset, limit)
+    except NotServed as exc:
+        raise _not_served(job.id, "log", exc) from None
     return LogChunk(offset=offset, next_offset=next_offset, text=text, eof=ended and at_end)
+
+
+def _not_served(job_id: str, what: str, exc: NotServed) -> ProblemError:
+    """The 404 for a job file that is a link (or under one): logged, never read."""
+    logger.warning("job %s: %s", job_id, exc)
+    return ProblemError(404, f"job {job_id}'s {what} is not a plain file; not served")
 
 
 @router.post(
