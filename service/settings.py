@@ -49,6 +49,27 @@ class ServiceSettings(BaseSettings):
     max_body_bytes: int = Field(
         default=1_000_000, ge=1024, le=1_000_000_000, description="request body limit, bytes"
     )
+    max_body_depth: int = Field(
+        default=64,
+        ge=8,
+        le=500,
+        description="how deeply a submitted job (JSON or YAML) may nest mappings and lists; "
+        "deeper bodies are refused (422) as they are parsed (a real job nests under 10)",
+    )
+    max_number_chars: int = Field(
+        default=100,
+        ge=24,
+        le=4000,
+        description="the most characters one number of a submitted job may have (JSON or "
+        "YAML, sign and digits); longer ones are refused (422) before they are converted",
+    )
+    body_timeout_s: float = Field(
+        default=30.0,
+        gt=0,
+        le=3600,
+        description="s a request's body may take to arrive, from when the service starts "
+        "reading it; a slower or stalled body is answered 408 and its connection closed",
+    )
     poll_interval_s: float = Field(
         default=1.0, gt=0, le=60, description="s between the runner's reconcile passes"
     )

@@ -15,7 +15,7 @@ from fastapi.concurrency import run_in_threadpool
 from gaitforge.service.api import events, routes_artifacts, routes_jobs, routes_scenes
 from gaitforge.service.api.auth import load_tokens
 from gaitforge.service.api.deps import known_query
-from gaitforge.service.api.limits import BodySizeLimit
+from gaitforge.service.api.limits import BodyLimits
 from gaitforge.service.api.openapi import build_openapi
 from gaitforge.service.api.problems import install_problem_handlers
 from gaitforge.service.api.schemas import Health
@@ -111,7 +111,9 @@ def create_app(settings: ServiceSettings | None = None, runner: JobRunner | None
     if runner is not None:
         app.state.runner, app.state.store = runner, runner.store
     install_problem_handlers(app)
-    app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
+    app.add_middleware(
+        BodyLimits, max_bytes=settings.max_body_bytes, timeout_s=settings.body_timeout_s
+    )
     for module in (routes_jobs, events, routes_artifacts, routes_scenes):
         app.include_router(module.router)
 

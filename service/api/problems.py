@@ -1,6 +1,7 @@
 """Errors as RFC 9457 problem details (``application/problem+json``), for every error the app
 answers: its own (:class:`ProblemError`), Starlette's 404/405, request validation (422, with
-``errors: [{field, message}]``) and anything unexpected (500, logged).
+``errors: [{field, message}]``), input nested past Python's recursion limit anywhere in the
+request's handling (400, one log line, no traceback) and anything unexpected (500, logged).
 """
 
 from __future__ import annotations
@@ -140,6 +141,11 @@ async def _on_validation(request: Request, exc: Exception) -> JSONResponse:
     return problem_response(request, 422, detail, errors=errors)
 
 
+async def _on_recursion(request: Request, exc: Exception) -> JSONResponse:
+    logger.warning("%s %s: input nested too deeply (%s)", request.method, request.url.path, exc)
+    return problem_response(request, 400, "the request is nested too deeply to handle")
+
+
 async def _on_crash(request: Request, exc: Exception) -> JSONResponse:
     logger.exception("%s %s failed", request.method, request.url.path, exc_info=exc)
     return problem_response(request, 500, "internal error (logged by the service)")
@@ -150,6 +156,7 @@ def install_problem_handlers(app: FastAPI) -> None:
     app.add_exception_handler(ProblemError, _on_problem)
     app.add_exception_handler(StarletteHTTPException, _on_http)
     app.add_exception_handler(RequestValidationError, _on_validation)
+    app.add_exception_handler(RecursionError, _on_recursion)
     app.add_exception_handler(Exception, _on_crash)
 
 
@@ -159,7 +166,7 @@ def problem_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
 
 
 _DESCRIPTIONS = {
-    400: "the request is malformed",
+    400: "the request is malformed (or nested too deeply to handle)",
     401: "no or an unknown bearer token",
     404: "no such job (or another owner's), artifact or scene",
     409: "the job is not in a state that allows this",

@@ -11,7 +11,15 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
-from gaitforge.service.api.deps import Layout, OwnedJob, Owner, app_runner, app_store, missing_job
+from gaitforge.service.api.deps import (
+    Layout,
+    OwnedJob,
+    Owner,
+    app_runner,
+    app_settings,
+    app_store,
+    missing_job,
+)
 from gaitforge.service.api.files import NotServed, read_log, read_metrics
 from gaitforge.service.api.problems import ProblemError, problem_responses
 from gaitforge.service.api.schemas import JobList, JobStatus, LogChunk, MetricsSeries, job_status
@@ -74,7 +82,14 @@ _SUBMIT_BODY = {
 async def submit_job(request: Request, response: Response, owner: Owner) -> JobStatus:
     """Validate the job spec and queue it; 201 with its status (``Location``: its URL)."""
     body = await request.body()  # the size limit applies as it arrives
-    spec = await run_in_threadpool(parse_body, body, request.headers.get("content-type"))
+    settings = app_settings(request)
+    spec = await run_in_threadpool(
+        parse_body,
+        body,
+        request.headers.get("content-type"),
+        settings.max_body_depth,
+        settings.max_number_chars,
+    )
     runner = app_runner(request)
     try:
         record = await run_in_threadpool(runner.submit, owner, spec)
