@@ -30,7 +30,8 @@ DESCRIPTION = """Submit training jobs (validated specs: catalogue scenes or inli
 never code or paths), follow them live, download checkpoints, recordings and evaluation
 reports. Every endpoint but `/healthz` and the documentation (`/openapi.json`, `/docs`) needs
 `Authorization: Bearer <token>`; a job is its token owner's only (another owner's job answers
-404). Errors are `application/problem+json`."""
+404). Errors are `application/problem+json`. Paths are exact: a trailing slash is a 404, never
+a redirect."""
 TAGS = [
     {"name": "jobs", "description": "submit, list, follow, cancel and resume training jobs"},
     {"name": "artifacts", "description": "a job's checkpoints, recordings and reports"},
@@ -105,7 +106,7 @@ def create_app(settings: ServiceSettings | None = None, runner: JobRunner | None
     app = FastAPI(
         title="gaitforge", version=_version(), description=DESCRIPTION,
         openapi_tags=TAGS, lifespan=lifespan, dependencies=[Depends(known_query)],
-        redoc_url=None, swagger_ui_oauth2_redirect_url=None,
+        redoc_url=None, swagger_ui_oauth2_redirect_url=None, redirect_slashes=False,
     )  # fmt: skip
     app.state.settings, app.state.tokens = settings, tokens
     if runner is not None:
@@ -119,8 +120,10 @@ def create_app(settings: ServiceSettings | None = None, runner: JobRunner | None
 
     @app.get("/healthz", response_model=Health, tags=["service"], summary="Liveness")
     async def healthz() -> Health:
-        """The service is up (no auth, touches nothing)."""
-        return Health(version=app.version)
+        """The service is up, and where Ray stands as the job runner last found it (no auth,
+        touches nothing; 200 even while Ray is down: the service itself is up)."""
+        runner = getattr(app.state, "runner", None)
+        return Health(version=app.version, ray=runner.ray_state if runner is not None else None)
 
     app.openapi = lambda: build_openapi(app)  # type: ignore[method-assign]
     return app

@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Annotated, Any
 
 from fastapi import Depends, Path, Request
-from gaitforge.service.api.auth import require_owner
+from gaitforge.service.api.auth import bearer, require_owner
 from gaitforge.service.api.problems import FieldError, ProblemError
 from gaitforge.service.jobs.layout import JobLayout
 from gaitforge.service.settings import ServiceSettings
@@ -38,13 +38,18 @@ def app_runner(request: Request) -> JobRunner:
 
 async def known_query(request: Request) -> None:
     """Dependency of every route: a query parameter the route does not take is a 422 (a
-    misspelt ``stat=queued`` would otherwise be ignored)."""
+    misspelt ``stat=queued`` would otherwise be ignored). On a route that needs a token,
+    the caller is authenticated first: without a known token the answer is the 401, which
+    tells nothing about the route's parameters (an app's dependencies run before the
+    route's own)."""
     route = request.scope.get("route")
     if route is None or not request.query_params:
         return
     allowed = _query_names(route.dependant)
     unknown = sorted(set(request.query_params) - allowed)
     if unknown:
+        if _needs_owner(route.dependant):
+            await require_owner(request, await bearer(request))  # 401 without a known token
         message = f"unknown query parameter; allowed: {sorted(allowed) or 'none'}"
         errors = [FieldError(field=name, message=message) for name in unknown]
         raise ProblemError(422, f"{unknown[0]}: {message}", errors=errors)
@@ -56,6 +61,11 @@ def _query_names(dependant: Any) -> set[str]:
     for sub in dependant.dependencies:
         names |= _query_names(sub)
     return names
+
+
+def _needs_owner(dependant: Any) -> bool:
+    """``dependant`` or one of its dependencies authenticates the caller."""
+    return any(sub.call is require_owner or _needs_owner(sub) for sub in dependant.dependencies)
 
 
 def missing_job(job_id: str) -> ProblemError:

@@ -1,7 +1,8 @@
 """Errors as RFC 9457 problem details (``application/problem+json``), for every error the app
-answers: its own (:class:`ProblemError`), Starlette's 404/405, request validation (422, with
-``errors: [{field, message}]``), input nested past Python's recursion limit anywhere in the
-request's handling (400, one log line, no traceback) and anything unexpected (500, logged).
+answers: its own (:class:`ProblemError`), Starlette's 404 and 405 (``Allow``: the methods of
+every route of the path), request validation (422, with ``errors: [{field, message}]``),
+input nested past Python's recursion limit anywhere in the request's handling (400, one log
+line, no traceback) and anything unexpected (500, logged).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from fastapi.routing import iter_route_contexts
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
@@ -131,7 +133,24 @@ async def _on_problem(request: Request, exc: Exception) -> JSONResponse:
 async def _on_http(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StarletteHTTPException)
     detail = exc.detail if isinstance(exc.detail, str) else _phrase(exc.status_code)
-    return problem_response(request, exc.status_code, detail, headers=exc.headers)
+    headers = exc.headers
+    if exc.status_code == 405:  # Starlette's Allow names the first route of the path only
+        headers = {**(headers or {}), "Allow": allowed_methods(request)}
+    return problem_response(request, exc.status_code, detail, headers=headers)
+
+
+def allowed_methods(request: Request) -> str:
+    """The methods of every route of the request's path (``GET /v1/jobs`` and ``POST
+    /v1/jobs`` are two routes), for a 405's ``Allow``."""
+    path, root = request.scope["path"], request.scope.get("root_path", "")
+    if root and path.startswith(f"{root}/"):
+        path = path[len(root) :]
+    methods: set[str] = set()
+    for route in iter_route_contexts(request.app.routes):  # included routers' too
+        pattern = getattr(route, "path_regex", None)
+        if pattern is not None and pattern.match(path):
+            methods |= route.methods or set()
+    return ", ".join(sorted(methods))
 
 
 async def _on_validation(request: Request, exc: Exception) -> JSONResponse:

@@ -61,6 +61,30 @@ def raw_get(port: int, path: str, token: str = ALICE) -> tuple[int, dict[str, st
         conn.close()
 
 
+def raw_request(
+    port: int,
+    method: str,
+    path: str,
+    headers: dict[str, str] | None = None,
+    body: bytes | None = None,
+) -> tuple[int, dict[str, str], bytes]:
+    """``method path`` exactly as given, with ``headers`` (``Host: 127.0.0.1`` unless they
+    name another) and ``body``: status, headers (names lower-cased), body."""
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+    try:
+        conn.putrequest(method, path, skip_host=True, skip_accept_encoding=True)
+        for name, value in ({"Host": "127.0.0.1"} | (headers or {})).items():
+            conn.putheader(name, value)
+        if body is not None:
+            conn.putheader("Content-Length", str(len(body)))
+        conn.endheaders(body)
+        response = conn.getresponse()
+        found = {name.lower(): value for name, value in response.getheaders()}
+        return response.status, found, response.read()
+    finally:
+        conn.close()
+
+
 def seed_job(store: JobStore, settings: ServiceSettings, owner: str = "alice") -> JobRecord:
     """A job of ``owner`` in the store with files on disk: a checkpoint, two recordings, a
     report, a log, metrics; and secrets beside them that no listing names."""

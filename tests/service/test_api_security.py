@@ -1,10 +1,13 @@
-"""REST API security: 401 without a token on every route but /healthz, another owner's job
-answers 404 like a missing one on every job route, artifact names that try to leave the
-listing answer 404 and read nothing (through a real uvicorn, paths sent byte for byte), the
-body size limit (413, declared and streamed)."""
+"""REST API security: 401 without a token on every route but /healthz (an unknown query
+parameter too: nothing about the route's parameters before the token is checked), another
+owner's job answers 404 like a missing one on every job route, artifact names that try to
+leave the listing answer 404 and read nothing (through a real uvicorn, paths sent byte for
+byte), the body size limit (413, declared and streamed), no redirect built from the Host
+header (a trailing slash is a 404), and a 405's Allow naming every method of the path."""
 
 from __future__ import annotations
 
+import json
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -24,6 +27,7 @@ from tests.service.api_support import (
     TOKENS,
     auth,
     raw_get,
+    raw_request,
     seed_job,
     serve,
 )
@@ -82,6 +86,51 @@ def test_every_route_but_healthz_needs_a_token(api: Api) -> None:
             assert r.headers["content-type"] == PROBLEM
             assert r.headers["www-authenticate"].startswith("Bearer")
             assert r.json()["status"] == 401
+
+
+def test_an_unknown_query_parameter_without_a_token_is_401_telling_nothing(api: Api) -> None:
+    routes = [(m, p) for m, p in _routes(api) if p not in PUBLIC and p != "/healthz"]
+    assert len(routes) >= 16
+    with serve(api.client.app) as port:
+        for method, path in routes:
+            for token in (None, "not-a-token"):
+                headers = {} if token is None else auth(token)
+                query = f"{path}?stat=queued&limit=x&since=-1"
+                status, found, body = raw_request(port, method, query, headers)
+                assert status == 401, (method, path, token, status, body)
+                assert found["content-type"] == PROBLEM and "www-authenticate" in found
+                problem = json.loads(body)
+                assert set(problem) == {"type", "title", "status", "detail", "instance"}
+                assert problem["detail"] in ("missing bearer token", "unknown bearer token")
+        status, _, body = raw_request(port, "GET", "/v1/jobs?stat=queued", auth())
+        assert status == 422 and b"allowed" in body  # with a token: what is allowed
+        status, _, body = raw_request(port, "GET", "/healthz?x=1", {})
+        assert status == 422 and b"allowed: none" in body  # public: nothing to hide
+
+
+def test_a_trailing_slash_is_404_never_a_redirect_built_from_host(api: Api) -> None:
+    paths = sorted({p.rstrip("/") + "/" for _, p in _routes(api)} | {"/v1/jobs/", "/v1/"})
+    with serve(api.client.app) as port:
+        for path in paths:
+            for headers in ({"Host": "evil.example"}, {"Host": "evil.example", **auth()}, {}):
+                status, found, body = raw_request(port, "GET", path, headers)
+                assert status == 404, (path, headers, status, found)
+                assert "location" not in found and found["content-type"] == PROBLEM
+                assert b"evil.example" not in body
+
+
+def test_a_method_not_allowed_names_every_method_of_the_path(api: Api) -> None:
+    methods: dict[str, set[str]] = {}
+    for method, path in _routes(api):
+        methods.setdefault(path, set()).add(method)
+    assert methods["/v1/jobs"] >= {"GET", "POST"}
+    with serve(api.client.app) as port:
+        for path, allowed in methods.items():
+            for method in ("OPTIONS", "DELETE", "PATCH"):
+                status, found, body = raw_request(port, method, path, auth())
+                assert status == 405, (method, path, status, body)
+                assert found["allow"] == ", ".join(sorted(allowed)), (method, path, found)
+                assert found["content-type"] == PROBLEM
 
 
 def test_another_owners_job_answers_as_a_missing_one(api: Api) -> None:
