@@ -23,13 +23,33 @@ router = APIRouter(prefix="/v1/jobs", tags=["jobs"], responses=problem_responses
 HEARTBEAT_S = 15.0
 """s of silence after which a ``: ping`` comment is sent (``app.state.heartbeat_s`` if set)"""
 
+EVENT_ITEM_SCHEMA = {
+    "type": "object",
+    "description": "one event of the stream (`: ping` comments aside)",
+    "required": ["event", "data"],
+    "properties": {
+        "event": {"type": "string", "enum": ["progress", "end"]},
+        "data": {
+            "type": "string",
+            "description": "the job's status, as JSON",
+            "contentMediaType": "application/json",
+            "contentSchema": {"$ref": "#/components/schemas/JobStatus"},
+        },
+    },
+    "additionalProperties": False,
+}
+"""each event as OpenAPI 3.2's ``itemSchema`` describes a stream's items"""
 _EVENTS_DOC = {
     200: {
         "description": "`event: progress` with a JobStatus as `data` whenever it changes, "
         "`: ping` comments while nothing does, and a final `event: end` (the last JobStatus)",
         "content": {
             "text/event-stream": {
-                "schema": {"type": "string"},
+                "schema": {
+                    "type": "string",
+                    "description": "server-sent events, each as itemSchema says",
+                },
+                "itemSchema": EVENT_ITEM_SCHEMA,
                 "example": 'event: progress\ndata: {"id": "j-0123456789ab", "state": "running"}'
                 '\n\n: ping\n\nevent: end\ndata: {"id": "j-0123456789ab", "state": "succeeded"}'
                 "\n\n",

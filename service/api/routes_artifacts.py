@@ -17,7 +17,7 @@ from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import anyio
 from fastapi import APIRouter, Request
@@ -190,29 +190,58 @@ def _check_range(http_range: str | None, size: int) -> None:
         raise ProblemError(416, f"Range: past the end ({size} bytes)", headers=headers) from None
 
 
-def _download_doc(kind: Kind, media: list[str]) -> dict:
-    binary = {"schema": {"type": "string", "format": "binary"}}
-    headers = {
-        SHA_HEADER: {"description": "sha256 (hex) of the whole file", "schema": {"type": "string"}},
-        "Accept-Ranges": {"description": "bytes", "schema": {"type": "string"}},
-    }
-    return {
-        200: {"description": f"the {kind[:-1]}", "content": dict.fromkeys(media, binary),
-              "headers": headers},
-        206: {"description": "the requested byte range", "content": dict.fromkeys(media, binary),
-              "headers": headers},
-        **problem_responses(400, 404, 416, 422),
-    }  # fmt: skip
-
-
+_BINARY = {"type": "string", "format": "binary"}
+_REPORT_SCHEMA = {
+    "type": "object",
+    "description": "a checkpoint's evaluation (learner.evaluate_results.EvaluationReport): "
+    "the results per mode at the scene's own target speed, and the speed sweep if asked for",
+    "properties": {
+        "checkpoint": {"type": ["string", "null"]},
+        "env_steps": {"type": ["integer", "null"]},
+        "scene": {"type": "string"},
+        "backend": {"type": "string"},
+        "seed": {"type": "integer"},
+        "results": {"type": "object", "description": "mode -> its episodes' metrics"},
+        "sweep": {"type": "array", "items": {"type": "object"}},
+        "sweep_mode": {"type": ["string", "null"]},
+        "stage": {"type": ["object", "null"]},
+        "recording": {"type": ["string", "null"], "description": "MCAP of the first episode"},
+        "video": {"type": ["string", "null"], "description": "MP4 of the first episode"},
+    },
+}
 _MEDIA: dict[Kind, list[str]] = {
     "checkpoints": ["application/zip"],
     "recordings": ["application/x-mcap", "video/mp4"],
     "reports": ["application/json"],
 }
-_WHAT = {"checkpoints": "checkpoint (a zip of its directory)",
-         "recordings": "recording (MCAP episode or MP4 video)",
-         "reports": "evaluation report (JSON)"}  # fmt: skip
+_WHAT = {
+    "checkpoints": "checkpoint (a zip of its directory)",
+    "recordings": "recording (MCAP episode or MP4 video)",
+    "reports": "evaluation report (JSON)",
+}
+
+
+def _download_doc(kind: Kind) -> dict[int | str, dict[str, Any]]:
+    """The documented answers of a download: the file whole (200: a report as its JSON,
+    anything else as bytes), or the ranges asked for (206: one range as the file's media
+    type, several as ``multipart/byteranges``)."""
+    headers = {
+        SHA_HEADER: {"description": "sha256 (hex) of the whole file", "schema": {"type": "string"}},
+        "Accept-Ranges": {"description": "bytes", "schema": {"type": "string"}},
+    }
+    whole = _REPORT_SCHEMA if kind == "reports" else _BINARY
+    one_range = {"description": "the bytes of the range (of a report: not JSON on its own)"}
+    partial = {media: {"schema": one_range} for media in _MEDIA[kind]}
+    partial["multipart/byteranges"] = {"schema": {**_BINARY, "description": "several ranges"}}
+    return {
+        200: {
+            "description": f"the {kind[:-1]}",
+            "content": {media: {"schema": whole} for media in _MEDIA[kind]},
+            "headers": headers,
+        },
+        206: {"description": "the requested byte ranges", "content": partial, "headers": headers},
+        **problem_responses(400, 404, 416, 422),
+    }
 
 
 def _add_routes(kind: Kind) -> None:
@@ -232,7 +261,7 @@ def _add_routes(kind: Kind) -> None:
     router.add_api_route(
         f"/{kind}/{{name}}", fetch, methods=["GET"], response_class=FileResponse,
         summary=f"Download a {kind[:-1]}", operation_id=f"download_{kind[:-1]}",
-        responses=_download_doc(kind, _MEDIA[kind]),
+        responses=_download_doc(kind),
     )  # fmt: skip
 
 

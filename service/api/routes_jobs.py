@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 from typing import Annotated
 
+import yaml
 from fastapi import APIRouter, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from gaitforge.service.api.deps import (
@@ -53,16 +54,22 @@ stages:
     env_steps: 8192
     promote: "survival >= 0.95 over 50"
 """
+_JOB_SCHEMA = {"$ref": "#/components/schemas/Job"}
 _SUBMIT_BODY = {
     "required": True,
-    "description": "the job spec (the job file's schema): JSON, or the YAML of a job file. "
-    "A stage's scene is a catalogue name or an inline scene; no paths, no code.",
+    "description": "the job spec (the job file's schema) as JSON, or as the YAML of a job "
+    "file (`application/yaml` or `text/yaml`), e.g.\n\n```yaml\n"
+    + EXAMPLE_YAML
+    + "```\n\nA stage's scene is a catalogue name or an inline scene; no paths, no code. "
+    "YAML is the job's data: its documented schema and example are the mapping it parses to.",
     "content": {
-        **{t: {"schema": {"$ref": "#/components/schemas/Job"}, "example": EXAMPLE_JOB}
-           for t in JSON_TYPES},
-        **{t: {"schema": {"type": "string"}, "example": EXAMPLE_YAML} for t in YAML_TYPES[:2]},
+        **{media: {"schema": _JOB_SCHEMA, "example": EXAMPLE_JOB} for media in JSON_TYPES},
+        **{
+            media: {"schema": _JOB_SCHEMA, "example": yaml.safe_load(EXAMPLE_YAML)}
+            for media in YAML_TYPES[:2]
+        },
     },
-}  # fmt: skip
+}
 
 
 @router.post(
