@@ -18,6 +18,13 @@ starts them in a process group of their own where the kernel shares their fate w
 driver; :func:`start_ray` does the same on Linux, where Ray's daemons die with the driver
 (``PR_SET_PDEATHSIG``): a group signal reaches the driver only, and the driver shuts them
 down after its checkpoint.
+
+A local Ray listens on 127.0.0.1 only (its GCS, raylet, object manager, agents, metrics
+servers, workers): its node's address is 127.0.0.1. Ray keeps a loopback node address only
+where Ray clusters are off (``ray_constants.ENABLE_RAY_CLUSTER``: off on macOS and Windows);
+elsewhere it replaces it with the machine's address and its servers bind every interface or
+that address. :func:`start_ray` turns clusters off while it starts a local Ray, for the driver
+and (``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0``) for the daemons; joining a cluster is untouched.
 """
 
 from __future__ import annotations
@@ -32,19 +39,43 @@ import ray
 
 logger = logging.getLogger(__name__)
 
+CLUSTERS_ENV = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+"""Ray's switch for clusters of several nodes (read when ``ray`` is imported)"""
+
 
 def start_ray(address: str | None = None, **init_kwargs) -> None:
     """``ray.init`` joining ``address`` (else ``RAY_ADDRESS``), or starting a local Ray
-    (without its dashboard) whose daemons run in a process group of their own (see the module
-    docstring); ``init_kwargs`` go to ``ray.init``."""
+    (without its dashboard) that listens on 127.0.0.1 only and whose daemons run in a process
+    group of their own (see the module docstring); ``init_kwargs`` go to ``ray.init``."""
     init_kwargs.setdefault("logging_level", logging.WARNING)
     address = address or os.environ.get("RAY_ADDRESS") or "local"
     if address != "local":
         ray.init(address=address, **init_kwargs)
         return
     init_kwargs.setdefault("include_dashboard", False)
-    with _daemons_in_their_own_process_group():
+    with _daemons_in_their_own_process_group(), _node_on_loopback():
         ray.init(address="local", **init_kwargs)
+
+
+@contextlib.contextmanager
+def _node_on_loopback() -> Iterator[None]:
+    """While open, Ray clusters are off in this process (``ray_constants``) and in the
+    processes it starts (:data:`CLUSTERS_ENV`), so that a local Ray started now keeps 127.0.0.1
+    as its node's address and binds loopback (see the module docstring)."""
+    from ray._private import ray_constants
+
+    flag = getattr(ray_constants, "ENABLE_RAY_CLUSTER", True)
+    env = os.environ.get(CLUSTERS_ENV)
+    ray_constants.ENABLE_RAY_CLUSTER = False
+    os.environ[CLUSTERS_ENV] = "0"
+    try:
+        yield
+    finally:
+        ray_constants.ENABLE_RAY_CLUSTER = flag
+        if env is None:
+            os.environ.pop(CLUSTERS_ENV, None)
+        else:
+            os.environ[CLUSTERS_ENV] = env
 
 
 @contextlib.contextmanager

@@ -5,10 +5,12 @@ own (so it outlives the service, even a ``kill -9`` of it), found again through
     head, started = local_head(home)     # the running one, or a new one (about 7 s)
     stop_local_ray(home)                                  # `gaitforge serve --stop-ray`
 
-The head binds its dashboard (the jobs API) to 127.0.0.1 on a free port, every other port it
-opens is free too (so that it never collides with another head on the machine), its temp dir
-is its own (``/tmp/gf-ray-<8 chars>``: socket paths must stay short), and it runs with
-``RAY_AUTH_MODE=token`` and a token generated once and kept in ``{home}/ray-token`` (0600).
+The head listens on 127.0.0.1 only: its node address is 127.0.0.1, so its GCS, raylet, object
+manager, dashboard (the jobs API), agents and metrics servers bind loopback (see
+:func:`head_environment`). Every port it opens is free (so that it never collides with
+another head on the machine), its temp dir is its own (``/tmp/gf-ray-<8 chars>``: socket
+paths must stay short), and it runs with ``RAY_AUTH_MODE=token`` and a token generated once
+and kept in ``{home}/ray-token`` (0600).
 """
 
 from __future__ import annotations
@@ -177,9 +179,7 @@ def _start(home: Path, num_cpus: int | None = None) -> LocalHead:
         str(agent_grpc), "--metrics-export-port", str(metrics), "--runtime-env-agent-port",
         str(env_agent),
     ]  # fmt: skip
-    env = {k: v for k, v in os.environ.items() if k not in ("RAY_ADDRESS", "RAY_AUTH_TOKEN_PATH")}
-    env.update(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=token)
-    env.setdefault("RAY_JOB_STOP_WAIT_TIME_S", str(JOB_STOP_WAIT_S))
+    env = head_environment(token, temp_dir)
     logger.info("starting a local Ray head (%d CPUs, temp dir %s)", num_cpus, temp_dir)
     proc = subprocess.Popen(
         command, env=env, start_new_session=True, stdin=subprocess.DEVNULL,
@@ -201,8 +201,13 @@ def _start(home: Path, num_cpus: int | None = None) -> LocalHead:
         tail = " | ".join(output.strip().splitlines()[-5:])
         raise RayError(f"ray start failed (exit {proc.returncode}): {tail}")
     current = Path(temp_dir) / "ray_current_cluster"
-    if current.exists():  # Ray resolves 127.0.0.1 to the node's address for the GCS
+    if current.exists():  # the GCS address as Ray wrote it
         head.address = current.read_text().strip() or head.address
+    if not head.address.startswith("127.0.0.1:"):
+        logger.warning(
+            "the local Ray head took the address %s, not 127.0.0.1: it may listen beyond loopback",
+            head.address,
+        )
     deadline = time.monotonic() + START_TIMEOUT_S
     while not dashboard_answers(head.dashboard_url):
         if time.monotonic() > deadline:
@@ -212,6 +217,35 @@ def _start(home: Path, num_cpus: int | None = None) -> LocalHead:
     _write_head(home, head)
     logger.info("local Ray head up: %s, jobs API %s", head.address, head.dashboard_url)
     return head
+
+
+def head_environment(token: str, temp_dir: str) -> dict[str, str]:
+    """The environment of ``ray start --head`` (and so of every process of the head): this
+    process's without another cluster's address or token file; token auth on; Ray clusters
+    off; and free ports for the metrics servers of the autoscaler and the dashboard (Ray's
+    defaults are fixed ports).
+
+    With clusters off (``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0``, as on macOS) Ray keeps
+    ``--node-ip-address 127.0.0.1`` as the node's address, and every server of the node binds
+    loopback. With them on (Ray's default on Linux) its CLI replaces a loopback node address
+    by the machine's (``services.resolve_ip_for_localhost``), and the GCS, raylet, object
+    manager, dashboard agent, runtime env agent and metrics servers bind every interface or
+    that address. Nothing else changes for a head of one node: only ``ray start --address``
+    (adding a node) refuses to run with clusters off.
+    """
+    env = {k: v for k, v in os.environ.items() if k not in ("RAY_ADDRESS", "RAY_AUTH_TOKEN_PATH")}
+    autoscaler_metrics, dashboard_metrics = free_ports(2)
+    env.update(
+        {
+            "RAY_AUTH_MODE": "token",
+            "RAY_AUTH_TOKEN": token,
+            "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0",
+            "AUTOSCALER_METRIC_PORT": str(autoscaler_metrics),
+            "DASHBOARD_METRIC_PORT": str(dashboard_metrics),
+        }
+    )
+    env.setdefault("RAY_JOB_STOP_WAIT_TIME_S", str(JOB_STOP_WAIT_S))
+    return env
 
 
 def _write_head(home: Path, head: LocalHead) -> None:

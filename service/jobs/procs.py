@@ -1,12 +1,19 @@
 """Processes found through ``/proc`` (Linux): by a text in their command line, by parent,
-by process group; used to stop exactly the processes of one local Ray head."""
+by process group; used to stop exactly the processes of one local Ray head. And the TCP
+sockets that processes listen on."""
 
 from __future__ import annotations
 
 import contextlib
 import os
 import signal
+import socket
+import sys
+from dataclasses import dataclass
 from pathlib import Path
+
+TCP_LISTEN = "0A"
+"""the state of a listening socket in ``/proc/net/tcp`` and ``tcp6``"""
 
 
 def signal_group(pgid: int, sig: signal.Signals) -> None:
@@ -81,3 +88,64 @@ def pids_naming(text: str) -> list[int]:
         if named and proc_state(int(entry.name)) not in (None, "Z"):
             found.append(int(entry.name))
     return found
+
+
+@dataclass(frozen=True)
+class ListeningSocket:
+    """A TCP socket that a process listens on."""
+
+    pid: int
+    command: str
+    """the process's name (``/proc/<pid>/comm``)"""
+    host: str
+    """the address it is bound to (``0.0.0.0`` or ``::``: every interface)"""
+    port: int
+
+
+def listening_sockets(pids: set[int]) -> list[ListeningSocket]:
+    """The TCP sockets (IPv4 and IPv6) that processes ``pids`` listen on, matched through the
+    socket inodes of their open files; processes gone or not readable are skipped."""
+    listening = _listening_by_inode()
+    found = []
+    for pid in sorted(pids):
+        try:
+            command = Path(f"/proc/{pid}/comm").read_text().strip()
+            fds = os.listdir(f"/proc/{pid}/fd")
+        except OSError:
+            continue
+        for fd in fds:
+            try:
+                target = os.readlink(f"/proc/{pid}/fd/{fd}")
+            except OSError:
+                continue
+            if target.startswith("socket:[") and (inode := int(target[8:-1])) in listening:
+                host, port = listening[inode]
+                found.append(ListeningSocket(pid, command, host, port))
+    return found
+
+
+def _listening_by_inode() -> dict[int, tuple[str, int]]:
+    """inode -> (address, port) of every listening TCP socket of the machine."""
+    found: dict[int, tuple[str, int]] = {}
+    for table, family in (("tcp", socket.AF_INET), ("tcp6", socket.AF_INET6)):
+        try:
+            lines = Path(f"/proc/net/{table}").read_text().splitlines()[1:]
+        except OSError:
+            continue
+        for line in lines:
+            fields = line.split()
+            if len(fields) < 10 or fields[3] != TCP_LISTEN:
+                continue
+            address, port = fields[1].split(":")
+            host = socket.inet_ntop(family, _address_bytes(address))
+            found[int(fields[9])] = (host, int(port, 16))
+    return found
+
+
+def _address_bytes(hex_words: str) -> bytes:
+    """An address of ``/proc/net/tcp{,6}`` (32-bit words in hex, each in the machine's byte
+    order) as network-order bytes."""
+    raw = bytes.fromhex(hex_words)
+    if sys.byteorder == "big":
+        return raw
+    return b"".join(raw[i : i + 4][::-1] for i in range(0, len(raw), 4))

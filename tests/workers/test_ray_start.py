@@ -1,10 +1,12 @@
 """A local Ray started by ``start_ray`` runs its daemons in process groups apart from the
 driver's, so a signal to the driver's group reaches the driver alone; the daemons still end
-with the driver; and with no address it starts its own Ray rather than join the cluster a
-``ray start`` left on the machine (real Ray, in driver processes of their own)."""
+with the driver; it listens on loopback only; and with no address it starts its own Ray
+rather than join the cluster a ``ray start`` left on the machine (real Ray, in driver
+processes of their own)."""
 
 from __future__ import annotations
 
+import ipaddress
 import os
 import signal
 import subprocess
@@ -14,7 +16,7 @@ import time
 from pathlib import Path
 
 from gaitforge.service.jobs.local_cluster import LocalCluster
-from gaitforge.service.jobs.procs import alive, descendants, pgid_of
+from gaitforge.service.jobs.procs import alive, descendants, listening_sockets, pgid_of
 
 DRIVER = """
 import time
@@ -57,6 +59,36 @@ def test_a_signal_to_the_drivers_group_leaves_ray_to_the_driver_which_takes_it_d
     finally:
         if driver.poll() is None:
             driver.kill()
+
+
+def _is_loopback(host: str) -> bool:
+    address = ipaddress.ip_address(host)
+    if isinstance(address, ipaddress.IPv6Address) and address.ipv4_mapped is not None:
+        address = address.ipv4_mapped
+    return address.is_loopback
+
+
+def test_a_local_ray_listens_on_loopback_only() -> None:
+    command = [sys.executable, "-c", DRIVER]
+    driver = subprocess.Popen(command, stdout=subprocess.PIPE, text=True, start_new_session=True)
+    daemons: set[int] = set()
+    try:
+        assert driver.stdout.readline().strip() == "up"
+        daemons = descendants({driver.pid})
+        sockets = listening_sockets({driver.pid} | daemons)
+    finally:
+        driver.kill()
+        driver.wait(timeout=60)
+        deadline = time.monotonic() + 30
+        while alive(daemons) and time.monotonic() < deadline:
+            time.sleep(0.2)  # they die with the driver
+        for pid in alive(daemons):
+            os.kill(pid, signal.SIGKILL)
+    commands = {s.command for s in sockets}
+    assert {"gcs_server", "raylet"} <= commands, commands  # the daemons' servers were seen
+    assert len(sockets) >= 6, sockets
+    beyond = [s for s in sockets if not _is_loopback(s.host)]
+    assert not beyond, f"listening beyond loopback: {beyond}"
 
 
 ADDRESS_OF = """
