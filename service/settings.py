@@ -73,6 +73,20 @@ class ServiceSettings(BaseSettings):
     poll_interval_s: float = Field(
         default=1.0, gt=0, le=60, description="s between the runner's reconcile passes"
     )
+    ray_probe_timeout_s: float = Field(
+        default=5.0,
+        gt=0,
+        le=60,
+        description="s the runner waits for Ray's answer to its health check before each pass "
+        "(the GCS, asked through the dashboard's /api/gcs_healthz)",
+    )
+    ray_lost_after_s: float = Field(
+        default=10.0,
+        ge=0,
+        le=3600,
+        description="s Ray may stay unreachable before the running jobs are marked failed "
+        "(resumable); a local head whose GCS or raylet died fails them at once",
+    )
 
     @field_validator("tokens")
     @classmethod

@@ -120,8 +120,10 @@ def create_app(settings: ServiceSettings | None = None, runner: JobRunner | None
 
     @app.get("/healthz", response_model=Health, tags=["service"], summary="Liveness")
     async def healthz() -> Health:
-        """The service is up (no auth, touches nothing)."""
-        return Health(version=app.version)
+        """The service is up, and where Ray stands as the job runner last found it (no auth,
+        touches nothing; 200 even while Ray is down: the service itself is up)."""
+        runner = getattr(app.state, "runner", None)
+        return Health(version=app.version, ray=runner.ray_state if runner is not None else None)
 
     app.openapi = lambda: build_openapi(app)  # type: ignore[method-assign]
     return app

@@ -196,12 +196,19 @@ class LogChunk(BaseModel):
 
 
 class Health(BaseModel):
-    """The service is up."""
+    """The service is up, and where the Ray that runs its jobs stands."""
 
-    model_config = _examples({"status": "ok", "version": "0.1.0"})
+    model_config = _examples({"status": "ok", "version": "0.1.0", "ray": "ok"})
 
     status: Literal["ok"] = "ok"
     version: str
+    ray: Literal["ok", "restarting", "unreachable"] | None = Field(
+        default=None,
+        description="ok; restarting: the local Ray head died, its running jobs failed "
+        "(resumable) and a new head starts; unreachable: Ray's GCS or jobs API does not "
+        "answer (queued jobs wait; running ones fail after ray_lost_after_s); null: no job "
+        "runner yet",
+    )
 
 
 def read_record_progress(record: JobRecord) -> JobProgress | None:

@@ -10,7 +10,9 @@ manager, dashboard (the jobs API), agents and metrics servers bind loopback (see
 :func:`head_environment`). Every port it opens is free (so that it never collides with
 another head on the machine), its temp dir is its own (``/tmp/gf-ray-<8 chars>``: socket
 paths must stay short), and it runs with ``RAY_AUTH_MODE=token`` and a token generated once
-and kept in ``{home}/ray-token`` (0600).
+and kept in ``{home}/ray-token`` (0600). Every process it starts (workers, job drivers, the
+trainers) carries ``GAITFORGE_RAY_HEAD=<its temp dir>`` in its environment, so that a stop
+finds them all, even once the head's own daemons died (:func:`head_death`).
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from gaitforge.service.jobs.procs import (
     group_alive,
     pgid_of,
     pids_naming,
+    pids_with_env,
     signal_group,
 )
 from pydantic import BaseModel
@@ -56,6 +59,13 @@ START_TIMEOUT_S = 90.0
 JOB_STOP_WAIT_S = 60
 """how long Ray's stop_job waits after SIGTERM before SIGKILL (Ray's default, 3 s, is shorter
 than an iteration: the trainer's checkpoint on the way out would be lost)"""
+HEAD_ENV = "GAITFORGE_RAY_HEAD"
+"""the variable naming a head's temp dir in the environment of every process of that head"""
+HEAD_DAEMONS = ("gcs_server", "raylet")
+"""the daemons a head cannot lose: without either its jobs are gone"""
+LEFTOVER_WAIT_S = 10.0
+"""how long a stop waits for a head's workers and job drivers to end after SIGTERM (a trainer
+writes its checkpoint) before SIGKILL"""
 
 
 class RayError(RuntimeError):
@@ -79,11 +89,31 @@ class LocalHead(BaseModel):
 
 
 def running_head(home: Path) -> LocalHead | None:
-    """The head recorded in ``{home}/ray.json`` if its dashboard answers, else None."""
+    """The head recorded in ``{home}/ray.json`` if its GCS and raylet run and its dashboard
+    answers, else None."""
     head = read_head(home)
-    if head is None or not dashboard_answers(head.dashboard_url):
+    if head is None or missing_daemons(head) or not dashboard_answers(head.dashboard_url):
         return None
     return head
+
+
+def missing_daemons(head: LocalHead) -> list[str]:
+    """The daemons of :data:`HEAD_DAEMONS` that no longer run for ``head``."""
+    running = {_command_name(pid) for pid in head_processes(head)}
+    return [name for name in HEAD_DAEMONS if name not in running]
+
+
+def head_death(home: Path) -> str | None:
+    """Why the local head of ``home`` is dead, in a few words (None: its GCS and raylet
+    run); waits for a start or a stop of it that is under way."""
+    with _locked(home):
+        head = read_head(home)
+        if head is None:
+            return f"none is recorded in {home / STATE_FILE} (it was stopped)"
+        missing = missing_daemons(head)
+    if not missing:
+        return None
+    return f"its {' and '.join(missing)} ended (head {head.address}, temp dir {head.temp_dir})"
 
 
 def read_head(home: Path) -> LocalHead | None:
@@ -221,9 +251,9 @@ def _start(home: Path, num_cpus: int | None = None) -> LocalHead:
 
 def head_environment(token: str, temp_dir: str) -> dict[str, str]:
     """The environment of ``ray start --head`` (and so of every process of the head): this
-    process's without another cluster's address or token file; token auth on; Ray clusters
-    off; and free ports for the metrics servers of the autoscaler and the dashboard (Ray's
-    defaults are fixed ports).
+    process's without another cluster's address or token file; token auth on; the head's
+    mark (:data:`HEAD_ENV`); Ray clusters off; and free ports for the metrics servers of the
+    autoscaler and the dashboard (Ray's defaults are fixed ports).
 
     With clusters off (``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0``, as on macOS) Ray keeps
     ``--node-ip-address 127.0.0.1`` as the node's address, and every server of the node binds
@@ -239,6 +269,7 @@ def head_environment(token: str, temp_dir: str) -> dict[str, str]:
         {
             "RAY_AUTH_MODE": "token",
             "RAY_AUTH_TOKEN": token,
+            HEAD_ENV: temp_dir,
             "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0",
             "AUTOSCALER_METRIC_PORT": str(autoscaler_metrics),
             "DASHBOARD_METRIC_PORT": str(dashboard_metrics),
@@ -256,9 +287,11 @@ def _write_head(home: Path, head: LocalHead) -> None:
 
 def stop_local_ray(home: Path | ServiceSettings, grace_s: float = 3.0) -> bool:
     """Stop the local head of ``home`` (a directory, or settings: their ``home``): SIGTERM
-    to its process group, SIGKILL after ``grace_s``, then its workers if they linger;
-    ``ray.json`` is removed. Only processes of that head are touched (never ``ray stop``,
-    which stops every head on the machine).
+    to its process group, SIGKILL after ``grace_s``; then SIGTERM to what is left of it
+    (workers, job drivers: every process marked with :data:`HEAD_ENV`, found even when its
+    daemons died first) and SIGKILL after :data:`LEFTOVER_WAIT_S`; ``ray.json`` is removed.
+    Only processes of that head are touched (never ``ray stop``, which stops every head on
+    the machine).
 
     Returns:
         True if a recorded head was found (running or not).
@@ -274,24 +307,43 @@ def _stop(home: Path, grace_s: float = 3.0) -> bool:
     head = read_head(home)
     if head is None:
         return False
-    ours = set(pids_naming(head.temp_dir))
-    ours |= descendants(ours)  # workers (``ray::IDLE``...) have groups of their own
+    ours = head_and_leftovers(head)
     if _group_is_head(head):
         signal_group(head.pgid, signal.SIGTERM)
         deadline = time.monotonic() + grace_s
         while group_alive(head.pgid) and time.monotonic() < deadline:
             time.sleep(0.1)
         signal_group(head.pgid, signal.SIGKILL)
-    deadline = time.monotonic() + 10.0
+    _signal_each(alive(ours), signal.SIGTERM)  # workers, job drivers: a trainer checkpoints
+    deadline = time.monotonic() + LEFTOVER_WAIT_S
     while (left := alive(ours)) and time.monotonic() < deadline:
-        time.sleep(0.2)  # workers end by themselves once their raylet is gone
-    for pid in left:
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.kill(pid, signal.SIGKILL)
+        time.sleep(0.2)
+    _signal_each(left, signal.SIGKILL)
     (home / STATE_FILE).unlink(missing_ok=True)
     shutil.rmtree(head.temp_dir, ignore_errors=True)
     logger.info("local Ray head %s stopped", head.address)
     return True
+
+
+def head_and_leftovers(head: LocalHead) -> set[int]:
+    """Every live process of ``head``: those naming its temp dir, those marked with it
+    (:data:`HEAD_ENV`: workers and job drivers, which have groups and sessions of their own
+    and outlive dead daemons), and their descendants."""
+    ours = set(pids_naming(head.temp_dir)) | set(pids_with_env(HEAD_ENV, head.temp_dir))
+    return ours | descendants(ours)
+
+
+def _signal_each(pids: list[int], sig: signal.Signals) -> None:
+    for pid in pids:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.kill(pid, sig)
+
+
+def _command_name(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/comm").read_text().strip()
+    except OSError:
+        return ""
 
 
 def head_processes(head: LocalHead) -> list[int]:

@@ -1,6 +1,6 @@
-"""Processes found through ``/proc`` (Linux): by a text in their command line, by parent,
-by process group; used to stop exactly the processes of one local Ray head. And the TCP
-sockets that processes listen on."""
+"""Processes found through ``/proc`` (Linux): by a text in their command line, by a variable
+of their environment, by parent, by process group; used to stop exactly the processes of one
+local Ray head. And the TCP sockets that processes listen on."""
 
 from __future__ import annotations
 
@@ -86,6 +86,23 @@ def pids_naming(text: str) -> list[int]:
         except OSError:
             continue
         if named and proc_state(int(entry.name)) not in (None, "Z"):
+            found.append(int(entry.name))
+    return found
+
+
+def pids_with_env(name: str, value: str) -> list[int]:
+    """Live processes (not zombies, not this one) whose environment has ``name=value`` as they
+    were started with it (``/proc/<pid>/environ``); other users' processes are not listed."""
+    found = []
+    wanted = f"{name}={value}".encode()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            marked = wanted in (entry / "environ").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if marked and proc_state(int(entry.name)) not in (None, "Z"):
             found.append(int(entry.name))
     return found
 

@@ -3,6 +3,7 @@
 
     connection = connect_ray(settings)      # starts or re-attaches to {home}'s local head
     connection.client.submit_job(...)       # Ray's jobs API, token-authenticated
+    gcs_problem(connection.dashboard_url)   # None, or why Ray's GCS does not answer
     stop_local_ray(settings.home)           # `gaitforge serve --stop-ray`, tests
 
 The jobs client sends the Ray token as a bearer header, so the service process needs no Ray
@@ -12,6 +13,8 @@ environment of its own; every request has a timeout.
 from __future__ import annotations
 
 import os
+import urllib.error
+import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -23,6 +26,7 @@ from gaitforge.service.jobs.local_ray import (
     LocalHead,
     RayError,
     first_line,
+    head_death,
     head_processes,
     local_head,
     read_head,
@@ -46,6 +50,8 @@ __all__ = [
     "connect_ray",
     "default_dashboard",
     "first_line",
+    "gcs_problem",
+    "head_death",
     "head_processes",
     "jobs_client",
     "local_head",
@@ -59,6 +65,9 @@ __all__ = [
 DEFAULT_DASHBOARD_PORT = 8265
 REQUEST_TIMEOUT_S = 30.0
 """the longest one call to the jobs API may take"""
+GCS_HEALTH_PATH = "/api/gcs_healthz"
+"""the dashboard's check of its GCS (public: no token needed); 503 when the GCS does not
+answer"""
 
 
 @dataclass
@@ -109,6 +118,21 @@ def default_dashboard(address: str) -> str:
         host = "127.0.0.1"
     host = f"[{host}]" if ":" in host else host
     return f"http://{host}:{DEFAULT_DASHBOARD_PORT}"
+
+
+def gcs_problem(dashboard_url: str, timeout_s: float = 5.0) -> str | None:
+    """Why the Ray cluster behind ``dashboard_url`` is not up, in a few words: its jobs API
+    does not answer, or answers that its GCS does not (:data:`GCS_HEALTH_PATH`); None when it
+    is up. Any other answer counts as up (a dashboard without that route, say)."""
+    try:
+        with urllib.request.urlopen(f"{dashboard_url}{GCS_HEALTH_PATH}", timeout=timeout_s):
+            return None
+    except urllib.error.HTTPError as exc:
+        if exc.code < 500:
+            return None
+        return f"its GCS does not answer (HTTP {exc.code}: {first_line(str(exc.reason))})"
+    except (OSError, ValueError) as exc:
+        return f"its jobs API at {dashboard_url} does not answer ({first_line(exc)})"
 
 
 def cluster_token() -> str | None:

@@ -7,11 +7,19 @@ background thread.
     runner.cancel(record.id, "alice")           # stops after the iteration, with a checkpoint
     runner.stop()                               # the thread only: jobs keep running on Ray
 
-Each pass (:meth:`JobRunner.reconcile`) copies every running job's ``progress.json`` into its
-record, settles the jobs whose Ray job ended, and starts queued jobs, oldest first, while
-fewer than ``max_running_jobs`` run. The state lives in the store and on disk, so a new
-runner (a restarted service) re-attaches to the jobs still running and marks those whose
-trainer died as failed ("trainer died: ..."), to be resumed from their newest checkpoint.
+Each pass (:meth:`JobRunner.reconcile`) first checks Ray (:meth:`JobRunner.check_ray`), then
+copies every running job's ``progress.json`` into its record, settles the jobs whose Ray job
+ended, and starts queued jobs, oldest first, while fewer than ``max_running_jobs`` run. The
+state lives in the store and on disk, so a new runner (a restarted service) re-attaches to
+the jobs still running and marks those whose trainer died as failed ("trainer died: ..."),
+to be resumed from their newest checkpoint.
+
+Ray going away is noticed by the next pass: a local head whose GCS or raylet died is replaced
+at once (what is left of it stopped, its running jobs failed with "the Ray head died: ...",
+a new head started; ``ray_state`` is ``restarting`` meanwhile); a cluster (or a head) whose
+GCS or jobs API does not answer is ``unreachable``, and its running jobs are failed once it
+stays so for ``ray_lost_after_s``. Queued jobs wait for Ray to answer again; a failed job is
+resumed like any other (its earlier attempt, should Ray still run it, is stopped first).
 """
 
 from __future__ import annotations
@@ -23,12 +31,19 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 from gaitforge.service.jobs.layout import JobLayout
 from gaitforge.service.jobs.outcome import died_reason, log_tail, outcome
 from gaitforge.service.jobs.progress import read_progress
-from gaitforge.service.jobs.ray_cluster import first_line
+from gaitforge.service.jobs.ray_cluster import (
+    RayError,
+    connect_ray,
+    first_line,
+    gcs_problem,
+    head_death,
+    stop_local_ray,
+)
 from gaitforge.service.store import JobRecord, JobStore, utcnow
 
 if TYPE_CHECKING:
@@ -39,6 +54,14 @@ logger = logging.getLogger(__name__)
 
 CANCEL_GRACE_S = 120.0
 """how long a cancelled job may take to end its iteration before Ray stops it, s"""
+RayState = Literal["ok", "restarting", "unreachable"]
+"""``ok``; ``restarting``: a local head died and a new one starts; ``unreachable``: Ray's GCS or
+jobs API does not answer (or a new head did not start)"""
+
+
+class RayUnavailable(RuntimeError):
+    """Ray is not up: the pass stopped before following or starting jobs (the message says
+    why)."""
 
 
 class LimitError(Exception):
@@ -76,6 +99,12 @@ class JobRunner:
         """why the newest pass failed (None: it went through)"""
         self.last_pass_at: float | None = None
         """``time.time()`` of the newest pass that went through"""
+        self.ray_state: RayState = "ok"
+        """where Ray stands, as the newest check found it"""
+        self._unreachable_since: float | None = None
+        """``time.monotonic()`` when Ray stopped answering (None: it answers)"""
+        self._stopping: set[str] = set()
+        """submission ids of earlier attempts asked to stop before a job's next attempt"""
         self._lock = threading.RLock()
         self._wake = threading.Event()
         self._halt = threading.Event()
@@ -205,11 +234,14 @@ class JobRunner:
     # reconciling
 
     def reconcile(self) -> None:
-        """One pass: follow every running job, then start queued jobs while there is room.
+        """One pass: check Ray (:meth:`check_ray`), follow every running job, then start
+        queued jobs while there is room.
 
         Raises:
+            RayUnavailable: Ray is not up (see :meth:`check_ray`).
             Exception: Ray's jobs API failed (nothing is marked on the way).
         """
+        self.check_ray()
         with self._lock:
             running = 0
             for record in self.store.by_state("running"):
@@ -219,6 +251,73 @@ class JobRunner:
                 self._start(queued.pop(0))
                 running += 1
         self.last_error, self.last_pass_at = None, time.time()
+
+    def check_ray(self) -> None:
+        """Check that Ray is up, and act when it is not: a local head whose GCS or raylet
+        died is replaced (:meth:`_replace_dead_head`); a cluster (or a head) that does not
+        answer its health check within ``ray_probe_timeout_s`` is ``unreachable``, and once it
+        stays so for ``ray_lost_after_s`` the running jobs are failed, resumable. Sets
+        :attr:`ray_state`.
+
+        Raises:
+            RayUnavailable: Ray is not up (yet).
+        """
+        if self.connection.local:
+            died = head_death(Path(self.settings.home))
+            if died is not None:
+                self._replace_dead_head(f"the Ray head died: {died}")
+        problem = gcs_problem(self.connection.dashboard_url, self.settings.ray_probe_timeout_s)
+        if problem is None:
+            if self.ray_state != "ok":
+                logger.info("Ray at %s answers again", self.connection.address)
+            self.ray_state, self._unreachable_since = "ok", None
+            return
+        what = "the local Ray head" if self.connection.local else "the Ray cluster"
+        reason = f"{what} at {self.connection.address} is unreachable: {problem}"
+        now = time.monotonic()
+        if self._unreachable_since is None:
+            self._unreachable_since = now
+            lost_after = self.settings.ray_lost_after_s
+            logger.warning("%s; running jobs fail if it stays so for %.0f s", reason, lost_after)
+        self.ray_state = "unreachable"
+        lost_for = now - self._unreachable_since
+        if lost_for >= self.settings.ray_lost_after_s:
+            self._fail_running(f"{reason} (for {lost_for:.0f} s)")
+        raise RayUnavailable(reason)
+
+    def _replace_dead_head(self, reason: str) -> None:
+        """Stop what is left of the dead local head (its workers and trainers too), fail its
+        running jobs with ``reason`` and start a new head (about 7 s; the lock is not held
+        meanwhile, so that the API goes on queueing).
+
+        Raises:
+            RayUnavailable: the new head did not start (``ray_state``: ``unreachable``).
+        """
+        self.ray_state = "restarting"
+        logger.warning("%s; stopping what is left of it and starting a new head", reason)
+        stop_local_ray(Path(self.settings.home))  # its trainers end (with a checkpoint) first
+        self._fail_running(reason)
+        try:
+            connection = connect_ray(self.settings)
+        except RayError as exc:
+            self.ray_state = "unreachable"
+            raise RayUnavailable(f"{reason}; a new head did not start: {exc}") from None
+        with self._lock:
+            self.connection = connection
+        logger.info("a new local Ray head is up: %s", connection.address)
+
+    def _fail_running(self, reason: str) -> None:
+        """Mark every running job failed with ``reason`` (one being cancelled: cancelled),
+        its newest progress copied; each can be resumed from its newest checkpoint."""
+        with self._lock:
+            for record in self.store.by_state("running"):
+                state = "cancelled" if record.cancel_requested else "failed"
+                fields: dict[str, Any] = {"state": state, "error": reason, "finished_at": utcnow()}
+                progress = read_progress(self.layout(record.id).progress_file)
+                if progress is not None:
+                    fields["progress_json"] = progress.model_dump_json()
+                if self.store.update_if(record.id, ["running"], **fields) is not None:
+                    logger.warning("job %s %s: %s", record.id, state, reason)
 
     def _job_info(self, sid: str) -> Any | None:
         """Ray's ``JobDetails`` of submission ``sid``; None if Ray has no such job."""
@@ -275,6 +374,9 @@ class JobRunner:
         attempt = record.attempt + 1
         sid = submission_id(record.id, attempt)
         layout = self.layout(record.id)
+        previous = record.ray_submission_id
+        if previous and previous != sid and self._still_runs(previous):
+            return  # its earlier attempt is stopping; started in a later pass
         if self._job_info(sid) is None:  # else: submitted before a crash; adopt it
             layout.progress_file.unlink(missing_ok=True)  # the last attempt's: stale now
             layout.cancel_file.unlink(missing_ok=True)
@@ -287,6 +389,19 @@ class JobRunner:
         self.store.update(record.id, state="running", attempt=attempt, ray_submission_id=sid,
                           started_at=utcnow(), finished_at=None, error=None)  # fmt: skip
         logger.info("job %s started (attempt %d, Ray job %s)", record.id, attempt, sid)
+
+    def _still_runs(self, sid: str) -> bool:
+        """Whether Ray still runs submission ``sid`` (an earlier attempt of a job failed while
+        Ray did not answer); if so, ask Ray to stop it (its trainer checkpoints)."""
+        info = self._job_info(sid)
+        if info is None or info.status.is_terminal():
+            self._stopping.discard(sid)
+            return False
+        if sid not in self._stopping:
+            logger.warning("%s still runs on Ray: stopped before the next attempt starts", sid)
+            self._stopping.add(sid)
+        self.connection.client.stop_job(sid)
+        return True
 
     def entrypoint(self, layout: JobLayout) -> str:
         """The fixed command a job runs: the entry module on the job's directory, with
