@@ -35,6 +35,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from gaitforge.service.jobs.layout import make_private_dir, write_private_file
 from gaitforge.service.jobs.procs import (
     alive,
     descendants,
@@ -139,7 +140,7 @@ def read_token(home: Path) -> str:
     """The local head's token from ``{home}/ray-token``, generated (0600) if missing."""
     path = home / TOKEN_FILE
     if not path.exists():
-        home.mkdir(parents=True, exist_ok=True)
+        make_private_dir(home)
         fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
         with os.fdopen(fd, "w") as file:
             file.write(secrets.token_hex(32) + "\n")
@@ -184,8 +185,9 @@ def start_local_ray(home: Path, num_cpus: int | None = None) -> LocalHead:
 @contextlib.contextmanager
 def _locked(home: Path) -> Iterator[None]:
     """Hold ``{home}/ray.lock`` (an exclusive ``flock``; not re-entrant)."""
-    home.mkdir(parents=True, exist_ok=True)
-    with (home / LOCK_FILE).open("a") as lock:
+    make_private_dir(home)
+    fd = os.open(home / LOCK_FILE, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o600)
+    with os.fdopen(fd, "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         try:
             yield
@@ -219,7 +221,7 @@ def _start(home: Path, num_cpus: int | None = None) -> LocalHead:
         address=f"127.0.0.1:{gcs}", dashboard_url=f"http://127.0.0.1:{dashboard}",
         temp_dir=temp_dir, pgid=proc.pid, num_cpus=num_cpus, started_at=time.time(),
     )  # fmt: skip
-    home.mkdir(parents=True, exist_ok=True)
+    make_private_dir(home)
     _write_head(home, head)  # first, so that stop_local_ray finds a head that half started
     try:
         output, _ = proc.communicate(timeout=START_TIMEOUT_S)
@@ -281,7 +283,7 @@ def head_environment(token: str, temp_dir: str) -> dict[str, str]:
 
 def _write_head(home: Path, head: LocalHead) -> None:
     tmp = home / f".{STATE_FILE}.tmp"
-    tmp.write_text(head.model_dump_json(indent=2))
+    write_private_file(tmp, head.model_dump_json(indent=2))
     tmp.replace(home / STATE_FILE)
 
 

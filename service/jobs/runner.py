@@ -166,7 +166,9 @@ class JobRunner:
             self._check_limit(owner)
             record = self.store.create(owner, job["name"], job)
             try:
-                write_job_files(self.layout(record.id), job)
+                layout = self.layout(record.id)
+                layout.create()  # the owner's only (0700), before anything is written in it
+                write_job_files(layout, job)
             except Exception as exc:
                 self.store.update(record.id, state="failed", error=f"job files: {exc}",
                                   finished_at=utcnow())  # fmt: skip

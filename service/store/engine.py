@@ -6,10 +6,16 @@ never around DDL; here the driver's is switched off and each transaction emits i
 ``BEGIN``. A writer asks for ``BEGIN IMMEDIATE`` (execution option ``sqlite_begin``) so that
 it takes the write lock at once and waits ``busy_timeout`` for it, rather than failing when
 a read transaction would have to become a write one after another process wrote.
+
+A new SQLite database is its owner's only: its file is made 0600 before SQLite opens it
+(SQLite gives its ``-wal``, ``-shm`` and ``-journal`` files the database's mode) in folders
+made 0700.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +26,8 @@ BUSY_TIMEOUT_MS = 30_000
 """how long a SQLite connection waits for another's lock, ms"""
 IMMEDIATE = {"sqlite_begin": "IMMEDIATE"}
 """execution options of a writing transaction (a no-op on other databases)"""
+PRIVATE_DIR_MODE = 0o700
+PRIVATE_FILE_MODE = 0o600
 
 
 def make_engine(url: str) -> Engine:
@@ -36,10 +44,24 @@ def make_engine(url: str) -> Engine:
         return create_engine(parsed, pool_pre_ping=True)
     database = parsed.database
     if database and database != ":memory:" and not database.startswith("file:"):
-        Path(database).parent.mkdir(parents=True, exist_ok=True)
+        create_private_database(Path(database))
     engine = create_engine(parsed, connect_args={"check_same_thread": False})
     _sqlite_events(engine, memory=not database or database == ":memory:")
     return engine
+
+
+def create_private_database(path: Path) -> None:
+    """Make the SQLite file ``path`` (empty, 0600) and its missing folders (0700) unless it
+    exists; an existing file and folders are left as they are."""
+    missing = []
+    folder = path.parent
+    while not folder.exists() and folder.parent != folder:
+        missing.append(folder)
+        folder = folder.parent
+    for folder in reversed(missing):
+        folder.mkdir(mode=PRIVATE_DIR_MODE, exist_ok=True)  # the umask can only take away
+    with contextlib.suppress(FileExistsError):
+        os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, PRIVATE_FILE_MODE))
 
 
 def _sqlite_events(engine: Engine, memory: bool) -> None:
