@@ -46,8 +46,11 @@ _EVENTS_DOC = {
         "content": {
             "text/event-stream": {
                 "schema": {
-                    "type": "string",
-                    "description": "server-sent events, each as itemSchema says",
+                    "type": "array",
+                    "description": "the stream read as its events in order (OpenAPI 3.2: "
+                    "schema covers the stream, itemSchema each event)",
+                    "items": EVENT_ITEM_SCHEMA,
+                    "minItems": 1,
                 },
                 "itemSchema": EVENT_ITEM_SCHEMA,
                 "example": 'event: progress\ndata: {"id": "j-0123456789ab", "state": "running"}'

@@ -153,6 +153,13 @@ def _check_events(live: Live, stream: str, media: dict[str, Any]) -> None:
         assert not errors, errors[0].message
         events.append(fields["event"])
     assert events == ["progress", "end"], stream
+    whole = [
+        dict(line.split(": ", 1) for line in block.splitlines() if not line.startswith(":"))
+        for block in stream.strip().split("\n\n")
+    ]
+    whole = [event for event in whole if event]
+    errors = list(_validator(live.doc, media["schema"]).iter_errors(whole))
+    assert not errors, errors[0].message  # (OpenAPI 3.2: the schema covers the stream)
 
 
 def test_documented_download_media_types_are_what_is_served(live: Live) -> None:
