@@ -41,9 +41,12 @@ from gaitforge.learner.stage_spec import (
 )
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.spec_io import SpecError, format_validation_error, load_yaml_model
+from gaitforge.workers.spec_types import Name, Ref, Seed
 from pydantic import Field, ValidationError, model_validator
 
 __all__ = [
+    "MAX_NUM_WORKERS",
+    "MAX_STAGES",
     "METRICS",
     "BlendSpec",
     "CheckpointSpec",
@@ -63,15 +66,29 @@ __all__ = [
 ]
 
 
+MAX_NUM_WORKERS = 1024
+"""the most rollout actors a job may ask for (each takes one CPU of the cluster)"""
+MAX_STAGES = 64
+"""the most stages a job may have"""
+
+
 class WorkersSpec(StrictSpec):
-    num_workers: Annotated[int, Field(ge=0, le=4096)] | None = None
-    """Ray rollout actors (None: the cluster's CPUs less one; 0: one in-process worker)"""
+    num_workers: Annotated[int, Field(ge=0, le=MAX_NUM_WORKERS)] | None = None
+    """Ray rollout actors, one CPU each (None: the cluster's CPUs less one; 0: one
+    in-process worker); at most the cluster's CPUs where it cannot grow"""
     envs_per_worker: Annotated[int, Field(ge=1, le=1024)] = 8
     fragment_length: Annotated[int, Field(ge=8, le=100_000)] = 128
-    ray_address: str | None = None
+    ray_address: Ref | None = None
     """a Ray cluster to join ("auto", "ray://host:10001"); None: start a local one"""
     timeout_s: Annotated[float, Field(gt=0)] = 600.0
     """an actor with no fragment for this long is replaced"""
+    max_actor_failures: Annotated[int, Field(ge=1, le=100_000)] | None = None
+    """actor failures (deaths, timeouts) the pool replaces within ``actor_failure_window_s``;
+    one more fails the job with the actors' own error (an actor that cannot start, e.g. a
+    simulator that fails on creation, would otherwise be replaced forever). None: twice the
+    actors, at least 10 (``workers.pool.default_max_failures``)"""
+    actor_failure_window_s: Annotated[float, Field(gt=0, le=86_400)] = 300.0
+    """the window (s) in which ``max_actor_failures`` are counted"""
 
 
 class CheckpointSpec(StrictSpec):
@@ -85,15 +102,18 @@ class CheckpointSpec(StrictSpec):
 class Job(StrictSpec):
     """A training job: the first network, PPO, workers, checkpoints and the stages."""
 
-    name: str = Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+    name: Name
+    """letters, digits and ``_.-`` (a letter or digit first), at most 128 characters: the
+    default run directory is ``runs/<name>``"""
     backend: Literal["mujoco", "opensim"] = "mujoco"
-    seed: int = 0
+    seed: Seed = 0
+    """an integer in [0, 2**32): the learner's torch seed, and the actors' seeds from it"""
     network: NetworkSpec = NetworkSpec()
     ppo: PPOSettings = PPOSettings()
     """PPO settings and schedules (``learner.ppo.PPOSettings``)"""
     workers: WorkersSpec = WorkersSpec()
     checkpoint: CheckpointSpec = CheckpointSpec()
-    init_from: str | None = None
+    init_from: Ref | None = None
     """a checkpoint directory (relative to the job file) whose network and observation
     statistics start the first stage, for fine-tuning a trained policy on another scene or
     backend (the optimizer, curriculum and env-step count start afresh); e.g.
@@ -104,7 +124,7 @@ class Job(StrictSpec):
     """with ``init_from``: the action noise's standard deviation (action units) the loaded
     network starts with, in place of the one it was trained down to (a fine-tune that must
     learn something new explores again); None keeps the checkpoint's"""
-    stages: list[Stage] = Field(min_length=1)
+    stages: list[Stage] = Field(min_length=1, max_length=MAX_STAGES)
 
     def stage_backend(self, index: int) -> str:
         """The simulator of stage ``index``: its own ``backend``, else the job's."""

@@ -11,6 +11,7 @@ import torch
 from gaitforge.learner.gae import compute_gae
 from gaitforge.learner.policy import GaussianPolicy
 from gaitforge.workers.fragment import Fragment
+from gaitforge.workers.spec_types import SPEC_VALUES
 from pydantic import BaseModel, ConfigDict, Field
 
 LearningRate = Annotated[float, Field(gt=0, le=1)]
@@ -21,11 +22,12 @@ EntropyWeight = Annotated[float, Field(ge=0)]
 
 class PPOSettings(BaseModel):
     """PPO settings: the job file's ``ppo:`` section (CleanRL's names and defaults where they
-    exist), validated with bounds. ``lr`` and ``entropy_coef`` may follow a linear schedule
-    over each stage (to ``lr_end``, ``entropy_coef_end``); :meth:`at` gives the settings at one
-    point of a stage, which :func:`ppo_update` takes."""
+    exist), validated with bounds (numbers strict and finite: ``workers.spec_types``). ``lr``
+    and ``entropy_coef`` may follow a linear schedule over each stage (to ``lr_end``,
+    ``entropy_coef_end``); :meth:`at` gives the settings at one point of a stage, which
+    :func:`ppo_update` takes."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, **SPEC_VALUES)
 
     gamma: Annotated[float, Field(gt=0, le=1)] = 0.99
     """discount per control step (dimensionless)"""

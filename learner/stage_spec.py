@@ -10,6 +10,7 @@ from typing import Annotated, Literal
 from gaitforge.learner.ppo import EntropyWeight, LearningRate
 from gaitforge.workers.scenes.action import ActionSpec
 from gaitforge.workers.scenes.profiles import Fidelity
+from gaitforge.workers.spec_types import MAX_NAME_LENGTH, SPEC_VALUES, Name, Ref
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 METRICS = ("return", "distance", "speed", "fall_rate", "survival", "length")
@@ -17,16 +18,23 @@ METRICS = ("return", "distance", "speed", "fall_rate", "survival", "length")
 distance covered (m); mean speed (m/s); fall rate (fraction of episodes that fell);
 survival (fraction that lasted the whole episode without falling); length (s)."""
 
+MAX_RULE_LENGTH = 200
+"""the longest promotion rule written as a string"""
 _RULE = re.compile(
     r"^\s*(?P<metric>[a-z_]+)\s*(?P<op>>=|<=)\s*(?P<value>[-+0-9.eE]+)\s*"
     r"(?:over\s+(?P<window>\d+))?\s*$"
 )
 
 
-class StrictSpec(BaseModel):
-    """A part of a job file: unknown fields are errors, values are frozen."""
+MAX_PROMOTION_RULES = 16
+"""the most promotion rules one stage may have"""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+
+class StrictSpec(BaseModel):
+    """A part of a job file: unknown fields are errors, values are frozen, numbers strict and
+    finite (``workers.spec_types.SPEC_VALUES``: no ``"1000"`` or ``true`` for an int)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, **SPEC_VALUES)
 
 
 class PromotionRule(StrictSpec):
@@ -46,15 +54,24 @@ class PromotionRule(StrictSpec):
 
 
 def _parse_rule(raw: object) -> object:
-    """``"distance >= 5 over 100"`` -> its fields; a mapping passes through."""
+    """``"distance >= 5 over 100"`` -> its fields (the value a float, the window an int);
+    a mapping passes through."""
     if not isinstance(raw, str):
         return raw
-    match = _RULE.match(raw)
+    match = _RULE.match(raw) if len(raw) <= MAX_RULE_LENGTH else None
     if match is None:
         raise ValueError(
-            f"expected '<metric> >=|<= <value> [over <episodes>]', metric one of {METRICS}"
+            f"expected '<metric> >=|<= <value> [over <episodes>]' (at most {MAX_RULE_LENGTH} "
+            f"characters), metric one of {METRICS}"
         )
-    return {k: v for k, v in match.groupdict().items() if v is not None}
+    fields: dict[str, object] = {"metric": match["metric"], "op": match["op"]}
+    try:
+        fields["value"] = float(match["value"])
+    except ValueError:
+        raise ValueError(f"{match['value']!r} is not a number") from None
+    if match["window"] is not None:
+        fields["window"] = int(match["window"])
+    return fields
 
 
 class NetworkSpec(StrictSpec):
@@ -85,7 +102,7 @@ class WarmStartSpec(StrictSpec):
     inside the motion), label each observation with the excitations at its phase, fit the
     mean by squared error; then roll out the fitted policy and fit again (``rounds``)."""
 
-    excitations: str
+    excitations: Annotated[str, Field(max_length=MAX_NAME_LENGTH)]
     """the motion whose recorded excitations are cloned (e.g. ``walk``): the motion the
     stage's scene imitates (``task.imitate.motion``), whose phase it observes"""
     env_steps: Annotated[int, Field(ge=1)] = 8192
@@ -104,7 +121,7 @@ class StageEvaluation(StrictSpec):
     training episodes (stochastic actions, and a training scene's mixed starts, hide how the
     mean policy does from standing)."""
 
-    scene: str | None = None
+    scene: Ref | None = None
     """catalogue name or scene YAML path (relative to the job file) with the stage's
     observations and muscles: the plain catalogue scene an imitation or curriculum scene
     stands in for (e.g. ``run-2d-clock`` for ``imitate-run-2d-start``), as it is (the
@@ -149,9 +166,9 @@ class StagePPO(StrictSpec):
 class Stage(StrictSpec):
     """One curriculum stage: a scene, a budget and a rule to leave early."""
 
-    scene: str
+    scene: Ref
     """catalogue name or scene YAML path (relative to the job file)"""
-    name: str | None = None
+    name: Name | None = None
     """defaults to the scene's name"""
     backend: Literal["mujoco", "opensim"] | None = None
     """the stage's simulator (default: the job's ``backend``): train fast on MuJoCo, then
@@ -166,7 +183,7 @@ class Stage(StrictSpec):
     a reflex layer instead of excitations"""
     env_steps: Annotated[int, Field(ge=1)]
     """the stage's budget; it ends at the budget even if the rule never passed"""
-    promote: list[PromotionRule] = Field(default_factory=list)
+    promote: list[PromotionRule] = Field(default_factory=list, max_length=MAX_PROMOTION_RULES)
     """rules that must all pass to promote early; one rule may be given alone"""
     network: NetworkSpec | None = None
     """a new network for this stage (needs a building transition); None keeps the current"""

@@ -13,6 +13,7 @@ from gaitforge.service.console import err, fail, out, print_json
 from gaitforge.service.evaluate_view import render, render_episodes
 from gaitforge.service.ops import InputError, validate_request
 from gaitforge.service.ops import evaluate as ops
+from gaitforge.workers.spec_types import SEED_LIMIT
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 
@@ -42,7 +43,9 @@ def evaluate(
     ] = None,
     episodes: Annotated[int, typer.Option(help="Episodes per mode and per sweep point.")] = 10,
     mode: Annotated[ModeChoice, typer.Option(help="Action mode(s).")] = ModeChoice.deterministic,
-    seed: Annotated[int, typer.Option(help="Episode i resets with seed + i.")] = 0,
+    seed: Annotated[
+        int, typer.Option(min=0, max=SEED_LIMIT - 1, help="Episode i resets with seed + i.")
+    ] = 0,
     sweep: Annotated[bool, typer.Option("--sweep", help="Speed-against-safety sweep.")] = False,
     sweep_percent: Annotated[
         str, typer.Option(help="Target speed reductions for --sweep, in percent.")

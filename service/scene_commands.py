@@ -9,6 +9,7 @@ import typer
 from gaitforge.service.console import err, fail, out, print_json, table
 from gaitforge.service.ops import SpecError
 from gaitforge.service.ops import scenes as ops
+from gaitforge.workers.spec_types import SEED_LIMIT
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 scenes_app = typer.Typer(help="The scene catalogue.", no_args_is_help=True)
@@ -71,7 +72,7 @@ def check(
     seconds: float = typer.Option(5.0, min=0.1, help="Wall-clock seconds per scene."),
     backend: BackendChoice = BACKEND_OPTION,
     all_scenes: bool = typer.Option(False, "--all", help="Every catalogue scene on --backend."),
-    seed: int = typer.Option(0, help="Seed of the random excitations."),
+    seed: int = typer.Option(0, min=0, max=SEED_LIMIT - 1, help="Seed of the random excitations."),
     json: bool = JSON_OPTION,
 ) -> None:
     """Step with random excitations: env steps/s, real-time factor and health counts."""

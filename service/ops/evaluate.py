@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from gaitforge.service.ops.errors import InputError
+from gaitforge.workers.spec_types import Seed
 from pydantic import BaseModel, ConfigDict, Field
 
 if TYPE_CHECKING:
@@ -34,7 +35,7 @@ class EvaluateRequest(BaseModel):
     )
     episodes: int = Field(default=10, description="episodes per mode and per sweep point")
     modes: list[Mode] = Field(default=["deterministic"], description="action modes")
-    seed: int = Field(default=0, description="episode i resets with seed + i")
+    seed: Seed = Field(default=0, description="episode i resets with seed + i")
     sweep: list[float] | None = Field(
         default=None, description="target-speed reductions, fractions in [0, 1), for the "
         "speed-against-safety sweep (in the first mode); None: no sweep",

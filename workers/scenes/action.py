@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
+from gaitforge.workers.spec_types import SPEC_VALUES
 from pydantic import BaseModel, ConfigDict, Field
 
 Positive = Annotated[float, Field(gt=0)]
@@ -28,7 +29,7 @@ Positive = Annotated[float, Field(gt=0)]
 class ActionSpec(BaseModel):
     """The action space of a scene; see the module docstring."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", **SPEC_VALUES)
 
     kind: Literal["excitations", "joint_targets"] = "excitations"
     kp: Annotated[float, Field(ge=0)] = Field(

@@ -13,6 +13,7 @@ from typing import Annotated, Literal
 
 from gaitforge.workers.bodies.topology import Topology
 from gaitforge.workers.motions import MotionError, available_motions, load_motion
+from gaitforge.workers.spec_types import MAX_REF_LENGTH, SPEC_VALUES
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 NonNegative = Annotated[float, Field(ge=0)]
@@ -20,7 +21,9 @@ Positive = Annotated[float, Field(gt=0)]
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    """Unknown fields are errors, values frozen, numbers strict and finite."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, **SPEC_VALUES)
 
 
 class ImitationWeights(_Strict):
@@ -112,7 +115,10 @@ class LeadIn(_Strict):
     the joint targets' base, the pose the tracking terms compare with and (with
     ``speed_target_from_clock``) the target speed all follow the fade."""
 
-    motion: str = Field(description="a motion shipped for the body (or a file): e.g. walk")
+    motion: str = Field(
+        max_length=MAX_REF_LENGTH,
+        description="a motion shipped for the body (or a file): e.g. walk",
+    )
     tempo: Annotated[float, Field(ge=0.5, le=2.0)] = Field(
         default=1.0, description="the lead-in motion plays this many times faster"
     )
@@ -126,7 +132,10 @@ class LeadIn(_Strict):
 class Imitate(_Strict):
     """Track motion ``motion`` of the scene's body (``workers.motions``)."""
 
-    motion: str = Field(description="a motion shipped for the body, or a motion file path")
+    motion: str = Field(
+        max_length=MAX_REF_LENGTH,
+        description="a motion shipped for the body, or a motion file path",
+    )
     weights: ImitationWeights = ImitationWeights()
     scales: ImitationScales = ImitationScales()
     max_pose_error_rad: Positive | None = Field(

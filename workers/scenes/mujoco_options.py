@@ -14,7 +14,7 @@ Width = Annotated[float, Field(gt=0, le=0.2)]
 Power = Annotated[float, Field(ge=1, le=20)]
 
 ContactTimeconst = Annotated[
-    Timeconst | tuple[Timeconst, Timeconst] | None,
+    Timeconst | Annotated[tuple[Timeconst, Timeconst], Field(strict=False)] | None,
     Field(
         description="MuJoCo: the contacts' time constant (solref[0], s; larger is softer), or "
         "a [low, high] range drawn anew each episode; None keeps MuJoCo's 0.02 s. About 0.12 "
@@ -22,7 +22,7 @@ ContactTimeconst = Annotated[
     ),
 ]
 ContactSolimp = Annotated[
-    tuple[Impedance, Impedance, Width, Impedance, Power] | None,
+    Annotated[tuple[Impedance, Impedance, Width, Impedance, Power], Field(strict=False)] | None,
     Field(
         description="MuJoCo: the contacts' impedance against penetration depth (solimp: "
         "[dmin, dmax, width m, midpoint, power]; dmin at the surface rising to dmax at width "

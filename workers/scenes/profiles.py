@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
+from gaitforge.workers.spec_types import SPEC_VALUES
 from pydantic import BaseModel, ConfigDict, Field
 
 Backend = Literal["mujoco", "opensim"]
@@ -39,7 +40,7 @@ INTEGRATORS: dict[str, tuple[str, ...]] = {
 class FidelityProfile(BaseModel):
     """One integration setting."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, **SPEC_VALUES)
 
     integrator: str = Field(description="backend-specific integrator name")
     timestep: Annotated[float, Field(gt=0, le=0.05)] = Field(

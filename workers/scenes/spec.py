@@ -27,13 +27,19 @@ from gaitforge.workers.scenes.profiles import (
     FidelityProfile,
     check_profile,
 )
+from gaitforge.workers.spec_types import MAX_NAME_LENGTH, MAX_TEXT_LENGTH, SPEC_VALUES
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 NonNegative = Annotated[float, Field(ge=0)]
+Range = Annotated[tuple[float, float], Field(strict=False)]
+"""(low, high), written as a list ``[low, high]``; each a finite number"""
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    """A part of a scene: unknown fields are errors, values frozen, numbers strict and finite
+    (``workers.spec_types.SPEC_VALUES``)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, **SPEC_VALUES)
 
 
 class Keep(_Strict):
@@ -70,9 +76,9 @@ class Obstacles(_Strict):
     """Spheres half buried in the ground ahead of the body, re-placed every episode."""
 
     count: Annotated[int, Field(ge=0, le=50)] = 10
-    x_range: tuple[float, float] = Field(default=(1.0, 5.0), description="m ahead of start")
-    radius_range: tuple[float, float] = Field(default=(0.05, 0.1), description="m")
-    height_range: tuple[float, float] = Field(
+    x_range: Range = Field(default=(1.0, 5.0), description="m ahead of start")
+    radius_range: Range = Field(default=(0.05, 0.1), description="m")
+    height_range: Range = Field(
         default=(-0.5, 0.5), description="centre height in radii above the ground"
     )
     observe_ahead: Annotated[int, Field(ge=1, le=10)] = Field(
@@ -120,7 +126,7 @@ class RewardWeights(_Strict):
 class Task(_Strict):
     kind: Literal["locomotion", "reach"]
     target_speed: NonNegative | None = Field(default=None, description="m/s, locomotion")
-    target_speed_range: tuple[float, float] | None = Field(
+    target_speed_range: Range | None = Field(
         default=None,
         description="m/s; drawn uniformly each episode in place of target_speed (observed and "
         "rewarded; an imitation clock's main motion plays at tempo times (drawn / target_speed) "
@@ -130,7 +136,7 @@ class Task(_Strict):
         default=None, description="m; the episode terminates below it (a fall)"
     )
     reach_dof: str | None = Field(default=None, description="dof to bring to a target angle")
-    reach_range: tuple[float, float] | None = Field(
+    reach_range: Range | None = Field(
         default=None, description="rad; target sampled uniformly each episode"
     )
     reward: RewardWeights = RewardWeights()
@@ -177,9 +183,12 @@ class FaultInjection(_Strict):
 class Scene(_Strict):
     """A scene: a body, what of it to keep, the world around it and the task."""
 
-    name: str = Field(pattern=r"^[a-z0-9][a-z0-9-]*$")
-    description: str = ""
-    body: str = Field(description=f"a neutral body name, or one of {list(MJCF_BODIES)}")
+    name: str = Field(pattern=r"^[a-z0-9][a-z0-9-]*$", max_length=MAX_NAME_LENGTH)
+    description: str = Field(default="", max_length=MAX_TEXT_LENGTH)
+    body: str = Field(
+        max_length=MAX_NAME_LENGTH,
+        description=f"a neutral body name, or one of {list(MJCF_BODIES)}",
+    )
     backends: list[Backend] = Field(default_factory=lambda: ["mujoco"], min_length=1)
     keep: Keep = Keep()
     terrain: Terrain = Terrain()
