@@ -3,6 +3,9 @@ answers: its own (:class:`ProblemError`), Starlette's 404 and 405 (``Allow``: th
 every route of the path), request validation (422, with ``errors: [{field, message}]``),
 input nested past Python's recursion limit anywhere in the request's handling (400, one log
 line, no traceback) and anything unexpected (500, logged).
+
+A problem stays small whatever was sent: at most :data:`MAX_FIELD_ERRORS` field errors (one
+more entry counts the others), and the detail, field names and messages cut short.
 """
 
 from __future__ import annotations
@@ -22,6 +25,13 @@ logger = logging.getLogger(__name__)
 
 PROBLEM_JSON = "application/problem+json"
 _LOCATIONS = ("body", "query", "path", "header", "cookie")
+MAX_FIELD_ERRORS = 50
+"""field errors listed in one problem; the others are counted in one more entry (a backstop:
+a job spec's errors come listed 20 at most, ``workers.spec_io.MAX_PROBLEMS``)"""
+MAX_DETAIL_CHARS = 2000
+"""characters of a problem's detail (and of a field error's message)"""
+MAX_FIELD_CHARS = 200
+"""characters of a field error's field name"""
 
 
 class FieldError(BaseModel):
@@ -87,14 +97,15 @@ def problem_response(
     errors: list[FieldError] | None = None,
     headers: dict[str, str] | None = None,
 ) -> JSONResponse:
-    """The problem+json response for ``status`` (title: the status phrase)."""
+    """The problem+json response for ``status`` (title: the status phrase), kept small
+    (:func:`bounded_errors`, the detail cut at :data:`MAX_DETAIL_CHARS`)."""
     problem = Problem(
         type=type,
         title=_phrase(status),
         status=status,
-        detail=detail,
+        detail=None if detail is None else _cut(detail, MAX_DETAIL_CHARS),
         instance=request.url.path,
-        errors=errors,
+        errors=None if errors is None else bounded_errors(errors),
     )
     return JSONResponse(
         problem.model_dump(mode="json", exclude_none=True),
@@ -102,6 +113,24 @@ def problem_response(
         media_type=PROBLEM_JSON,
         headers=headers,
     )
+
+
+def bounded_errors(errors: list[FieldError]) -> list[FieldError]:
+    """The first :data:`MAX_FIELD_ERRORS` of ``errors``, fields and messages cut short, and
+    one more entry counting the others (a request of many bad fields must not come back as
+    a larger answer)."""
+    kept = [
+        FieldError(field=_cut(e.field, MAX_FIELD_CHARS), message=_cut(e.message, MAX_DETAIL_CHARS))
+        for e in errors[:MAX_FIELD_ERRORS]
+    ]
+    if len(errors) > MAX_FIELD_ERRORS:
+        more = len(errors) - MAX_FIELD_ERRORS
+        kept.append(FieldError(field="body", message=f"{more} more problems not listed"))
+    return kept
+
+
+def _cut(text: str, limit: int) -> str:
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
 def _phrase(status: int) -> str:

@@ -6,10 +6,11 @@ Data only: a stage's ``scene`` is a catalogue name or an inline scene (a mapping
 ``task.imitate.motion``, ``warm_start.excitations``, ``evaluate.scene``) must be plain names,
 never paths; ``workers.ray_address`` is refused (the service decides where jobs run), as is an
 inline scene's ``fault`` (fault injection, which hangs or poisons simulators, is for tests);
-anything not in the schema is refused. Then the job is written into a scratch folder and loaded
-exactly as its trainer will load it (``learner.job.load_job``: every scene compiled and
-resolved; the stages checked to fit one policy lineage), so that a job that cannot run fails
-here, with a 422, not minutes later.
+anything not in the schema is refused, as are more rollout actors than the cluster has CPUs
+(where the caller knows them: ``max_num_workers``). Then the job is written into a scratch
+folder and loaded exactly as its trainer will load it (``learner.job.load_job``: every scene
+compiled and resolved; the stages checked to fit one policy lineage), so that a job that
+cannot run fails here, with a 422, not minutes later.
 """
 
 from __future__ import annotations
@@ -23,15 +24,20 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from gaitforge.learner.job import Job, load_job
+from gaitforge.learner.job import MAX_STAGES, Job, load_job
 from gaitforge.service.jobs.layout import JobLayout
 from gaitforge.workers.scenes import Scene
-from gaitforge.workers.spec_io import SpecError, validation_problems
+from gaitforge.workers.spec_io import (
+    MAX_MESSAGE_CHARS,
+    MAX_PROBLEMS,
+    SpecError,
+    shorten,
+    validation_problems,
+)
 from pydantic import ValidationError
 
 MAX_TEXT_BYTES = 1_000_000
 """the largest job text accepted, bytes"""
-MAX_STAGES = 64
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,127}")
 _INLINE_FILE = re.compile(r"scenes/[a-z0-9-]+\.yaml: (?:(?P<field>[\w.<>]+): )?(?P<problem>.*)")
 _PLACEHOLDER = "stand-2d"
@@ -40,12 +46,17 @@ _PLACEHOLDER = "stand-2d"
 
 class SubmissionError(SpecError):
     """A submitted job that is refused; ``errors`` lists each (field, problem), ``field``
-    is the first field. The message is one line: ``<source>: <field>: <problem>; ...``."""
+    is the first field. The message is one line: ``<source>: <field>: <problem>; ...``.
+    At most ``MAX_PROBLEMS`` are kept (one more entry counts the others), each cut short
+    (``workers.spec_io``): the error is never much larger than a few lines."""
 
     def __init__(self, source: str, errors: list[tuple[str, str]]) -> None:
-        super().__init__("; ".join(f"{source}: {field}: {problem}" for field, problem in errors))
-        self.errors = errors
-        self.field = errors[0][0]
+        kept = [(shorten(f), shorten(p, MAX_MESSAGE_CHARS)) for f, p in errors[:MAX_PROBLEMS]]
+        if len(errors) > MAX_PROBLEMS:
+            kept.append(("<root>", f"{len(errors) - MAX_PROBLEMS} more problems not listed"))
+        super().__init__("; ".join(f"{source}: {field}: {problem}" for field, problem in kept))
+        self.errors = kept
+        self.field = kept[0][0]
 
 
 class NoAliasLoader(yaml.SafeLoader):
@@ -74,7 +85,8 @@ def parse_spec(
             raise SubmissionError(source, [("<root>", f"{size} bytes; at most {max_bytes}")])
         try:
             spec = _load_text(spec)
-        except (yaml.YAMLError, RecursionError, UnicodeDecodeError) as exc:
+        except (yaml.YAMLError, RecursionError, UnicodeDecodeError, ValueError) as exc:
+            # ValueError: an integer of more digits than Python converts
             first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise SubmissionError(
                 source, [("<root>", f"not valid YAML or JSON: {first}")]
@@ -99,14 +111,14 @@ def _name_problem(value: str, what: str) -> str | None:
     """Why ``value`` is not a plain name (None: it is one)."""
     if _NAME.fullmatch(value) and not value.lower().endswith((".yaml", ".yml")):
         return None
-    return f"{value!r}: {what}; file paths are not accepted"
+    return f"{shorten(repr(value))}: {what}; file paths are not accepted"
 
 
 def _inline_scene(raw: dict, field: str, errors: list[tuple[str, str]]) -> Scene | None:
     try:
         scene = Scene.model_validate(raw)
     except ValidationError as err:
-        errors.extend((f"{field}.{f}", m) for f, m in validation_problems(err))
+        errors.extend((f"{field}.{f}", m) for f, m in validation_problems(err, limit=None))
         return None
     names = [("body", scene.body, "a shipped body name")]
     imitate = getattr(scene.task, "imitate", None)
@@ -169,10 +181,18 @@ def _check_data_only(raw: dict, errors: list[tuple[str, str]]) -> dict[int, Scen
 
 
 def prepare_submission(
-    spec: dict | str | bytes, source: str = "job", max_bytes: int = MAX_TEXT_BYTES
+    spec: dict | str | bytes,
+    source: str = "job",
+    max_bytes: int = MAX_TEXT_BYTES,
+    max_num_workers: int | None = None,
 ) -> dict[str, Any]:
     """The submitted job, validated as a job file is and as data only (see the module),
     normalised: every field spelled out, inline scenes kept as mappings (JSON-able).
+
+    ``max_num_workers``: the CPUs of the cluster the job will run on, where it cannot grow
+    (a local Ray head: its ``num_cpus``); ``workers.num_workers`` above it is refused, as
+    such actors would wait for CPUs forever. None: not checked here (an autoscaling cluster
+    adds nodes for them).
 
     Raises:
         SubmissionError: each refused field (``errors``) and why, one line.
@@ -183,9 +203,11 @@ def prepare_submission(
     try:
         job = Job.model_validate(raw)
     except ValidationError as err:
-        errors.extend(validation_problems(err))
+        errors.extend(validation_problems(err, limit=None))  # SubmissionError keeps the first
     except RecursionError:
         errors.append(("<root>", "nested too deeply"))
+    else:
+        errors.extend(_check_num_workers(job, max_num_workers))
     if errors:
         raise SubmissionError(source, errors)
     normalised = job.model_dump(mode="json")
@@ -193,6 +215,21 @@ def prepare_submission(
         normalised["stages"][i]["scene"] = scene.model_dump(mode="json")
     _check_loads(normalised, source)
     return normalised
+
+
+def _check_num_workers(job: Job, max_num_workers: int | None) -> list[tuple[str, str]]:
+    """``workers.num_workers`` against the cluster's CPUs (one actor takes one CPU)."""
+    wanted = job.workers.num_workers
+    if max_num_workers is None or wanted is None or wanted <= max_num_workers:
+        return []
+    return [
+        (
+            "workers.num_workers",
+            f"{wanted} rollout actors need {wanted} CPUs (one each); the cluster has "
+            f"{max_num_workers}: at most {max_num_workers} (or leave it out: the cluster's "
+            "CPUs less one)",
+        )
+    ]
 
 
 def _check_loads(spec: dict[str, Any], source: str) -> None:

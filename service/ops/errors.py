@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import TypeVar
 
-from gaitforge.workers.spec_io import SpecError
+from gaitforge.workers.spec_io import SpecError, shorten
 from pydantic import BaseModel, ValidationError
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
@@ -40,5 +40,7 @@ def validate_request(model: type[ModelT], **values: object) -> ModelT:
         first = err.errors()[0]
         field = ".".join(str(p) for p in first["loc"]) or "request"
         got = first.get("input")
-        got_text = "" if isinstance(got, dict | list) or got is None else f", got {got!r}"
+        got_text = (
+            "" if isinstance(got, dict | list) or got is None else f", got {shorten(repr(got))}"
+        )
         raise InputError(field, first["msg"].removeprefix("Value error, ") + got_text) from None
