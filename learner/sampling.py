@@ -87,5 +87,7 @@ def open_sampler(
         start_ray(workers.ray_address)
     return WorkerPool(
         scene, policy_factory, num_workers=workers.num_workers,
-        envs_per_worker=workers.envs_per_worker, timeout_s=workers.timeout_s, **kwargs,
+        envs_per_worker=workers.envs_per_worker, timeout_s=workers.timeout_s,
+        max_failures=workers.max_actor_failures,
+        failure_window_s=workers.actor_failure_window_s, **kwargs,
     )  # fmt: skip

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from gaitforge.learner.job import Job
+from gaitforge.learner.job import MAX_NUM_WORKERS, Job
 from gaitforge.service.console import err, fail, out
 from gaitforge.service.ops import SpecError, validate_request
 from gaitforge.service.ops import train as ops
@@ -95,7 +95,11 @@ def train(
     ] = None,
     workers: Annotated[
         int | None,
-        typer.Option(min=0, help="Ray rollout actors (0: in-process); overrides the job file"),
+        typer.Option(
+            min=0,
+            max=MAX_NUM_WORKERS,
+            help="Ray rollout actors (0: in-process); overrides the job file",
+        ),
     ] = None,
     address: Annotated[
         str | None, typer.Option(help="Ray cluster address to join (e.g. auto)")
@@ -136,6 +140,11 @@ def train(
                     signals.install()  # Ray's driver put in its own handlers: take them back
                 signals.on_stop(training.request_stop)
                 result = _run(training, max_iterations, max_minutes, log_every)
+            except SpecError as exc:  # a check that needs the cluster: the actors' CPUs
+                raise fail(exc) from None
+            except _actor_failure() as exc:
+                fail(exc)
+                raise typer.Exit(1) from None
             finally:
                 training.close()
     except KeyboardInterrupt:  # a second signal, or Ctrl-C before the handlers were in
@@ -154,6 +163,14 @@ def train(
         )  # fmt: skip
     out.print(f"run directory: {result.run_dir} (tensorboard --logdir {result.run_dir / 'tb'})",
               soft_wrap=True, highlight=False)  # fmt: skip
+
+
+def _actor_failure() -> type[Exception]:
+    """The error a run ends with when its rollout actors keep failing (imported only when
+    one is raised: it imports Ray)."""
+    from gaitforge.workers.pool import ActorFailureError
+
+    return ActorFailureError
 
 
 def _run(

@@ -7,13 +7,20 @@ request in flight a MuJoCo actor idled a quarter of its time). ``next_fragment``
 with the newest weights, and hands the fragment over with the policy version that produced
 it: the learner never waits on the slowest simulator.
 
-Failures never end a run; each is counted in :class:`PoolStats`:
+Failures are counted in :class:`PoolStats` and end a run only when they keep coming:
 * an actor that dies (simulator segfault, lost node, out of memory) is replaced and its
   queued requests re-issued on the new actor;
 * a fragment not back within ``timeout_s`` (a hung simulator) gets its actor killed and
   replaced;
+* more than ``max_failures`` of those two within ``failure_window_s`` (an actor that cannot
+  start: every replacement dies the same way) raise :class:`ActorFailureError` with the
+  actors' own error, instead of replacing them forever;
 * an actor past ``max_worker_rss_mib`` of memory or ``max_worker_steps`` env steps gets no
   new requests and is replaced once its queued ones are back (recycled, no work lost).
+
+The pool asks for no more actors than a cluster that cannot grow has CPUs (one each): on a
+Ray this driver started, more raise ``SpecError`` at once (they would wait forever); on a
+cluster it joined, an autoscaler may add nodes for them (a warning is logged).
 """
 
 from __future__ import annotations
@@ -21,7 +28,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, field
 
 import ray
@@ -30,12 +37,25 @@ from gaitforge.workers.ray_start import start_ray
 from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.scenes.profiles import FidelityProfile
+from gaitforge.workers.spec_io import SpecError
 from ray.exceptions import RayActorError, RayError
 
 logger = logging.getLogger(__name__)
 
 POLL_S = 0.5
 """How often (s) ``next_fragment`` looks at the clocks of in-flight requests."""
+MIN_FAILURES = 10
+"""The least ``max_failures`` defaults to (see :func:`default_max_failures`)."""
+FAILURE_WINDOW_S = 300.0
+"""The default window (s) in which actor failures are counted."""
+MAX_ERROR_CHARS = 300
+"""Characters of an actor's error kept in :class:`ActorFailureError`'s message."""
+
+
+class ActorFailureError(RuntimeError):
+    """Rollout actors failed (died or hung) more than ``max_failures`` times within
+    ``failure_window_s``: the run cannot go on. The message is one line with the first and
+    the last actor's own error (e.g. the exception its constructor raised)."""
 
 
 @dataclass
@@ -95,12 +115,20 @@ class WorkerPool:
         max_worker_rss_mib: float | None = None,
         queue_depth: int = 2,
         seed: int = 0,
+        max_failures: int | None = None,
+        failure_window_s: float = FAILURE_WINDOW_S,
     ) -> None:
         self.scene = scene.require_resolved("WorkerPool")
         if not ray.is_initialized():
             start_ray()
+        count = num_workers or default_num_workers()
+        check_num_workers(count)
         self.backend = backend
         self.timeout_s = timeout_s
+        self.max_failures = max_failures or default_max_failures(count)
+        self.failure_window_s = failure_window_s
+        self._failures: deque[tuple[float, str]] = deque()
+        """(when, the actor's error) of each failure within the window"""
         self.max_worker_steps = max_worker_steps
         self.max_worker_rss_mib = max_worker_rss_mib
         self.queue_depth = queue_depth
@@ -116,7 +144,6 @@ class WorkerPool:
             "num_envs": envs_per_worker,
             "fragment_length": fragment_length,
         }
-        count = num_workers or default_num_workers()
         self._slots = [self._new_slot() for _ in range(count)]
         for slot in self._slots:
             self._fill(slot)
@@ -225,10 +252,31 @@ class WorkerPool:
 
     def _on_death(self, slot: _Slot, exc: Exception) -> None:
         kind = "died" if isinstance(exc, RayActorError) else "failed"
-        logger.warning("rollout actor %d %s: %s", slot.worker_id, kind, str(exc)[:200])
+        error = actor_error(exc)
+        logger.warning("rollout actor %d %s: %s", slot.worker_id, kind, error)
         self.stats.actor_deaths += 1
         self.stats.reissued += 1  # the request that failed
+        self._count_failure(f"actor {slot.worker_id} {kind}: {error}")
         self._replace(slot)
+
+    def _count_failure(self, error: str) -> None:
+        """Count one actor failure; past ``max_failures`` within ``failure_window_s``, raise.
+
+        Raises:
+            ActorFailureError: naming the first and the last failure in the window.
+        """
+        now = time.monotonic()
+        self._failures.append((now, error))
+        while self._failures and now - self._failures[0][0] > self.failure_window_s:
+            self._failures.popleft()
+        if len(self._failures) <= self.max_failures:
+            return
+        first, last = self._failures[0][1], self._failures[-1][1]
+        raise ActorFailureError(
+            f"rollout actors failed {len(self._failures)} times in {self.failure_window_s:g} s "
+            f"(more than workers.max_actor_failures {self.max_failures}); first: {first}"
+            + ("" if last == first else f"; last: {last}")
+        )
 
     def _kill_overdue(self) -> None:
         now = time.monotonic()
@@ -245,6 +293,10 @@ class WorkerPool:
                     self.timeout_s,
                 )
                 self.stats.timeouts += 1
+                self._count_failure(
+                    f"actor {slot.worker_id} hung: no fragment in {self.timeout_s:g} s "
+                    "(workers.timeout_s)"
+                )
                 self._replace(slot)
 
     def _account(self, slot: _Slot, fragment: Fragment) -> None:
@@ -270,4 +322,69 @@ def default_num_workers() -> int:
     return max(1, int(ray.cluster_resources().get("CPU", 2)) - 1)
 
 
-__all__ = ["PoolStats", "WorkerPool", "default_num_workers"]
+def default_max_failures(num_workers: int) -> int:
+    """Actor failures a pool of ``num_workers`` replaces within its window: twice the actors
+    (a lost node takes all of its actors at once), at least :data:`MIN_FAILURES`."""
+    return max(MIN_FAILURES, 2 * num_workers)
+
+
+def check_num_workers(num_workers: int) -> None:
+    """Refuse more actors than a Ray this driver started has CPUs (one CPU each: the others
+    would wait forever); on a cluster it joined, where an autoscaler may add nodes, warn.
+
+    Raises:
+        SpecError: one line naming ``workers.num_workers``, the CPUs and what is allowed.
+    """
+    cpus = int(ray.cluster_resources().get("CPU", 0))
+    if num_workers <= cpus:
+        return
+    if _started_here():
+        raise SpecError(
+            f"workers.num_workers: {num_workers} rollout actors need {num_workers} CPUs (one "
+            f"each); this machine's Ray has {cpus}: at most {cpus} (or leave it out: the "
+            "CPUs less one)"
+        )
+    logger.warning(
+        "%d rollout actors need %d CPUs; the Ray cluster has %d now: the others wait for "
+        "nodes (an autoscaler's)", num_workers, num_workers, cpus,
+    )  # fmt: skip
+
+
+def _started_here() -> bool:
+    """Whether this process started the Ray it is connected to (``ray.init`` with no cluster
+    to join): then no autoscaler can add nodes. Read from Ray's worker state (no public API
+    says it); False where that is not there."""
+    worker = getattr(getattr(ray, "_private", None), "worker", None)
+    node = getattr(worker, "_global_node", None)
+    return bool(getattr(node, "ray_init_cluster", False))
+
+
+def actor_error(exc: BaseException) -> str:
+    """An actor's failure in one line: the exception its own code raised (in its constructor
+    or a task) where Ray passes it on, else the last line of Ray's message."""
+    cause: object = exc
+    seen = 0
+    while isinstance(cause, BaseException) and seen < 10:
+        if not isinstance(cause, RayError):
+            text = f"{type(cause).__name__}: {cause}"
+            return _one_line(text)
+        cause = getattr(cause, "cause", None) or cause.__cause__
+        seen += 1
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    return _one_line(lines[-1] if lines else type(exc).__name__)
+
+
+def _one_line(text: str) -> str:
+    text = " ".join(text.split())
+    return text if len(text) <= MAX_ERROR_CHARS else text[:MAX_ERROR_CHARS] + "..."
+
+
+__all__ = [
+    "ActorFailureError",
+    "PoolStats",
+    "WorkerPool",
+    "actor_error",
+    "check_num_workers",
+    "default_max_failures",
+    "default_num_workers",
+]
