@@ -18,6 +18,8 @@ fidelity_app = typer.Typer(
     help="Speed for accuracy: fidelity sweeps and stress.", no_args_is_help=True
 )
 OUT_OPTION = typer.Option(Path("fidelity-results"), "--out", help="Directory for CSV, JSON, PNG.")
+MAX_STRESS_S = 600.0
+"""the longest ``fidelity stress`` scenario, simulated seconds"""
 
 
 @contextmanager
@@ -121,7 +123,9 @@ def sweep(
 def stress(
     scene_name: str = typer.Argument(..., metavar="SCENE", help="Catalogue name or scene YAML."),
     backend: str = typer.Option(None, help="mujoco or opensim (default: the scene's first)."),
-    seconds: float = typer.Option(1.0, min=0.01, help="Simulated s per scenario."),
+    seconds: float = typer.Option(
+        1.0, min=0.01, max=MAX_STRESS_S, help="Simulated s per scenario."
+    ),
     quick: bool = typer.Option(False, "--quick", help="Fewer profiles, scenarios and checks."),
     bisect: bool = typer.Option(True, help="Bisect for the largest stable step/accuracy."),
 ) -> None:

@@ -15,6 +15,8 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 scenes_app = typer.Typer(help="The scene catalogue.", no_args_is_help=True)
 WIDE = 120
 """columns from which ``scenes list`` shows descriptions in the table (else below it)"""
+MAX_CHECK_S = 3600.0
+"""the longest ``scenes check`` per scene, wall-clock seconds"""
 
 
 class BackendChoice(StrEnum):
@@ -69,7 +71,9 @@ def show(
 @scenes_app.command("check")
 def check(
     name: str = typer.Argument(None, help="Catalogue name or scene YAML; omit with --all."),
-    seconds: float = typer.Option(5.0, min=0.1, help="Wall-clock seconds per scene."),
+    seconds: float = typer.Option(
+        5.0, min=0.1, max=MAX_CHECK_S, help="Wall-clock seconds per scene."
+    ),
     backend: BackendChoice = BACKEND_OPTION,
     all_scenes: bool = typer.Option(False, "--all", help="Every catalogue scene on --backend."),
     seed: int = typer.Option(0, min=0, max=SEED_LIMIT - 1, help="Seed of the random excitations."),

@@ -120,3 +120,18 @@ def test_actors_that_keep_dying_end_a_training_run_with_their_error(tmp_path: Pa
         "2); first: actor 0 died: "
     )
     assert "; last: actor 2 died: " in lines[0], lines[0]
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["scenes", "check", "elbow-reach", "--seconds", "inf"],
+        ["fidelity", "stress", "elbow-reach", "--seconds", "inf"],
+    ],
+)
+def test_an_endless_duration_is_a_usage_error(command: list[str]) -> None:
+    """Infinite seconds would run the check for ever."""
+    result = _invoke(*command)
+    assert result.exit_code == 2, result.output
+    assert "Invalid value for '--seconds'" in result.output
+    assert "less than or equal to" in result.output
