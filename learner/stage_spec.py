@@ -124,7 +124,7 @@ class StageEvaluation(StrictSpec):
     scene: Ref | None = None
     """catalogue name or scene YAML path (relative to the job file) with the stage's
     observations and muscles: the plain catalogue scene an imitation or curriculum scene
-    stands in for (e.g. ``run-2d-clock`` for ``imitate-run-2d-start``), as it is (the
+    stands in for (e.g. ``run-2d+clock`` for ``imitate-run-2d+standing-starts``), as it is (the
     stage's fidelity, control-rate and action overrides are not applied); None: the stage's
     own scene as trained"""
     episodes: Annotated[int, Field(ge=1, le=10_000)] = 50

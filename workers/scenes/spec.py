@@ -183,7 +183,11 @@ class FaultInjection(_Strict):
 class Scene(_Strict):
     """A scene: a body, what of it to keep, the world around it and the task."""
 
-    name: str = Field(pattern=r"^[a-z0-9][a-z0-9-]*$", max_length=MAX_NAME_LENGTH)
+    name: str = Field(
+        pattern=r"^[a-z0-9][a-z0-9-]*(\+[a-z0-9][a-z0-9-]*)*$",
+        max_length=MAX_NAME_LENGTH,
+        description="a catalogue name, base+option+... for a composed scene",
+    )
     description: str = Field(default="", max_length=MAX_TEXT_LENGTH)
     body: str = Field(
         max_length=MAX_NAME_LENGTH,
