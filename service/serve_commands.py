@@ -84,12 +84,13 @@ def serve(
         )
     import uvicorn
     from gaitforge.service.api import create_app
+    from gaitforge.service.private_files import make_private_dir
 
     service_logger = logging.getLogger("gaitforge.service")
     if service_logger.getEffectiveLevel() > logging.INFO:  # job starts, ends, re-attaches
         service_logger.setLevel(logging.INFO)
 
-    settings.home.mkdir(parents=True, exist_ok=True)
+    make_private_dir(settings.home)
     try:
         app = create_app(settings)
     except ValueError as exc:

@@ -16,6 +16,7 @@ from typing import Annotated
 from fastapi import Request, Security
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from gaitforge.service.api.problems import ProblemError
+from gaitforge.service.private_files import make_private_dir
 from gaitforge.service.settings import LOCAL_OWNER, ServiceSettings
 
 logger = logging.getLogger(__name__)
@@ -47,7 +48,7 @@ def local_token(settings: ServiceSettings) -> str:
         token = path.read_text().strip()
         if token:
             return token
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_private_dir(path.parent)
     token = secrets.token_urlsafe(32)
     tmp = path.with_name(f".{path.name}.{os.getpid()}")
     fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)

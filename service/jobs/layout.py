@@ -20,41 +20,18 @@ owner's only (0700), as is the service's home (:func:`make_private_dir`).
 
 from __future__ import annotations
 
-import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
+
+from gaitforge.service.private_files import make_private_dir
 
 ArtifactKind = Literal["checkpoints", "recordings", "reports"]
 ARTIFACT_KINDS: tuple[str, ...] = ("checkpoints", "recordings", "reports")
 CHECKPOINT_PREFIX = "ckpt-"
 """as ``learner.checkpoint.PREFIX`` (not imported: that imports torch)"""
 _JOB_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
-PRIVATE_DIR_MODE = 0o700
-PRIVATE_FILE_MODE = 0o600
-
-
-def make_private_dir(path: Path) -> Path:
-    """Make folder ``path`` and the missing folders above it, each its owner's only (0700);
-    folders that exist are left as they are. Returns ``path``."""
-    missing = []
-    folder = path
-    while not folder.exists():
-        missing.append(folder)
-        if folder.parent == folder:
-            break
-        folder = folder.parent
-    for folder in reversed(missing):
-        folder.mkdir(mode=PRIVATE_DIR_MODE, exist_ok=True)  # the umask can only take away
-    return path
-
-
-def write_private_file(path: Path, text: str) -> None:
-    """Write ``text`` to ``path``, a file its owner's only (0600) if it is made now."""
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, PRIVATE_FILE_MODE)
-    with os.fdopen(fd, "w") as file:
-        file.write(text)
 
 
 @dataclass(frozen=True)

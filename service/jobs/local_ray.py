@@ -35,7 +35,6 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from gaitforge.service.jobs.layout import make_private_dir, write_private_file
 from gaitforge.service.jobs.procs import (
     alive,
     descendants,
@@ -45,6 +44,7 @@ from gaitforge.service.jobs.procs import (
     pids_with_env,
     signal_group,
 )
+from gaitforge.service.private_files import make_private_dir, write_private_file
 from pydantic import BaseModel
 
 if TYPE_CHECKING:

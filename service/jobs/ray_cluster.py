@@ -81,6 +81,9 @@ class RayConnection:
     """this call started a new local head"""
     local: bool
     """a head on this machine managed by the service (entrypoints use ``sys.executable``)"""
+    num_cpus: int | None = None
+    """the CPUs jobs may use, where the cluster cannot grow (a local head's); None: a
+    cluster given by address (it may autoscale)"""
 
 
 def connect_ray(settings: ServiceSettings) -> RayConnection:
@@ -96,7 +99,14 @@ def connect_ray(settings: ServiceSettings) -> RayConnection:
     head, started = local_head(home)
     token = read_token(home)
     client = jobs_client(head.dashboard_url, token)
-    return RayConnection(head.address, head.dashboard_url, client, started=started, local=True)
+    return RayConnection(
+        head.address,
+        head.dashboard_url,
+        client,
+        started=started,
+        local=True,
+        num_cpus=head.num_cpus,
+    )
 
 
 def connect_cluster(address: str) -> RayConnection:

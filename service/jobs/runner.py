@@ -156,12 +156,13 @@ class JobRunner:
         it for ``owner``.
 
         Raises:
-            SpecError: the spec does not validate (naming the field).
+            SpecError: the spec does not validate (naming the field), or asks for more rollout
+                actors than a local head has CPUs.
             LimitError: ``owner`` has ``max_jobs_per_owner`` queued and running jobs.
         """
         from gaitforge.service.jobs.spec import prepare_submission, write_job_files
 
-        job = prepare_submission(spec)
+        job = prepare_submission(spec, max_num_workers=self.connection.num_cpus)
         with self._lock:
             self._check_limit(owner)
             record = self.store.create(owner, job["name"], job)

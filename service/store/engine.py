@@ -14,11 +14,10 @@ made 0700.
 
 from __future__ import annotations
 
-import contextlib
-import os
 from pathlib import Path
 from typing import Any
 
+from gaitforge.service.private_files import create_private_file
 from sqlalchemy import Engine, create_engine, event
 from sqlalchemy.engine import Connection, make_url
 
@@ -26,8 +25,6 @@ BUSY_TIMEOUT_MS = 30_000
 """how long a SQLite connection waits for another's lock, ms"""
 IMMEDIATE = {"sqlite_begin": "IMMEDIATE"}
 """execution options of a writing transaction (a no-op on other databases)"""
-PRIVATE_DIR_MODE = 0o700
-PRIVATE_FILE_MODE = 0o600
 
 
 def make_engine(url: str) -> Engine:
@@ -44,24 +41,10 @@ def make_engine(url: str) -> Engine:
         return create_engine(parsed, pool_pre_ping=True)
     database = parsed.database
     if database and database != ":memory:" and not database.startswith("file:"):
-        create_private_database(Path(database))
+        create_private_file(Path(database))
     engine = create_engine(parsed, connect_args={"check_same_thread": False})
     _sqlite_events(engine, memory=not database or database == ":memory:")
     return engine
-
-
-def create_private_database(path: Path) -> None:
-    """Make the SQLite file ``path`` (empty, 0600) and its missing folders (0700) unless it
-    exists; an existing file and folders are left as they are."""
-    missing = []
-    folder = path.parent
-    while not folder.exists() and folder.parent != folder:
-        missing.append(folder)
-        folder = folder.parent
-    for folder in reversed(missing):
-        folder.mkdir(mode=PRIVATE_DIR_MODE, exist_ok=True)  # the umask can only take away
-    with contextlib.suppress(FileExistsError):
-        os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, PRIVATE_FILE_MODE))
 
 
 def _sqlite_events(engine: Engine, memory: bool) -> None:

@@ -121,9 +121,10 @@ def test_the_shipped_speed_runner_names_its_making() -> None:
 
 def test_the_shipped_speed_runner_runs_slower_when_asked() -> None:
     """Episodes 0-4 of run-2d+clock+one-leg+speed-range+obstacles swept at 3.0 and 2.1 m/s:
-    asked for 2.1 it runs slower (2.60 and 1.91 m/s over episodes 0-299), by at least 0.3 m/s over the
-    episodes that stand, and no more than two of five fall at either speed (21 and 0 of 300:
-    which single episodes fall differs between machines, so the bound leaves room)."""
+    asked for 2.1 it runs slower (2.60 and 1.91 m/s over episodes 0-299), by at least
+    0.3 m/s over the episodes that stand, and no more than two of five fall at either speed
+    (21 and 0 of 300: which single episodes fall differs between machines, so the bound
+    leaves room)."""
     report = evaluate_checkpoint(
         SPEED_RUNNER,
         scene="run-2d+clock+one-leg+speed-range+obstacles",

@@ -7,6 +7,7 @@ from __future__ import annotations
 import stat
 from pathlib import Path
 
+from gaitforge.service.api.auth import local_token
 from gaitforge.service.jobs.ray_cluster import STATE_FILE, RayConnection
 from gaitforge.service.jobs.runner import JobRunner
 from gaitforge.service.settings import ServiceSettings
@@ -41,3 +42,11 @@ def test_a_fresh_home_its_database_and_a_jobs_folder_are_the_owners_only(
         store.close()
     for name in (STATE_FILE, "ray.lock", "ray-token"):  # the local head's, in its home
         assert _mode(ray_home / name) == "0o600", name
+
+
+def test_the_generated_token_and_the_home_it_makes_are_the_owners_only(tmp_path: Path) -> None:
+    home = tmp_path / "fresh" / "home"  # as `gaitforge serve` on a new home, without tokens
+    token = local_token(ServiceSettings(home=home))
+    assert token and (home / "token").read_text().strip() == token
+    assert [_mode(p) for p in (tmp_path / "fresh", home)] == ["0o700", "0o700"]
+    assert _mode(home / "token") == "0o600"

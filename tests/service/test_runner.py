@@ -25,6 +25,7 @@ from gaitforge.service.jobs.ray_cluster import (
     stop_local_ray,
 )
 from gaitforge.service.jobs.runner import JobRunner, JobStateError, LimitError, submission_id
+from gaitforge.service.jobs.spec import SubmissionError
 from gaitforge.service.settings import ServiceSettings
 from gaitforge.service.store import JobRecord, JobStore
 
@@ -247,3 +248,18 @@ def test_a_cluster_address_connects_to_its_jobs_api_with_the_token_from_the_envi
     assert runner.entrypoint(runner.layout("j-0")).startswith("python -m gaitforge.service.")
     monkeypatch.setenv("GAITFORGE_JOB_PYTHON", "/opt/venv/bin/python")
     assert runner.entrypoint(runner.layout("j-0")).startswith("/opt/venv/bin/python -m ")
+
+
+def test_a_job_asking_for_more_actors_than_the_local_head_has_cpus_is_refused(
+    service_settings, store, ray_connection, tiny_job
+) -> None:
+    """Such actors would wait for CPUs for ever: the submission names the field and the
+    head's CPUs, and nothing is queued."""
+    runner = _runner(service_settings, store, ray_connection)
+    assert ray_connection.num_cpus is not None
+    spec = tiny_job("greedy")
+    spec["workers"]["num_workers"] = ray_connection.num_cpus + 1
+    with pytest.raises(SubmissionError, match=r"workers\.num_workers") as err:
+        runner.submit("alice", spec)
+    assert str(ray_connection.num_cpus) in str(err.value)
+    assert store.list("alice")[0] == []
