@@ -24,8 +24,9 @@ actor's mean (``warm_start: {excitations: walk}``, :class:`WarmStartSpec`).
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from gaitforge.learner.ppo import PPOSettings
 from gaitforge.learner.stage_spec import (
@@ -39,8 +40,14 @@ from gaitforge.learner.stage_spec import (
     StrictSpec,
     WarmStartSpec,
 )
+from gaitforge.workers.overrides import set_fields
 from gaitforge.workers.scenes import Scene, load_scene
-from gaitforge.workers.spec_io import SpecError, format_validation_error, load_yaml_model
+from gaitforge.workers.spec_io import (
+    SpecError,
+    format_validation_error,
+    read_yaml_mapping,
+    validate_model,
+)
 from gaitforge.workers.spec_types import Name, Ref, Seed
 from pydantic import Field, ValidationError, model_validator
 
@@ -153,14 +160,15 @@ class Job(StrictSpec):
         return self
 
 
-def load_job(path: Path) -> tuple[Job, list[Scene]]:
-    """Read and check a job file; returns the job and each stage's resolved scene (with the
-    stage's fidelity override applied).
+def load_job(path: Path, overrides: dict[str, Any] | None = None) -> tuple[Job, list[Scene]]:
+    """Read and check a job file (:func:`read_job_fields`: its ``extends`` followed, then
+    ``overrides`` set by dotted path); returns the job and each stage's resolved scene (with
+    the stage's scene overrides applied).
 
     Raises:
         SpecError: one line naming the file, the field and what is allowed.
     """
-    job = load_yaml_model(path, Job)
+    job = validate_model(read_job_fields(path, overrides), Job, str(path))
     if job.init_from is not None:
         start = (path.parent / job.init_from).resolve()
         if not (start / "meta.json").is_file():
@@ -171,6 +179,89 @@ def load_job(path: Path) -> tuple[Job, list[Scene]]:
         job = job.model_copy(update={"init_from": str(start)})
     job = with_evaluation_paths(job, path.parent)
     return job, resolve_scenes(job, base=path.parent, source=str(path))
+
+
+def read_job_fields(
+    path: Path, overrides: dict[str, Any] | None = None, seen: tuple[Path, ...] = ()
+) -> dict[str, Any]:
+    """The fields of job file ``path`` before validation, with ``overrides`` (dotted path ->
+    value) set last.
+
+    A recipe that is part of another reuses it by reference: ``extends: other.yaml`` takes
+    that job's fields (its paths made relative to this file), and this file's fields go over
+    them (mappings merged: ``ppo: {lr: 1e-4}`` keeps the other PPO settings); ``stages``
+    given as a list of names picks those stages of the other job, in order (its stages are
+    named by ``name``, else their scene). A picked first stage's ``action_std`` becomes
+    ``init_from_action_std`` (the noise the loaded network starts with).
+
+    Raises:
+        SpecError: the file or the one it extends does not read, a cycle of ``extends``, an
+            unknown stage name, a bad override path.
+    """
+    raw = read_yaml_mapping(path)
+    if "extends" in raw:
+        base_ref = raw.pop("extends")
+        if not isinstance(base_ref, str) or not base_ref.endswith((".yaml", ".yml")):
+            raise SpecError(f"{path}: extends: a job file's path (.yaml), relative to this file")
+        base_path = (path.parent / base_ref).resolve()
+        if base_path in (*seen, path.resolve()):
+            raise SpecError(f"{path}: extends: {base_ref!r} makes a cycle")
+        base_fields = read_job_fields(base_path, seen=(*seen, path.resolve()))
+        base = _relative_to(base_fields, base_path.parent, path.parent)
+        picked = raw.pop("stages", None)
+        if isinstance(picked, list) and picked and all(isinstance(n, str) for n in picked):
+            base["stages"] = _pick_stages(base.get("stages") or [], picked, path)
+            first_std = base["stages"][0].pop("action_std", None)
+            if first_std is not None:
+                base["init_from_action_std"] = first_std
+        elif picked is not None:
+            base["stages"] = picked
+        raw = set_fields(base, raw, where=str(path))
+    if overrides:
+        raw = set_fields(raw, overrides, where=f"{path}: --set")
+    return raw
+
+
+def _pick_stages(stages: list[Any], names: list[str], path: Path) -> list[Any]:
+    """Copies of the stages called ``names`` (``name``, else the scene), in that order."""
+    by_name = {
+        stage.get("name") or stage.get("scene"): stage
+        for stage in stages
+        if isinstance(stage, dict)
+    }
+    missing = [name for name in names if name not in by_name]
+    if missing:
+        raise SpecError(f"{path}: stages: {missing} not in the job it extends: {list(by_name)}")
+    return [dict(by_name[name]) for name in names]
+
+
+def _relative_to(raw: dict[str, Any], source_dir: Path, target_dir: Path) -> dict[str, Any]:
+    """A job's fields read in ``source_dir`` with their relative paths (``init_from``, scene
+    files, evaluation scene files) rewritten to be read from ``target_dir``."""
+
+    def moved(ref: Any, always: bool) -> Any:
+        if not isinstance(ref, str) or Path(ref).is_absolute():
+            return ref
+        if not always and not ref.endswith((".yaml", ".yml")):
+            return ref  # a catalogue scene
+        return os.path.relpath(source_dir / ref, target_dir)
+
+    out = dict(raw)
+    if "init_from" in out:
+        out["init_from"] = moved(out["init_from"], always=True)
+    stages = []
+    for stage in out.get("stages") or []:
+        if isinstance(stage, dict):
+            stage = dict(stage)
+            stage["scene"] = moved(stage.get("scene"), always=False)
+            if isinstance(stage.get("evaluate"), dict):
+                evaluate = dict(stage["evaluate"])
+                evaluate["scene"] = moved(evaluate.get("scene"), always=False)
+                stage["evaluate"] = evaluate
+        stages.append(stage)
+    if "stages" in out:
+        out["stages"] = stages
+    return out
 
 
 def _scene_ref(ref: str, base: Path) -> str:
@@ -201,10 +292,16 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
     so that actors on any node and the checkpoints get the profile chosen here."""
     scenes = []
     for i, stage in enumerate(job.stages):
+        ref = _scene_ref(stage.scene, base)
         try:
-            scene = load_scene(_scene_ref(stage.scene, base))
+            scene = load_scene(ref)
         except SpecError as exc:
             raise SpecError(f"{source}: stages.{i}.scene: {exc}") from None
+        if stage.scene_set:
+            try:
+                scene = load_scene(ref, stage.scene_set)
+            except SpecError as exc:
+                raise SpecError(f"{source}: stages.{i}.scene_set: {exc}") from None
         backend = job.stage_backend(i)
         if backend not in scene.backends:
             whose = f"stages.{i}.backend" if stage.backend else "the job's backend"
@@ -228,20 +325,23 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
             check_warm_start(scenes[-1], stage.warm_start, f"{source}: stages.{i}.warm_start")
         if stage.evaluate is not None and stage.evaluate.scene is not None:
             where = f"{source}: stages.{i}.evaluate.scene"
-            evaluation_scene(_scene_ref(stage.evaluate.scene, base), backend, where)
+            ref = _scene_ref(stage.evaluate.scene, base)
+            evaluation_scene(ref, backend, where, stage.scene_set)
     return scenes
 
 
-def evaluation_scene(ref: str, backend: str, where: str) -> Scene:
-    """A stage's evaluation scene (``evaluate.scene``), loaded and resolved for ``backend``
-    (that it takes the stage's policy is checked with the stage's names:
-    ``learner.stage_judge.judged_scene``).
+def evaluation_scene(
+    ref: str, backend: str, where: str, scene_set: dict[str, Any] | None = None
+) -> Scene:
+    """A stage's evaluation scene (``evaluate.scene`` with the stage's ``scene_set``), loaded
+    and resolved for ``backend`` (that it takes the stage's policy is checked with the
+    stage's names: ``learner.stage_judge.judged_scene``).
 
     Raises:
         SpecError: ``where`` (file and field): the scene does not load or runs elsewhere.
     """
     try:
-        scene = load_scene(ref)
+        scene = load_scene(ref, scene_set)
     except SpecError as exc:
         raise SpecError(f"{where}: {exc}") from None
     if backend not in scene.backends:

@@ -80,7 +80,7 @@ def judged_scene(stage: Stage, index: int, trained_scene: Scene, trained_io: Sta
     if stage.evaluate.scene is None:
         return trained_scene
     where = f"stages.{index}.evaluate.scene"
-    scene = evaluation_scene(stage.evaluate.scene, backend, where)
+    scene = evaluation_scene(stage.evaluate.scene, backend, where, stage.scene_set)
     judged = StageIO(scene, backend)
     if (judged.obs_names, judged.act_names) != (trained_io.obs_names, trained_io.act_names):
         raise SpecError(

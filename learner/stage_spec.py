@@ -5,7 +5,7 @@ evaluations and the stage's own PPO schedules (``learner.job`` holds the job aro
 from __future__ import annotations
 
 import re
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from gaitforge.learner.ppo import EntropyWeight, LearningRate
 from gaitforge.workers.scenes.action import ActionSpec
@@ -28,6 +28,8 @@ _RULE = re.compile(
 
 MAX_PROMOTION_RULES = 16
 """the most promotion rules one stage may have"""
+MAX_SCENE_SET = 64
+"""the most scene fields one stage may set"""
 
 
 class StrictSpec(BaseModel):
@@ -122,11 +124,11 @@ class StageEvaluation(StrictSpec):
     mean policy does from standing)."""
 
     scene: Ref | None = None
-    """catalogue name or scene YAML path (relative to the job file) with the stage's
-    observations and muscles: the plain catalogue scene an imitation or curriculum scene
-    stands in for (e.g. ``run-2d+clock`` for ``imitate-run-2d+standing-starts``), as it is (the
-    stage's fidelity, control-rate and action overrides are not applied); None: the stage's
-    own scene as trained"""
+    """catalogue scene or scene YAML path (relative to the job file) with the stage's
+    observations and muscles: the plain scene an imitation or curriculum scene stands in for
+    (e.g. ``run-2d+clock`` for ``imitate-run-2d+standing-starts``), with the stage's
+    ``scene_set`` (its fidelity, control-rate and action overrides are not applied); None:
+    the stage's own scene as trained"""
     episodes: Annotated[int, Field(ge=1, le=10_000)] = 50
     """episodes per evaluation (seeds ``EVALUATION_SEED`` + i, the same at every evaluation)"""
     every_env_steps: Annotated[int, Field(ge=1)] = 200_000
@@ -167,7 +169,13 @@ class Stage(StrictSpec):
     """One curriculum stage: a scene, a budget and a rule to leave early."""
 
     scene: Ref
-    """catalogue name or scene YAML path (relative to the job file)"""
+    """a catalogue scene (``base`` or ``base+option+...``) or a scene YAML path (relative to
+    the job file)"""
+    scene_set: dict[Annotated[str, Field(max_length=MAX_NAME_LENGTH)], Any] = Field(
+        default_factory=dict, max_length=MAX_SCENE_SET
+    )
+    """scene fields set by dotted path (``{task.target_speed: 2.5}``), on the stage's scene
+    and on its evaluation scene"""
     name: Name | None = None
     """defaults to the scene's name"""
     backend: Literal["mujoco", "opensim"] | None = None

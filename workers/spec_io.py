@@ -62,8 +62,12 @@ def format_validation_error(source: str, err: ValidationError) -> str:
     return "; ".join(f"{source}: {field}: {msg}" for field, msg in validation_problems(err))
 
 
-def load_yaml_model(path: Path, model: type[ModelT]) -> ModelT:
-    """Read ``path`` as YAML and validate it as ``model``; raise :class:`SpecError` on any fault."""
+def read_yaml_mapping(path: Path) -> dict:
+    """The mapping in YAML file ``path``.
+
+    Raises:
+        SpecError: the file is missing, not YAML, or not a mapping (one line naming it).
+    """
     try:
         raw = yaml.safe_load(path.read_text())
     except FileNotFoundError:
@@ -74,7 +78,12 @@ def load_yaml_model(path: Path, model: type[ModelT]) -> ModelT:
         raise SpecError(f"{path}: not valid YAML: {shorten(str(exc), 200)}") from None
     if not isinstance(raw, dict):
         raise SpecError(f"{path}: <root>: expected a mapping of fields, got {type(raw).__name__}")
-    return validate_model(raw, model, str(path))
+    return raw
+
+
+def load_yaml_model(path: Path, model: type[ModelT]) -> ModelT:
+    """Read ``path`` as YAML and validate it as ``model``; raise :class:`SpecError` on any fault."""
+    return validate_model(read_yaml_mapping(path), model, str(path))
 
 
 def validate_model(raw: dict, model: type[ModelT], source: str) -> ModelT:

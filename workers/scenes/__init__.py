@@ -11,8 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import yaml
 from gaitforge.workers.bodies.topology import topology_for
+from gaitforge.workers.overrides import parse_assignments, set_fields
 from gaitforge.workers.scenes.compose import (
     SceneOption,
     base_names,
@@ -20,12 +20,10 @@ from gaitforge.workers.scenes.compose import (
     compose_file,
     load_option,
     option_names,
-    parse_assignments,
-    set_fields,
 )
 from gaitforge.workers.scenes.prune import PrunePlan, check_names, plan_pruning
 from gaitforge.workers.scenes.spec import Scene
-from gaitforge.workers.spec_io import SpecError, validate_model
+from gaitforge.workers.spec_io import SpecError, read_yaml_mapping, validate_model
 
 __all__ = [
     "PrunePlan",
@@ -62,7 +60,7 @@ def load_scene(name_or_path: str | Path, overrides: dict[str, Any] | None = None
     path = Path(name_or_path)
     if path.suffix in {".yaml", ".yml"}:
         source = str(path)
-        raw = compose_file(_read_file(path), source).raw
+        raw = compose_file(read_yaml_mapping(path), source).raw
         if overrides:
             raw = set_fields(raw, overrides, where=source)
     else:
@@ -76,15 +74,3 @@ def load_scene(name_or_path: str | Path, overrides: dict[str, Any] | None = None
     except ValueError as exc:
         raise SpecError(f"{source}: {exc}") from None
     return scene
-
-
-def _read_file(path: Path) -> dict[str, Any]:
-    try:
-        raw = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise SpecError(f"{path}: file not found") from None
-    except yaml.YAMLError as exc:
-        raise SpecError(f"{path}: not valid YAML: {str(exc).splitlines()[0]}") from None
-    if not isinstance(raw, dict):
-        raise SpecError(f"{path}: <root>: expected a mapping of fields, got {type(raw).__name__}")
-    return raw

@@ -17,15 +17,14 @@ unknown path fails there with the field named.
 
 from __future__ import annotations
 
-import copy
 import re
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import yaml
-from gaitforge.workers.spec_io import SpecError
+from gaitforge.workers.overrides import set_fields
+from gaitforge.workers.spec_io import SpecError, read_yaml_mapping
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 REF_PATTERN = re.compile(r"^[a-z0-9][a-z0-9-]*(\+[a-z0-9][a-z0-9-]*)*$")
@@ -45,7 +44,6 @@ FORMER_NAMES = {
 }
 """catalogue names from before scenes were composed, as checkpoints, their jobs and older job
 files name them: each loads as the composition it was (the same fields, a test checks)"""
-SET_SYNTAX = "PATH=VALUE, e.g. task.target_speed=2.5 (the value is read as YAML)"
 
 
 class SceneOption(BaseModel):
@@ -124,7 +122,7 @@ def load_option(name: str) -> SceneOption:
     if not path.is_file():
         raise SpecError(f"scene option {name!r}: unknown; options: {option_names()}")
     try:
-        return SceneOption.model_validate(_read_mapping(path))
+        return SceneOption.model_validate(read_yaml_mapping(path))
     except ValidationError as err:
         raise SpecError(f"{path}: {err.errors()[0]['msg']}") from None
 
@@ -217,58 +215,12 @@ def apply_options(
     return raw
 
 
-def set_fields(raw: dict[str, Any], fields: dict[str, Any], where: str) -> dict[str, Any]:
-    """A copy of ``raw`` with each dotted path of ``fields`` set to its value (a mapping
-    merged into a mapping already there).
-
-    Raises:
-        SpecError: a path that is empty, has an empty part, or passes through a value that
-            is not a mapping.
-    """
-    out = copy.deepcopy(raw)
-    for path, value in fields.items():
-        parts = str(path).split(".")
-        if not all(parts):
-            raise SpecError(f"{where}: {path!r}: a dotted field path, e.g. task.target_speed")
-        node = out
-        for depth, part in enumerate(parts[:-1]):
-            child = node.get(part)
-            if child is None:
-                child = node[part] = {}
-            if not isinstance(child, dict):
-                above = ".".join(parts[: depth + 1])
-                raise SpecError(f"{where}: {path!r}: {above} is a value, not a group of fields")
-            node = child
-        node[parts[-1]] = _merged(node.get(parts[-1]), copy.deepcopy(value))
-    return out
-
-
-def parse_assignments(assignments: list[str], where: str = "--set") -> dict[str, Any]:
-    """``["task.target_speed=2.5", ...]`` -> {"task.target_speed": 2.5, ...} (values read
-    as YAML: numbers, booleans, null, lists ``[1, 2]`` and mappings ``{a: 1}``).
-
-    Raises:
-        SpecError: an assignment without ``=`` or a path, or a value that is not YAML.
-    """
-    fields: dict[str, Any] = {}
-    for text in assignments:
-        path, sep, value = text.partition("=")
-        path = path.strip()
-        if not sep or not path:
-            raise SpecError(f"{where}: {text!r}: expected {SET_SYNTAX}")
-        try:
-            fields[path] = yaml.safe_load(value) if value.strip() else None
-        except yaml.YAMLError:
-            raise SpecError(f"{where}: {text!r}: the value is not YAML") from None
-    return fields
-
-
 def _compose_base(name: str, seen: tuple[str, ...]) -> Composed:
     """Base ``name``'s fields and lineage (following ``base:`` through other bases)."""
     path = catalogue_dir() / f"{name}.yaml"
     if not path.is_file():
         raise SpecError(f"scene {name!r}: unknown base; bases: {base_names()}")
-    raw = _read_mapping(path)
+    raw = read_yaml_mapping(path)
     if "base" not in raw:
         return Composed(raw, [name])
     if raw["base"] in (*seen, name):
@@ -278,23 +230,3 @@ def _compose_base(name: str, seen: tuple[str, ...]) -> Composed:
     fields = set_fields(fields, raw.get("set") or {}, str(path))
     fields["name"], fields["description"] = raw.get("name", name), raw.get("description", "")
     return Composed(fields, [name, *parent.lineage])
-
-
-def _merged(old: Any, new: Any) -> Any:
-    """``new`` merged into ``old`` where both are mappings; else ``new``."""
-    if isinstance(old, dict) and isinstance(new, dict):
-        out = dict(old)
-        for key, value in new.items():
-            out[key] = _merged(out.get(key), value)
-        return out
-    return new
-
-
-def _read_mapping(path: Path) -> dict[str, Any]:
-    try:
-        raw = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise SpecError(f"{path}: not valid YAML: {str(exc).splitlines()[0]}") from None
-    if not isinstance(raw, dict):
-        raise SpecError(f"{path}: expected a mapping of fields")
-    return raw
