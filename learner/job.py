@@ -192,13 +192,17 @@ def read_job_fields(
     them (mappings merged: ``ppo: {lr: 1e-4}`` keeps the other PPO settings); ``stages``
     given as a list of names picks those stages of the other job, in order (its stages are
     named by ``name``, else their scene). A picked first stage's ``action_std`` becomes
-    ``init_from_action_std`` (the noise the loaded network starts with).
+    ``init_from_action_std`` (the noise the loaded network starts with). ``set: {dotted
+    path: value}`` then sets single fields (``stages.0.action: {kind: joint_targets}``).
 
     Raises:
         SpecError: the file or the one it extends does not read, a cycle of ``extends``, an
             unknown stage name, a bad override path.
     """
     raw = read_yaml_mapping(path)
+    file_set = raw.pop("set", None) or {}
+    if not isinstance(file_set, dict):
+        raise SpecError(f"{path}: set: a mapping of dotted field paths to values")
     if "extends" in raw:
         base_ref = raw.pop("extends")
         if not isinstance(base_ref, str) or not base_ref.endswith((".yaml", ".yml")):
@@ -217,6 +221,7 @@ def read_job_fields(
         elif picked is not None:
             base["stages"] = picked
         raw = set_fields(base, raw, where=str(path))
+    raw = set_fields(raw, file_set, where=f"{path}: set")
     if overrides:
         raw = set_fields(raw, overrides, where=f"{path}: --set")
     return raw

@@ -17,6 +17,7 @@ from typing import Annotated
 
 import typer
 from gaitforge.learner.job import MAX_NUM_WORKERS, Job
+from gaitforge.service.cli_options import JobSeed, SetFields, assignments
 from gaitforge.service.console import err, fail, out
 from gaitforge.service.ops import SpecError, validate_request
 from gaitforge.service.ops import train as ops
@@ -114,6 +115,8 @@ def train(
         float | None,
         typer.Option(min=1e-3, help="stop (with a checkpoint) after this many minutes of training"),
     ] = None,
+    seed: JobSeed = None,
+    set_fields: SetFields = None,
     tensorboard: Annotated[bool, typer.Option(help="write TensorBoard scalars")] = True,
     log_every: Annotated[
         float, typer.Option(min=0.0, help="s between status lines off a terminal (0: each)")
@@ -129,9 +132,16 @@ def train(
         with signals:
             try:
                 request = validate_request(
-                    ops.TrainRequest, job_file=job_file, run_dir=run_dir, workers=workers,
-                    address=address, budget_scale=budget_scale, tensorboard=tensorboard,
-                )  # fmt: skip
+                    ops.TrainRequest,
+                    job_file=job_file,
+                    run_dir=run_dir,
+                    workers=workers,
+                    address=address,
+                    budget_scale=budget_scale,
+                    seed=seed,
+                    overrides=assignments(set_fields),
+                    tensorboard=tensorboard,
+                )
                 training = ops.prepare_training(request)
             except SpecError as exc:
                 raise fail(exc) from None

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from gaitforge.service.cli_options import JobSeed, SetFields, assignments
 from gaitforge.service.client.download import Downloaded, download
 from gaitforge.service.client.follow import follow_events, status_line, tail_logs
 from gaitforge.service.client.http import DEFAULT_SERVER, ClientError, GaitforgeClient
@@ -75,6 +76,8 @@ def submit(
     budget_scale: Annotated[
         float, typer.Option(min=1e-6, max=100.0, help="multiply every stage's env-step budget")
     ] = 1.0,
+    seed: JobSeed = None,
+    set_fields: SetFields = None,
     log_every: LogEvery = 5.0,
     json_out: AsJson = False,
     server: Server = DEFAULT_SERVER,
@@ -82,8 +85,11 @@ def submit(
     token_file: TokenFile = None,
 ) -> None:
     """Submit a job file (scene files in it go inline); --follow exits 1 unless it succeeds."""
+    overrides = assignments(set_fields)
+    if seed is not None:
+        overrides["seed"] = seed
     with connected(server, token, token_file) as client:
-        job = client.submit(read_job_file(job_file, budget_scale))
+        job = client.submit(read_job_file(job_file, budget_scale, overrides))
         if not follow:
             print_json(job) if json_out else out.print(status_line(job), highlight=False)
             return

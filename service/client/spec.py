@@ -7,22 +7,31 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import yaml
 from gaitforge.service.client.http import ClientError
 
 SCENE_SUFFIXES = (".yaml", ".yml")
 
 
-def read_job_file(path: Path, budget_scale: float = 1.0) -> dict[str, Any]:
-    """The job in ``path`` as a JSON-able mapping, scene files inlined and every stage's
-    env-step budget (and blend ramp) multiplied by ``budget_scale`` (as ``gaitforge train
-    --budget-scale`` does).
+def read_job_file(
+    path: Path, budget_scale: float = 1.0, overrides: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """The job in ``path`` as a JSON-able mapping, as ``gaitforge train`` reads it (its
+    ``extends`` followed, ``overrides`` set by dotted path), scene files inlined (composed
+    ones as the scene they make) and every stage's env-step budget (and blend ramp)
+    multiplied by ``budget_scale`` (as ``gaitforge train --budget-scale`` does).
 
     Raises:
-        ClientError: the file or a scene file cannot be read or is not a YAML mapping (one
-            line naming the file and the field).
+        ClientError: the file or a scene file cannot be read or is not a YAML mapping, or an
+            override does not apply (one line naming the file and the field).
     """
-    spec = _read_mapping(path, str(path))
+    from gaitforge.learner.job import read_job_fields
+    from gaitforge.workers.scenes.compose import compose_file
+    from gaitforge.workers.spec_io import SpecError, read_yaml_mapping
+
+    try:
+        spec = read_job_fields(path, overrides)
+    except SpecError as exc:
+        raise ClientError(str(exc)) from None
     stages = spec.get("stages")
     if isinstance(stages, list):
         for i, stage in enumerate(stages):
@@ -30,7 +39,12 @@ def read_job_file(path: Path, budget_scale: float = 1.0) -> dict[str, Any]:
                 continue
             scene = stage.get("scene")
             if isinstance(scene, str) and scene.endswith(SCENE_SUFFIXES):
-                stage["scene"] = _read_mapping(path.parent / scene, f"{path}: stages.{i}.scene")
+                where = f"{path}: stages.{i}.scene"
+                try:
+                    raw = read_yaml_mapping(path.parent / scene)
+                    stage["scene"] = compose_file(raw, where).raw
+                except SpecError as exc:
+                    raise ClientError(f"{where}: {exc}") from None
             if budget_scale != 1.0:
                 scale_stage(stage, budget_scale)
     return spec
@@ -51,18 +65,3 @@ def scale_stage(stage: dict[str, Any], scale: float) -> None:
         ramp = blend.get("ramp_env_steps", BlendSpec().ramp_env_steps)
         if isinstance(ramp, int | float) and not isinstance(ramp, bool):
             blend["ramp_env_steps"] = max(1, round(ramp * scale))
-
-
-def _read_mapping(path: Path, where: str) -> dict[str, Any]:
-    """A YAML file that must hold a mapping."""
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise ClientError(f"{where}: cannot read {path}: {exc.strerror}") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" (line {mark.line + 1})" if mark is not None else ""
-        raise ClientError(f"{where}: {path} is not valid YAML{at}") from None
-    if not isinstance(data, dict):
-        raise ClientError(f"{where}: {path} must hold a mapping, not {type(data).__name__}")
-    return data

@@ -14,7 +14,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from gaitforge.learner.job import Job, load_job, resolve_scenes, with_evaluation_paths
+from gaitforge.workers.overrides import set_fields
 from gaitforge.workers.spec_io import validate_model
+from gaitforge.workers.spec_types import Seed
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 if TYPE_CHECKING:
@@ -47,6 +49,12 @@ class TrainRequest(BaseModel):
     address: str | None = Field(default=None, description="Ray cluster address to join")
     budget_scale: float = Field(
         default=1.0, gt=0, le=100, description="multiplies every stage's env-step budget"
+    )
+    seed: Seed | None = Field(default=None, description="the job's seed, in place of its own")
+    overrides: dict[str, Any] = Field(
+        default_factory=dict,
+        description="job fields set by dotted path (``ppo.lr``, ``stages.1.env_steps``), "
+        "before the job is checked",
     )
     tensorboard: bool = Field(default=True, description="write TensorBoard scalars")
 
@@ -107,12 +115,16 @@ def load_request(request: TrainRequest) -> tuple[Job, list[Scene]]:
     Raises:
         SpecError: a bad job file or spec, one line naming the file and the field.
     """
+    overrides = dict(request.overrides)
+    if request.seed is not None:
+        overrides["seed"] = request.seed
     if request.job_file is not None:
         source = str(request.job_file)
-        job, scenes = load_job(request.job_file)
+        job, scenes = load_job(request.job_file, overrides)
     else:
         source = "job"
-        job = validate_model(request.job or {}, Job, source)
+        raw = set_fields(request.job or {}, overrides, where="overrides")
+        job = validate_model(raw, Job, source)
         job = with_evaluation_paths(job, request.base_dir)
         scenes = resolve_scenes(job, base=request.base_dir, source=source)
     job = apply_overrides(job, request.workers, request.address, request.budget_scale, source)

@@ -67,3 +67,32 @@ def test_a_bad_job_is_one_line(tmp_path: Path, job: str, message: str) -> None:
                            env={"COLUMNS": "300"})  # fmt: skip
     assert result.exit_code == 2
     assert message in result.output and len(result.output.strip().splitlines()) == 1
+
+
+def test_seed_and_set_override_the_job_file(tmp_path: Path) -> None:
+    """``--seed`` and ``--set`` (dotted paths, values as YAML) change the job that runs, as
+    its checkpoint records it; the stage's ``scene_set`` reaches the scene it trains on."""
+    overrides = ["--set", "ppo.epochs=2", "-o", "stages.0.scene_set={episode_s: 1.5}"]
+    args = _train_args(tmp_path, "--max-iterations", "1", "--seed", "7", *overrides)
+    result = runner.invoke(app, args, env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    meta = _newest_meta(tmp_path)
+    assert meta.job["seed"] == 7 and meta.job["ppo"]["epochs"] == 2
+    assert meta.scene["episode_s"] == 1.5
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--set", "ppo.epochs"], "--set"),
+        (["--set", "ppo.epoch=2"], "ppo.epoch: Extra inputs are not permitted"),
+        (["--set", "stages.3.env_steps=1"], "stages.3: an index into a list of 1"),
+        (["--seed", "-1"], "--seed"),
+    ],
+)
+def test_a_bad_override_is_one_line_naming_it(
+    tmp_path: Path, extra: list[str], message: str
+) -> None:
+    result = runner.invoke(app, _train_args(tmp_path, *extra), env={"COLUMNS": "300"})
+    assert result.exit_code == 2, result.output
+    assert message in result.output and "Traceback" not in result.output

@@ -1,0 +1,78 @@
+"""Recipes without copies: a job file extends another (``extends``), picks its stages by
+name, merges fields over it and sets single fields (``set``); the shipped recipes are parts
+of the curriculum, field for field."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+from gaitforge.learner.job import load_job, read_job_fields
+from gaitforge.workers.spec_io import SpecError
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+def test_the_recipes_are_stages_of_the_curriculum() -> None:
+    curriculum, _ = load_job(EXAMPLES / "learn-to-run.yaml")
+    for recipe, names in [
+        ("learn-to-walk", ["imitate-walk", "walk"]),
+        ("learn-to-run-2d", ["imitate-run", "run"]),
+        ("obstacles-2d", ["obstacles"]),
+    ]:
+        job, _ = load_job(EXAMPLES / f"{recipe}.yaml")
+        by_name = {stage.name: i for i, stage in enumerate(curriculum.stages)}
+        assert [stage.name for stage in job.stages] == names
+        for i, name in enumerate(names):
+            whole = curriculum.stages[by_name[name]]
+            assert job.stage_ppo(i) == curriculum.stage_ppo(by_name[name]), (recipe, name)
+            assert job.stages[i].model_copy(update={"action_std": whole.action_std}) == whole
+        first_std = curriculum.stages[by_name[names[0]]].action_std
+        assert job.init_from_action_std == first_std  # the picked first stage's noise
+        assert job.network == curriculum.network and job.workers == curriculum.workers
+
+
+def test_set_changes_one_field_of_the_job_it_extends() -> None:
+    plain, _ = load_job(EXAMPLES / "imitate-walk-2d.yaml")
+    targets, scenes = load_job(EXAMPLES / "imitate-walk-2d-targets.yaml")
+    assert targets.name == "imitate-walk-2d-targets"
+    assert targets.stages[0].action is not None and scenes[0].action.kind == "joint_targets"
+    assert targets.stages[0].model_copy(update={"action": None}) == plain.stages[0]
+
+
+def write(path: Path, fields: dict) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump(fields))
+    return path
+
+
+def test_an_extended_jobs_paths_stay_its_own(tmp_path: Path) -> None:
+    """A scene file named by the job extended is found from that job's folder."""
+    scene = {"base": "walk-2d", "options": ["clock"], "set": {"task.target_speed": 1.0}}
+    write(tmp_path / "recipes" / "scenes" / "slow.yaml", scene)
+    stage = {"name": "slow", "scene": "scenes/slow.yaml", "env_steps": 1000}
+    write(tmp_path / "recipes" / "base.yaml", {"name": "base", "stages": [stage]})
+    mine = write(tmp_path / "mine" / "job.yaml", {"extends": "../recipes/base.yaml", "name": "m"})
+    job, scenes = load_job(mine, {"ppo.lr": 1.0e-4})
+    assert scenes[0].task.target_speed == 1.0 and job.ppo.lr == 1.0e-4
+    assert read_job_fields(mine)["stages"][0]["scene"] == "../recipes/scenes/slow.yaml"
+
+
+@pytest.mark.parametrize(
+    ("fields", "message"),
+    [
+        ({"extends": "job.yaml"}, "extends: 'job.yaml' makes a cycle"),
+        ({"extends": "other.yaml", "stages": ["run"]}, "stages: ['run'] not in the job it extends"),
+        ({"extends": "learn-to-run"}, "extends: a job file's path (.yaml)"),
+        ({"extends": "other.yaml", "set": ["ppo.lr"]}, "set: a mapping of dotted field paths"),
+        ({"extends": "other.yaml", "set": {"stages.4.env_steps": 1}}, "an index into a list of 1"),
+    ],
+)
+def test_a_wrong_recipe_is_one_line_naming_the_field(
+    tmp_path: Path, fields: dict, message: str
+) -> None:
+    write(tmp_path / "other.yaml", {"name": "o", "stages": [{"scene": "walk-2d", "env_steps": 1}]})
+    with pytest.raises(SpecError) as err:
+        load_job(write(tmp_path / "job.yaml", {"name": "j", **fields}))
+    assert message in str(err.value) and "\n" not in str(err.value)
