@@ -6,6 +6,7 @@ from __future__ import annotations
 from enum import StrEnum
 
 import typer
+from gaitforge.service.cli_options import SetFields, assignments
 from gaitforge.service.console import err, fail, out, print_json, table
 from gaitforge.service.ops import SpecError
 from gaitforge.service.ops import scenes as ops
@@ -30,36 +31,48 @@ JSON_OPTION = typer.Option(False, "--json", help="Print JSON (for programs) inst
 
 @scenes_app.command("list")
 def list_scenes(json: bool = JSON_OPTION) -> None:
-    """The shipped scenes."""
-    scenes = ops.list_scenes()
+    """The base scenes and the options that compose onto them (base+option+...)."""
+    scenes, options = ops.list_scenes(), ops.list_options()
     if json:
-        print_json(scenes)
+        print_json({"scenes": scenes, "options": options})
         return
     wide = out.width >= WIDE
     headers = ["scene", "body", "backends", "task", "control Hz", "episode s"]
-    listing = table(*headers, *(["description"] if wide else []))
+    listing = table(*headers, *(["description"] if wide else []), title="Base scenes")
     for s in scenes:
         speed = f" {s.target_speed_m_s} m/s" if s.target_speed_m_s else ""
-        row = [s.name, s.body, ", ".join(s.backends), s.task + speed, f"{s.control_hz:g}",
-               f"{s.episode_s:g}"]  # fmt: skip
+        row = [
+            s.name, s.body, ", ".join(s.backends), s.task + speed, f"{s.control_hz:g}",
+            f"{s.episode_s:g}",
+        ]  # fmt: skip
         listing.add_row(*row, *([s.description] if wide else []))
     out.print(listing)
     if not wide:
         for s in scenes:
             out.print(f"[bold]{s.name}[/bold]: {s.description}", highlight=False)
+    title = "Options (compose as base+option+..., e.g. run-2d+clock+one-leg)"
+    composing = table("option", "for", "after", *(["description"] if wide else []), title=title)
+    for o in options:
+        row = [o.name, ", ".join(o.bases) or "any", ", ".join(o.requires) or "-"]
+        composing.add_row(*row, *([o.description] if wide else []))
+    out.print(composing)
+    if not wide:
+        for o in options:
+            out.print(f"[bold]{o.name}[/bold]: {o.description}", highlight=False)
 
 
 @scenes_app.command("show")
 def show(
-    name: str = typer.Argument(help="Catalogue name or path to a scene YAML."),
+    name: str = typer.Argument(help="Catalogue scene (base+option+...) or a scene YAML."),
     backend: BackendChoice = BACKEND_OPTION,
+    set_fields: SetFields = None,
     json: bool = JSON_OPTION,
 ) -> None:
     """Compile a scene and print what it kept, what it dropped and what that saved."""
     from gaitforge.service.report_view import render_report
 
     try:
-        report = ops.show_scene(name, backend.value)
+        report = ops.show_scene(name, backend.value, assignments(set_fields))
     except SpecError as exc:
         raise fail(exc) from None
     if json:
@@ -70,20 +83,23 @@ def show(
 
 @scenes_app.command("check")
 def check(
-    name: str = typer.Argument(None, help="Catalogue name or scene YAML; omit with --all."),
+    name: str = typer.Argument(
+        None, help="Catalogue scene (base+option+...) or scene YAML; omit with --all."
+    ),
     seconds: float = typer.Option(
         5.0, min=0.1, max=MAX_CHECK_S, help="Wall-clock seconds per scene."
     ),
     backend: BackendChoice = BACKEND_OPTION,
     all_scenes: bool = typer.Option(False, "--all", help="Every catalogue scene on --backend."),
     seed: int = typer.Option(0, min=0, max=SEED_LIMIT - 1, help="Seed of the random excitations."),
+    set_fields: SetFields = None,
     json: bool = JSON_OPTION,
 ) -> None:
     """Step with random excitations: env steps/s, real-time factor and health counts."""
     if all_scenes == (name is not None):
         raise fail("give a scene NAME or --all, not both or neither")
     try:
-        scenes = ops.scenes_to_check(name, backend.value, all_scenes)
+        scenes = ops.scenes_to_check(name, backend.value, all_scenes, assignments(set_fields))
     except SpecError as exc:
         raise fail(exc) from None
     results = []

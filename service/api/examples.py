@@ -23,7 +23,7 @@ def schema_examples(schemas: dict[str, Any]) -> dict[str, Any]:
         "Scene": load_scene("stand-2d").model_dump(mode="json"),
         "WarmStartSpec": {"excitations": "walk", "env_steps": 8192, "rounds": 2},
         "StagePPO": {"lr": 1e-4, "lr_end": 5e-5},
-        "StageEvaluation": {"scene": "run-2d-clock", "episodes": 100, "every_env_steps": 250000},
+        "StageEvaluation": {"scene": "run-2d+clock", "episodes": 100, "every_env_steps": 250000},
         "FaultInjection": {"abort_prob": 0.0, "hang_prob": 0.0, "nan_prob": 0.001},
         "Action": status["actions"][0],
         "Artifact": artifacts["items"][0],
@@ -34,8 +34,9 @@ def schema_examples(schemas: dict[str, Any]) -> dict[str, Any]:
         ("JobStatus", status),
         ("Scene", load_scene("imitate-walk-2d").model_dump(mode="json")),
         ("Scene", load_scene("obstacles-2d").model_dump(mode="json")),
-        ("Scene", load_scene("run-2d-clock").model_dump(mode="json")),  # a lead-in
+        ("Scene", load_scene("run-2d+clock").model_dump(mode="json")),  # a lead-in
         ("SceneSummary", routes_scenes.summaries()[0].model_dump(mode="json")),
+        ("OptionSummary", routes_scenes.option_summaries()[0].model_dump(mode="json")),
         ("SceneReport", routes_scenes.report("stand-2d", None).model_dump(mode="json")),
     ]
     for name, value in seeds:

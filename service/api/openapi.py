@@ -10,7 +10,9 @@ from fastapi.openapi.utils import get_openapi
 from gaitforge.learner.job import Job
 from gaitforge.service.api.examples import schema_examples
 from gaitforge.service.api.problems import PROBLEM_JSON, Problem, problem_responses
+from gaitforge.service.jobs.spec import MAX_REF_CHARS
 from gaitforge.workers.scenes import Scene, catalogue
+from gaitforge.workers.scenes.compose import REF_PATTERN
 from pydantic import BaseModel
 
 _REF = "#/components/schemas/{model}"
@@ -39,11 +41,17 @@ def build_openapi(app: FastAPI) -> dict[str, Any]:
     stage = schemas["Stage"]["properties"]
     stage["scene"] = {
         "anyOf": [
-            {"type": "string", "enum": catalogue(), "description": "a catalogue scene's name"},
+            {
+                "type": "string",
+                "pattern": REF_PATTERN.pattern,
+                "maxLength": MAX_REF_CHARS,
+                "description": f"a catalogue scene: a base ({', '.join(catalogue())}) or "
+                "base+option+... (GET /v1/scenes/options)",
+            },
             {"$ref": "#/components/schemas/Scene"},
         ],
-        "description": "a catalogue scene's name, or an inline scene (the scene file's "
-        "fields); never a path",
+        "description": "a catalogue scene (base or base+option+...), or an inline scene (the "
+        "scene file's fields); never a path",
     }
     rule = {
         "anyOf": [

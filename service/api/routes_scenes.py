@@ -1,7 +1,9 @@
-"""``/v1/scenes``: the scene catalogue and a scene's compile report
-(:mod:`gaitforge.service.ops.scenes`). Only catalogue names are looked up, never paths. A
-catalogue scene asked for on a backend it does not run on (``elbow-reach`` on OpenSim) is a
-409 naming the backends it runs on: the query is valid, the scene cannot be built there."""
+"""``/v1/scenes``: the scene catalogue (base scenes and the options that compose onto them)
+and a scene's compile report (:mod:`gaitforge.service.ops.scenes`). Only catalogue
+references (``base`` or ``base+option+...``) are looked up, never paths; ``set`` query
+parameters set fields by dotted path as ``--set`` does. A scene asked for on a backend it
+does not run on (``elbow-reach`` on OpenSim) is a 409 naming the backends it runs on: the
+query is valid, the scene cannot be built there."""
 
 from __future__ import annotations
 
@@ -11,8 +13,18 @@ from typing import Annotated, Literal
 from fastapi import APIRouter, Depends, Path, Query
 from gaitforge.service.api.auth import require_owner
 from gaitforge.service.api.problems import PROBLEM_JSON, ProblemError, problem_responses
+from gaitforge.service.jobs.spec import MAX_REF_CHARS
 from gaitforge.service.ops import InputError, SpecError
 from gaitforge.service.ops import scenes as ops
+from gaitforge.workers.overrides import parse_assignments
+from gaitforge.workers.scenes import load_scene
+from gaitforge.workers.scenes.compose import is_reference
+from pydantic import StringConstraints
+
+MAX_SETS = 32
+"""the most ``set`` query parameters of one request"""
+MAX_SET_CHARS = 300
+"""the longest ``set`` query parameter"""
 
 router = APIRouter(
     prefix="/v1/scenes",
@@ -28,16 +40,30 @@ def summaries() -> tuple[ops.SceneSummary, ...]:
     return tuple(ops.list_scenes())
 
 
+@lru_cache(maxsize=1)
+def option_summaries() -> tuple[ops.OptionSummary, ...]:
+    """The catalogue's options (listed once per process)."""
+    return tuple(ops.list_options())
+
+
 @lru_cache(maxsize=64)
-def report(name: str, backend: str | None) -> ops.SceneReport:
-    """Scene ``name``'s compile report for ``backend`` (compiled once per process)."""
-    return ops.show_scene(name, backend)
+def report(name: str, backend: str | None, assignments: tuple[str, ...] = ()) -> ops.SceneReport:
+    """Scene ``name``'s compile report for ``backend`` with ``assignments`` (``PATH=VALUE``;
+    compiled once per process)."""
+    return ops.show_scene(name, backend, parse_assignments(list(assignments), where="set"))
 
 
-@router.get("", response_model=list[ops.SceneSummary], summary="The scene catalogue")
+@router.get("", response_model=list[ops.SceneSummary], summary="The base scenes")
 def list_scenes() -> list[ops.SceneSummary]:
-    """Every shipped scene: body, backends, task, control rate, episode length."""
+    """Every shipped base scene: body, backends, task, control rate, episode length."""
     return list(summaries())
+
+
+@router.get("/options", response_model=list[ops.OptionSummary], summary="The scene options")
+def list_options() -> list[ops.OptionSummary]:
+    """Every shipped option: the bases it composes onto (``base+option+...``), the options
+    it must follow, and what it changes."""
+    return list(option_summaries())
 
 
 BACKEND_NOT_SUPPORTED = "urn:gaitforge:problem:backend-not-supported"
@@ -72,23 +98,41 @@ def not_on_backend(name: str, backends: list[str], backend: str) -> ProblemError
     responses={**problem_responses(404, 422), 409: _NOT_ON_BACKEND},
 )
 def show_scene(
-    name: Annotated[str, Path(max_length=100, description="a catalogue scene's name")],
+    name: Annotated[
+        str,
+        Path(
+            max_length=MAX_REF_CHARS,
+            description="a catalogue scene: a base, or base+option+... (e.g. run-2d+clock)",
+        ),
+    ],
     backend: Annotated[
         Literal["mujoco", "opensim"] | None,
         Query(description="simulator to compile for (default: the scene's first)"),
+    ] = None,
+    set_fields: Annotated[
+        list[Annotated[str, StringConstraints(max_length=MAX_SET_CHARS)]] | None,
+        Query(
+            alias="set",
+            max_length=MAX_SETS,
+            description="a field set by dotted path, PATH=VALUE with the value as YAML "
+            "(e.g. task.target_speed=2.5); repeat for more",
+        ),
     ] = None,
 ) -> ops.SceneReport:
     """Compile the scene and report what it kept, what it dropped and what that saved; a
     backend the scene does not run on is a 409 naming those it runs on (the catalogue lists
     each scene's backends)."""
-    listed = {s.name: s for s in summaries()}
-    if name not in listed:
+    if not is_reference(name):
         raise ProblemError(404, f"no scene {name!r} in the catalogue")
-    if backend is not None and backend not in listed[name].backends:
-        raise not_on_backend(name, listed[name].backends, backend)
     try:
-        return report(name, backend)
+        scene = load_scene(name)
+    except SpecError as exc:
+        raise ProblemError(404, str(exc)) from None
+    if backend is not None and backend not in scene.backends:
+        raise not_on_backend(name, list(scene.backends), backend)
+    try:
+        return report(name, backend, tuple(set_fields or ()))
     except InputError as exc:  # (checked above; the scene itself says so too)
         raise ProblemError(409, str(exc), type=BACKEND_NOT_SUPPORTED) from None
     except SpecError as exc:
-        raise ProblemError(404, str(exc)) from None
+        raise ProblemError(422, str(exc)) from None

@@ -26,7 +26,9 @@ from typing import Any
 import yaml
 from gaitforge.learner.job import MAX_STAGES, Job, load_job
 from gaitforge.service.jobs.layout import JobLayout
-from gaitforge.workers.scenes import Scene
+from gaitforge.workers.overrides import set_fields
+from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.scenes.compose import is_reference
 from gaitforge.workers.spec_io import (
     MAX_MESSAGE_CHARS,
     MAX_PROBLEMS,
@@ -39,6 +41,8 @@ from pydantic import ValidationError
 MAX_TEXT_BYTES = 1_000_000
 """the largest job text accepted, bytes"""
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,127}")
+MAX_REF_CHARS = 300
+"""the longest catalogue reference (a base and its options)"""
 _INLINE_FILE = re.compile(r"scenes/[a-z0-9-]+\.yaml: (?:(?P<field>[\w.<>]+): )?(?P<problem>.*)")
 _PLACEHOLDER = "stand-2d"
 """stands in for an inline scene while the rest of the job is validated"""
@@ -120,6 +124,14 @@ def _inline_scene(raw: dict, field: str, errors: list[tuple[str, str]]) -> Scene
     except ValidationError as err:
         errors.extend((f"{field}.{f}", m) for f, m in validation_problems(err, limit=None))
         return None
+    bad = _scene_problems(scene, field)
+    errors.extend(bad)
+    return None if bad else scene
+
+
+def _scene_problems(scene: Scene, field: str) -> list[tuple[str, str]]:
+    """Why ``scene`` (inline, or a catalogue scene with a stage's ``scene_set``) is not data
+    only: a body or motion named by a path, or fault injection."""
     names = [("body", scene.body, "a shipped body name")]
     imitate = getattr(scene.task, "imitate", None)
     if imitate is not None:
@@ -127,8 +139,38 @@ def _inline_scene(raw: dict, field: str, errors: list[tuple[str, str]]) -> Scene
     bad = [(f"{field}.{f}", p) for f, v, what in names if (p := _name_problem(v, what))]
     if scene.fault is not None:
         bad.append((f"{field}.fault", "not accepted: fault injection is for tests, not jobs"))
-    errors.extend(bad)
-    return None if bad else scene
+    return bad
+
+
+def _check_scene_set(stage: dict, index: int, errors: list[tuple[str, str]]) -> None:
+    """A catalogue scene with the stage's ``scene_set``: the fields it sets may not bring in
+    paths or fault injection (an inline scene's are checked with the scene)."""
+    scene_set, ref = stage.get("scene_set"), stage.get("scene")
+    if not isinstance(scene_set, dict) or not scene_set:
+        return
+    field = f"stages.{index}.scene_set"
+    try:
+        if isinstance(ref, dict):
+            scene = Scene.model_validate(set_fields(ref, scene_set, where=field))
+        elif isinstance(ref, str) and _ref_problem(ref, "") is None:
+            scene = load_scene(ref, scene_set)
+        else:
+            return  # the scene's own error is reported
+    except ValidationError as err:
+        errors.extend((f"{field}: {f}", m) for f, m in validation_problems(err, limit=None))
+        return
+    except (SpecError, RecursionError) as exc:
+        errors.append((field, shorten(str(exc), 300)))
+        return
+    errors.extend(_scene_problems(scene, field))
+
+
+def _ref_problem(value: str, what: str) -> str | None:
+    """Why ``value`` is not a catalogue reference (``base`` or ``base+option+...``; None:
+    it is one)."""
+    if is_reference(value) and len(value) <= MAX_REF_CHARS:
+        return None
+    return f"{shorten(repr(value))}: {what}; file paths are not accepted"
 
 
 def _check_data_only(raw: dict, errors: list[tuple[str, str]]) -> dict[int, Scene]:
@@ -150,6 +192,7 @@ def _check_data_only(raw: dict, errors: list[tuple[str, str]]) -> dict[int, Scen
     for i, stage in enumerate(stages):
         if not isinstance(stage, dict):
             continue  # the job's validation names it
+        _check_scene_set(stage, i, errors)
         scene = stage.get("scene")
         if isinstance(scene, dict):
             found = _inline_scene(scene, f"stages.{i}.scene", errors)
@@ -157,13 +200,13 @@ def _check_data_only(raw: dict, errors: list[tuple[str, str]]) -> dict[int, Scen
                 inline[i] = found
             stage["scene"] = found.name if found is not None else _PLACEHOLDER
         elif isinstance(scene, str):
-            what = "a catalogue scene name or an inline scene (a mapping)"
-            if problem := _name_problem(scene, what):
+            what = "a catalogue scene (base or base+option+...) or an inline scene (a mapping)"
+            if problem := _ref_problem(scene, what):
                 errors.append((f"stages.{i}.scene", problem))
         judged = stage.get("evaluate")
         judged_scene = judged.get("scene") if isinstance(judged, dict) else None
         if isinstance(judged_scene, str) and (
-            problem := _name_problem(judged_scene, "a catalogue scene name")
+            problem := _ref_problem(judged_scene, "a catalogue scene (base or base+option+...)")
         ):
             errors.append((f"stages.{i}.evaluate.scene", problem))
         warm = stage.get("warm_start")

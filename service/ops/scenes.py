@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from gaitforge.service.ops.errors import InputError
-from gaitforge.workers.scenes import Scene, catalogue, load_scene
+from gaitforge.workers.scenes import Scene, catalogue, load_option, load_scene, option_names
+from gaitforge.workers.scenes.compose import compose
 from gaitforge.workers.scenes.profiles import FidelityProfile
 from pydantic import BaseModel, Field
 
@@ -96,23 +97,52 @@ def check_backend(backend: str) -> Backend:
     return backend  # type: ignore[return-value]
 
 
-def load_for(name: str, backend: str | None = None) -> tuple[Scene, Backend]:
-    """The scene ``name`` (catalogue name or YAML path) and the backend to run it on
-    (default: its first).
+def load_for(
+    name: str, backend: str | None = None, overrides: dict[str, Any] | None = None
+) -> tuple[Scene, Backend]:
+    """The scene ``name`` (catalogue ``base+option+...`` or YAML path) with ``overrides``
+    (dotted path -> value) and the backend to run it on (default: its first).
 
     Raises:
-        SpecError: an unknown scene or a bad scene file (naming the file and field).
+        SpecError: an unknown scene, a bad scene file or override (naming the field).
         InputError: a backend the scene does not run on.
     """
-    scene = load_scene(name)
+    scene = load_scene(name, overrides)
     chosen = check_backend(backend or scene.backends[0])
     if chosen not in scene.backends:
         raise InputError("backend", f"scene {scene.name!r} runs on {scene.backends}")
     return scene.resolved(), chosen  # resolved here, where it is loaded (Scene.resolved)
 
 
+class OptionSummary(BaseModel):
+    """One catalogue option, as listed."""
+
+    name: str
+    bases: list[str] = Field(description="the base scenes it composes onto (empty: any)")
+    requires: list[str] = Field(description="options that must come before it")
+    description: str
+
+
+def list_options() -> list[OptionSummary]:
+    """Every shipped scene option, by name."""
+    lineages = {base: compose(base).lineage for base in catalogue()}
+    out = []
+    for name in option_names():
+        option = load_option(name)
+        takes = [b for b, lineage in lineages.items() if set(lineage) & set(option.bases)]
+        out.append(
+            OptionSummary(
+                name=option.name,
+                bases=takes,
+                requires=option.requires,
+                description=" ".join(option.description.split()),
+            )
+        )
+    return out
+
+
 def list_scenes() -> list[SceneSummary]:
-    """Every shipped scene, by name."""
+    """Every shipped base scene, by name."""
     out = []
     for name in catalogue():
         s = load_scene(name)
@@ -124,17 +154,25 @@ def list_scenes() -> list[SceneSummary]:
     return out
 
 
-def show_scene(name: str, backend: str | None = None) -> SceneReport:
-    """Compile scene ``name`` for ``backend`` (default: its first) and report what it kept,
-    what it dropped and what that saved (see :func:`load_for` for the errors)."""
+def show_scene(
+    name: str, backend: str | None = None, overrides: dict[str, Any] | None = None
+) -> SceneReport:
+    """Compile scene ``name`` (with ``overrides``) for ``backend`` (default: its first) and
+    report what it kept, what it dropped and what that saved (see :func:`load_for`)."""
     from gaitforge.workers.sim import make_simulator  # lazy: imports MuJoCo
 
-    scene, chosen = load_for(name, backend)
+    scene, chosen = load_for(name, backend, overrides)
     return SceneReport.of(make_simulator(scene, chosen).report)
 
 
-def scenes_to_check(name: str | None, backend: str, all_scenes: bool = False) -> list[Scene]:
-    """Scene ``name``, or with ``all_scenes`` every catalogue scene that runs on ``backend``.
+def scenes_to_check(
+    name: str | None,
+    backend: str,
+    all_scenes: bool = False,
+    overrides: dict[str, Any] | None = None,
+) -> list[Scene]:
+    """Scene ``name`` (with ``overrides``), or with ``all_scenes`` every catalogue base scene
+    that runs on ``backend``.
 
     Raises:
         InputError: both or neither of ``name`` and ``all_scenes``; no scene on ``backend``.
@@ -144,7 +182,7 @@ def scenes_to_check(name: str | None, backend: str, all_scenes: bool = False) ->
         raise InputError("name", "give a scene name or all scenes, not both or neither")
     chosen = check_backend(backend)
     if name is not None:
-        return [load_for(name, chosen)[0]]
+        return [load_for(name, chosen, overrides)[0]]
     scenes = [s.resolved() for s in map(load_scene, catalogue()) if chosen in s.backends]
     if not scenes:
         raise InputError("backend", f"no catalogue scene runs on {chosen!r} yet")

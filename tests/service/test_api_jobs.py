@@ -190,6 +190,19 @@ def test_scenes(api: Api) -> None:
     _problem(api.client.get("/v1/scenes/stand-2d?backend=bogus", headers=auth()), 422)
 
 
+def test_composed_scenes_and_their_options(api: Api) -> None:
+    """A scene is a base and options, with fields set as --set sets them."""
+    options = api.client.get("/v1/scenes/options", headers=auth()).json()
+    assert {"clock", "one-leg", "obstacles"} <= {o["name"] for o in options}
+    url = "/v1/scenes/run-2d+clock+obstacles"
+    report = api.client.get(url, params={"set": "obstacles.count=3"}, headers=auth()).json()
+    assert report["scene"] == "run-2d+clock+obstacles" and report["obstacles"] == 3
+    _problem(api.client.get("/v1/scenes/run-2d+wings", headers=auth()), 404)
+    _problem(api.client.get("/v1/scenes/stand-2d+clock", headers=auth()), 404)
+    bad = _problem(api.client.get(url, params={"set": "obstacles.cuont=3"}, headers=auth()), 422)
+    assert "obstacles.cuont" in bad["detail"]
+
+
 def test_openapi_documents_every_response(api: Api) -> None:
     doc = api.client.get("/openapi.json").json()
     assert api.client.get("/docs").status_code == 200

@@ -2,17 +2,29 @@
 
 from __future__ import annotations
 
+import json
+
 from gaitforge.service.cli import app
 from typer.testing import CliRunner
 
 runner = CliRunner()
 
 
-def test_scenes_list_names_the_catalogue() -> None:
+def test_scenes_list_names_the_bases_and_the_options() -> None:
     result = runner.invoke(app, ["scenes", "list"], env={"COLUMNS": "200"})
     assert result.exit_code == 0, result.output
-    for name in ("elbow-reach", "walk-2d", "walk-3d", "obstacles-2d"):
-        assert name in result.output
+    for name in ("elbow-reach", "walk-2d", "walk-3d", "obstacles-2d", "clock", "one-leg"):
+        assert f"│ {name} " in result.output, name
+
+
+def test_set_overrides_a_scene_field_and_a_wrong_one_is_one_line() -> None:
+    args = ["scenes", "show", "run-2d+clock+obstacles", "--json"]
+    result = runner.invoke(app, [*args, "--set", "obstacles.count=3"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["obstacles"] == 3
+    wrong = runner.invoke(app, [*args, "-o", "obstacles.cuont=3"])
+    assert wrong.exit_code == 2 and "obstacles.cuont: Extra inputs" in wrong.stderr
+    assert len(wrong.stderr.strip().splitlines()) == 1
 
 
 def test_scenes_show_prints_the_compile_report() -> None:

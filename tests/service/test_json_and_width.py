@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from gaitforge.service.cli import app
 from gaitforge.service.ops.train import TrainRequest, prepare_training
-from gaitforge.workers.scenes import catalogue
+from gaitforge.workers.scenes import catalogue, option_names
 from typer.testing import CliRunner
 
 runner = CliRunner()
@@ -23,11 +23,15 @@ POLICIES = Path(__file__).resolve().parents[2] / "examples" / "policies"
 def test_scenes_list_json_is_the_catalogue() -> None:
     result = runner.invoke(app, ["scenes", "list", "--json"], env=NARROW)
     assert result.exit_code == 0, result.output
-    scenes = json.loads(result.stdout)
+    listing = json.loads(result.stdout)
+    scenes, options = listing["scenes"], listing["options"]
     assert [s["name"] for s in scenes] == catalogue()
+    assert [o["name"] for o in options] == option_names()
     walk = next(s for s in scenes if s["name"] == "walk-2d")
     assert walk["backends"] == ["mujoco", "opensim"] and walk["target_speed_m_s"] == 1.25
     assert walk["description"] and walk["control_hz"] == 100
+    clock = next(o for o in options if o["name"] == "clock")
+    assert clock["bases"] == ["obstacles-2d", "run-2d", "walk-2d"] and clock["description"]
 
 
 def test_scenes_list_at_80_columns_cuts_nothing() -> None:
@@ -35,7 +39,7 @@ def test_scenes_list_at_80_columns_cuts_nothing() -> None:
     assert result.exit_code == 0, result.output
     assert "…" not in result.output
     assert max(map(len, result.output.splitlines())) <= 80
-    for name in catalogue():
+    for name in catalogue() + option_names():
         assert f"│ {name} " in result.output, name  # whole, in the table
         assert f"{name}: " in result.output, name  # and its description below it
 
@@ -142,7 +146,7 @@ def piped(*args: str) -> str:
 def test_off_a_terminal_a_table_row_is_one_line() -> None:
     """No row wraps into a second line (where a word or a number would be split)."""
     rows = [line for line in piped("scenes", "list").splitlines() if line.startswith("│")]
-    assert [row.split("│")[1].strip() for row in rows] == catalogue()
+    assert [row.split("│")[1].strip() for row in rows] == catalogue() + option_names()
     report = piped("evaluate", str(POLICIES / "walk-2d"), "--episodes", "1")
     rows = [line for line in report.splitlines() if line.startswith("│")]
     assert len(rows) == 1 and rows[0].startswith("│ deterministic ")

@@ -113,3 +113,40 @@ def test_any_problem_lists_a_bounded_number_of_short_field_errors() -> None:
         field="body", message=f"{1000 - MAX_FIELD_ERRORS} more problems not listed"
     )
     assert all(len(e.field) < 300 and len(e.message) < 3000 for e in kept)
+
+
+def test_a_composed_scene_and_its_scene_set_are_accepted_as_data() -> None:
+    stages = [{"scene": "run-2d+clock", "scene_set": {"task.target_speed": 2.5}, "env_steps": 10}]
+    job = prepare_submission({"name": "composed", "stages": stages})
+    assert job["stages"][0]["scene"] == "run-2d+clock"
+    assert job["stages"][0]["scene_set"] == {"task.target_speed": 2.5}
+
+
+@pytest.mark.parametrize(
+    ("scene_set", "field", "problem"),
+    [
+        (
+            {"fault": {"abort_prob": 1.0}},
+            "stages.0.scene_set.fault",
+            "fault injection is for tests",
+        ),
+        ({"body": "../../etc/model"}, "stages.0.scene_set", "body '../../etc/model': unknown"),
+        ({"task.targt_speed": 1}, "stages.0.scene_set", "task.targt_speed: Extra inputs"),
+    ],
+)
+def test_a_scene_set_may_not_bring_in_paths_faults_or_unknown_fields(
+    scene_set: dict, field: str, problem: str
+) -> None:
+    stages = [{"scene": "walk-2d", "scene_set": scene_set, "env_steps": 10}]
+    error = _refused({"name": "sneaky", "stages": stages})
+    assert any(f == field and problem in p for f, p in error.errors), error.errors
+
+
+def test_an_inline_scene_with_a_scene_set_is_checked_as_composed() -> None:
+    task = {"kind": "locomotion", "min_pelvis_height": 0.6}
+    inline = {"name": "mine", "body": "gait2d", "task": task}
+    stages = [{"scene": inline, "scene_set": {"fault": {"nan_prob": 0.5}}, "env_steps": 10}]
+    error = _refused({"name": "sneaky", "stages": stages})
+    assert ("stages.0.scene_set.fault", "not accepted: fault injection is for tests, not jobs") in (
+        error.errors
+    )
