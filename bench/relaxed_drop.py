@@ -65,7 +65,7 @@ def drop(scene: Scene, backend: str, excitation: float, every_s: float, steps: i
 
 def lift(sim, backend: str, lift_m: float) -> None:
     """Raise the body by ``lift_m`` (m; negative lowers it) through the simulator's own
-    vertical root dof (a bench probe; also bench/passive_moments.py's and same_state.py's)."""
+    vertical root dof (a bench probe; also bench/same_state.py's)."""
     if backend == "mujoco":
         sim.data.qpos[sim._lift_adr] += lift_m
         mujoco.mj_forward(sim.model, sim.data)

@@ -34,8 +34,7 @@ from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.base import Pose
 from gaitforge.workers.sim.opensim_muscles import OpenSimMuscles
-from passive_moments import opensim_muscle_moments  # bench/ (this folder is on sys.path)
-from relaxed_drop import lift
+from relaxed_drop import lift  # bench/relaxed_drop.py (this script's folder is on sys.path)
 from rich.console import Console
 from rich.table import Table
 
@@ -44,6 +43,14 @@ STEP_S = 0.005
 ROOT = ("pelvis_tx", "pelvis_ty", "pelvis_tilt")
 Visit = Callable[[Any, float], None]
 """called with OpenSim's simulator and its time from the reset (s) at each time asked for"""
+
+
+def opensim_muscle_moments(sim) -> np.ndarray:
+    """[kept joints]: the muscles' moments (N m) on OpenSim at its present state, tendon
+    forces times ``sim.moment_arms()``."""
+    sim.model.realizeDynamics(sim.osim_state)
+    forces = np.array([mu.getActuation(sim.osim_state) for mu in sim._muscles])
+    return forces @ sim.moment_arms()
 
 
 def main() -> None:

@@ -60,10 +60,10 @@ def test_arm_job_sets_seed_and_overrides_and_loads_from_elsewhere(tmp_path):
     (tmp_path / "policies" / "walk-2d").symlink_to(walker)  # the job's relative init_from
     template = tmp_path / "job.yaml"
     template.write_text(JOB)
-    data = yaml.safe_load((REPO / "workers/scenes/catalogue/walk-2d+clock.yaml").read_text())
     (tmp_path / "short.yaml").write_text(
-        yaml.safe_dump({**data, "name": "walk-2d-clock-2s", "episode_s": 2})
-    )
+        yaml.safe_dump({"name": "walk-2d-clock-2s", "base": "walk-2d", "options": ["clock"],
+                        "set": {"episode_s": 2}})
+    )  # fmt: skip
     job = job_arms.arm_job(template, 3, {"ppo.gamma": 0.99, "stages.0.scene": "short.yaml"})
     assert job["seed"] == 3 and job["ppo"]["gamma"] == 0.99
     assert job["init_from"] == str(walker.resolve())

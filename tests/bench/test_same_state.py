@@ -33,10 +33,9 @@ def test_under_the_walker_mujoco_on_opensims_laws_pushes_and_pulls_as_opensim(
     muscles on OpenSim's laws, given that state: both tables, each body's contact force and
     each joint's muscle moment the same."""
     scene = tmp_path / "laws.yaml"
-    walk = (REPO / "workers/scenes/catalogue/walk-2d+clock.yaml").read_text()
-    scene.write_text(walk.replace("name: walk-2d+clock", "name: laws") + "\n"
-                     "contact_model: hunt-crossley\njoint_limits: opensim\n"
-                     "muscle_curves: opensim\nmuscle_passive: opensim\n")  # fmt: skip
+    scene.write_text("name: laws\nbase: walk-2d\noptions: [clock]\nset:\n"
+                     "  contact_model: hunt-crossley\n  joint_limits: opensim\n"
+                     "  muscle_curves: opensim\n  muscle_passive: opensim\n")  # fmt: skip
     done = run_bench(
         "same_state.py", "--policy", str(REPO / "examples/policies/walk-2d"), "--at-s", "0.2",
         "--mujoco-scene", str(scene), columns=250,
