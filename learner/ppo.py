@@ -1,5 +1,7 @@
-"""The PPO update: clipped surrogate, value loss, entropy bonus, gradient clipping and an
-early stop on KL; a batch is built from rollout fragments with :func:`batch_from_fragments`.
+"""PPO: its settings, the update (clipped surrogate, value loss, entropy bonus, gradient
+clipping and an early stop on KL), a batch built from rollout fragments with
+:func:`batch_from_fragments`, and :class:`PPO`, the learner that runs these steps on one
+policy and its optimizer.
 """
 
 from __future__ import annotations
@@ -9,7 +11,8 @@ from typing import Annotated
 import numpy as np
 import torch
 from gaitforge.learner.gae import compute_gae
-from gaitforge.learner.policy import GaussianPolicy
+from gaitforge.learner.policy import ActorCritic
+from gaitforge.learner.symmetry import MirrorMap, add_mirrored
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.spec_types import SPEC_VALUES
 from pydantic import BaseModel, ConfigDict, Field
@@ -77,12 +80,14 @@ class PPOSettings(BaseModel):
         progress = min(1.0, max(0.0, progress))
         lr_end = self.lr if self.lr_end is None else self.lr_end
         ent_end = self.entropy_coef if self.entropy_coef_end is None else self.entropy_coef_end
-        return self.model_copy(update={
-            "lr": self.lr + (lr_end - self.lr) * progress,
-            "entropy_coef": self.entropy_coef + (ent_end - self.entropy_coef) * progress,
-            "lr_end": None,
-            "entropy_coef_end": None,
-        })  # fmt: skip
+        return self.model_copy(
+            update={
+                "lr": self.lr + (lr_end - self.lr) * progress,
+                "entropy_coef": self.entropy_coef + (ent_end - self.entropy_coef) * progress,
+                "lr_end": None,
+                "entropy_coef_end": None,
+            }
+        )
 
     def minibatches(self, samples: int) -> int:
         """How many minibatches a batch of ``samples`` samples is cut into."""
@@ -108,9 +113,15 @@ def batch_from_fragments(fragments: list[Fragment], cfg: PPOSettings) -> dict[st
             {k: torch.from_numpy(np.asarray(getattr(f, k), dtype=np.float64)) for k in FROM_ENV}
         )
         adv, ret = compute_gae(
-            f.reward, f.value, f.terminated, f.truncated, f.bootstrap_value, f.last_value,
-            cfg.gamma, cfg.lam,
-        )  # fmt: skip
+            f.reward,
+            f.value,
+            f.terminated,
+            f.truncated,
+            f.bootstrap_value,
+            f.last_value,
+            cfg.gamma,
+            cfg.lam,
+        )
         advantages.append(adv.reshape(-1))
         returns.append(ret.reshape(-1))
         for key in parts:
@@ -141,7 +152,7 @@ def clipped_surrogate_loss(
     return -(weight * torch.min(ratio * adv, ratio.clamp(1 - clip, 1 + clip) * adv)).mean()
 
 
-def _clip_groups(policy: GaussianPolicy) -> list[list[torch.nn.Parameter]]:
+def _clip_groups(policy: ActorCritic) -> list[list[torch.nn.Parameter]]:
     """Actor and critic parameters, clipped apart: the value loss (returns of order 100)
     would otherwise own the joint gradient norm and clipping would starve the actor."""
     named = [(n, p) for n, p in policy.named_parameters() if p.requires_grad]
@@ -150,7 +161,7 @@ def _clip_groups(policy: GaussianPolicy) -> list[list[torch.nn.Parameter]]:
     return [group for group in (actor, critic) if group]
 
 
-def optimizer_groups(policy: GaussianPolicy, critic_apart: bool) -> list[dict]:
+def optimizer_groups(policy: ActorCritic, critic_apart: bool) -> list[dict]:
     """The policy's trainable parameters as Adam parameter groups: one group, or with
     ``critic_apart`` the actor's and the critic's (named ``"actor"`` and ``"critic"``) for a
     critic learning rate of its own (:func:`set_learning_rates`)."""
@@ -169,7 +180,7 @@ def set_learning_rates(optimizer: torch.optim.Optimizer, cfg: PPOSettings) -> No
 
 
 def ppo_update(
-    policy: GaussianPolicy,
+    policy: ActorCritic,
     optimizer: torch.optim.Optimizer,
     batch: dict[str, torch.Tensor],
     cfg: PPOSettings,
@@ -215,7 +226,7 @@ def ppo_update(
 
 
 def _proximal(
-    policy: GaussianPolicy, batch: dict[str, torch.Tensor], decoupled: bool
+    policy: ActorCritic, batch: dict[str, torch.Tensor], decoupled: bool
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """The log-probabilities [N] the update's ratios are taken against and each sample's
     weight [N]: the behaviour policy's (``batch["logp"]``) with weights 1 for plain PPO; for
@@ -227,3 +238,48 @@ def _proximal(
     with torch.no_grad():
         proximal = policy.evaluate(batch["obs"], batch["action"])[0].to(behaviour.dtype)
     return proximal, (proximal - behaviour).exp().clamp(max=MAX_BEHAVIOUR_WEIGHT)
+
+
+class PPO:
+    """The learner's side of PPO on one policy, in the steps of rsl_rl's ``PPO``:
+    :meth:`compute_returns` turns a batch of rollout fragments into GAE advantages and
+    returns, :meth:`update` runs the clipped epochs on them and then merges the batch's
+    observations into the normaliser. Acting (rsl_rl's ``act`` and ``process_env_step``) is
+    the rollout workers' part, with the weights the trainer publishes.
+
+    Args:
+        policy: the network trained; a new network gets a new ``PPO`` (a fresh optimizer).
+        critic_apart: give the critic an Adam parameter group of its own (where any stage
+            sets ``critic_lr``: the same groups all run long, so a checkpoint resumes).
+        lr: Adam's initial learning rate (each update sets the groups' rates from its
+            settings).
+    """
+
+    def __init__(self, policy: ActorCritic, critic_apart: bool, lr: float) -> None:
+        self.policy = policy
+        """the network; a finished blend collapses to its pi_new here (the optimizer holds
+        pi_new's parameters only, so it goes on)"""
+        self.optimizer = torch.optim.Adam(optimizer_groups(policy, critic_apart), lr=lr)
+
+    def compute_returns(
+        self, fragments: list[Fragment], cfg: PPOSettings, mirror: MirrorMap | None
+    ) -> dict[str, torch.Tensor]:
+        """The batch ``[N, ...]`` of ``fragments`` with advantages and returns
+        (:func:`batch_from_fragments`), and with ``mirror`` each sample's mirror image added
+        (``N`` doubles; ``learner.symmetry``)."""
+        batch = batch_from_fragments(fragments, cfg)
+        return batch if mirror is None else add_mirrored(batch, mirror, self.policy)
+
+    def update(
+        self, batch: dict[str, torch.Tensor], fragments: list[Fragment], cfg: PPOSettings
+    ) -> dict[str, float]:
+        """PPO's epochs on ``batch`` with ``cfg`` (the stage's settings at this point of its
+        schedules, learning rates included), then the observations of ``fragments`` (the
+        batch's, unmirrored) merged into the normaliser: after the update, since the batch's
+        log-probabilities were taken with the old statistics. Returns the last losses and
+        KL (:func:`ppo_update`)."""
+        set_learning_rates(self.optimizer, cfg)
+        losses = ppo_update(self.policy, self.optimizer, batch, cfg)
+        obs = np.concatenate([f.flat_obs() for f in fragments])
+        self.policy.norm.update(torch.from_numpy(obs))
+        return losses

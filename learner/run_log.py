@@ -1,23 +1,20 @@
-"""What a training run reports: batch statistics, TensorBoard scalars and MCAP recordings
-of the current policy (the trainer's outputs besides checkpoints)."""
+"""What a training run reports: batch statistics, each iteration's metrics and TensorBoard
+scalars (the trainer's outputs besides checkpoints and recordings)."""
 
 from __future__ import annotations
 
-import logging
 from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-from gaitforge.learner.policy import ActorCritic
-from gaitforge.workers.episode import EpisodeRunner
+from gaitforge.learner.policy import BlendedPolicy
+from gaitforge.learner.ppo import PPOSettings
+from gaitforge.learner.run_state import RunState
 from gaitforge.workers.fragment import Fragment
-from gaitforge.workers.scenes import Scene
 
 if TYPE_CHECKING:
     from torch.utils.tensorboard import SummaryWriter
-
-logger = logging.getLogger(__name__)
 
 
 def batch_stats(fragments: list[Fragment], version: int) -> dict:
@@ -38,6 +35,40 @@ def batch_stats(fragments: list[Fragment], version: int) -> dict:
         "health": dict(health),
         "reward_terms": dict(terms),
         "policy_lag": sum((version - f.policy_version) * f.steps for f in fragments) / steps,
+    }
+
+
+def iteration_metrics(
+    run: RunState,
+    cfg: PPOSettings,
+    losses: dict[str, float],
+    stats: dict,
+    sampled_s: float,
+    elapsed_s: float,
+) -> dict:
+    """An iteration's metrics: where ``run`` is (iteration, env steps, stage and its env
+    steps, names), the blend's ``alpha`` (None for one network), throughput (env steps per
+    second of the whole iteration, ``elapsed_s``, and of sampling, ``sampled_s``), the stage's
+    recent episodes (``CurriculumState.summary``), the learning rate and entropy weight of
+    ``cfg``, PPO's ``losses`` and the batch's ``stats`` (:func:`batch_stats`, taken before
+    the update, whose new weights would count every fragment one version further behind)."""
+    steps = stats.pop("batch_steps")
+    curriculum, policy = run.curriculum, run.policy
+    return {
+        "iteration": run.iteration,
+        "env_steps": run.env_steps,
+        "stage": curriculum.stage,
+        "stage_name": run.stage.name or run.scene.name,
+        "scene": run.scene.name,
+        "stage_env_steps": curriculum.stage_env_steps,
+        "alpha": float(policy.alpha) if isinstance(policy, BlendedPolicy) else None,
+        "steps_per_s": steps / max(elapsed_s, 1e-9),
+        "sample_steps_per_s": steps / max(sampled_s, 1e-9),
+        **curriculum.summary(),
+        "lr": cfg.lr,
+        "entropy_coef": cfg.entropy_coef,
+        **losses,
+        **stats,
     }
 
 
@@ -69,24 +100,3 @@ class ScalarLog:
     def close(self) -> None:
         if self._writer is not None:
             self._writer.close()
-
-
-def record_policy(
-    policy: ActorCritic, scene: Scene, backend: str, checkpoint: Path, path: Path, seed: int
-) -> Path | None:
-    """One deterministic episode of ``policy`` on ``scene`` as MCAP at ``path``, with the
-    checkpoint it shows named in the metadata (the episode loop of ``workers.episode``, the
-    recorder its observer). A failure is logged, never raised: a recording must not stop
-    training."""
-    from gaitforge.learner.evaluate import policy_act
-    from gaitforge.learner.recording import EpisodeRecorder, checkpoint_metadata  # lazy: foxglove
-
-    try:
-        with EpisodeRunner(scene, backend) as runner:
-            recorder = EpisodeRecorder(path, runner.env, checkpoint_metadata(checkpoint))
-            summary = runner.run(policy_act(policy, "deterministic", seed), seed, [recorder])
-    except Exception:
-        logger.exception("recording %s failed; training goes on", path)
-        return None
-    logger.info("recorded %s: %.2f m in %.1f s", path, summary.distance_m, summary.sim_time_s)
-    return path

@@ -1,17 +1,21 @@
-"""Where fragments come from: a Ray ``WorkerPool`` or one in-process ``RolloutWorker``.
+"""Where fragments come from: a Ray ``WorkerPool`` or one in-process ``RolloutWorker``, and
+:class:`Rollouts`, the trainer's side of them.
 
-Both answer the same calls. A *version* is handed out with each weight update; a fragment
-carries the version it was made with, so that the trainer can drop fragments made before a
-scene or network switch (requests already queued finish on the old ones).
+Both samplers answer the same calls. A *version* is handed out with each weight update; a
+fragment carries the version it was made with, so that the trainer can drop fragments made
+before a scene or network switch (requests already queued finish on the old ones).
 """
 
 from __future__ import annotations
 
+import functools
 import threading
+from collections.abc import Callable
 from typing import Protocol
 
 import torch
 from gaitforge.learner.job import WorkersSpec
+from gaitforge.learner.policy import ActorCritic, build_policy
 from gaitforge.workers.fragment import Fragment, StopRequested
 from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
 from gaitforge.workers.scenes import Scene
@@ -86,8 +90,91 @@ def open_sampler(
     if not ray.is_initialized() and workers.ray_address is not None:
         start_ray(workers.ray_address)
     return WorkerPool(
-        scene, policy_factory, num_workers=workers.num_workers,
-        envs_per_worker=workers.envs_per_worker, timeout_s=workers.timeout_s,
+        scene,
+        policy_factory,
+        num_workers=workers.num_workers,
+        envs_per_worker=workers.envs_per_worker,
+        timeout_s=workers.timeout_s,
         max_failures=workers.max_actor_failures,
-        failure_window_s=workers.actor_failure_window_s, **kwargs,
-    )  # fmt: skip
+        failure_window_s=workers.actor_failure_window_s,
+        **kwargs,
+    )
+
+
+def policy_factory(policy: ActorCritic) -> PolicyFactory:
+    """What a worker builds ``policy``'s network with (its weights come apart)."""
+    return functools.partial(build_policy, policy.describe())
+
+
+class Rollouts:
+    """The trainer's side of the rollout workers over one :meth:`Trainer.run`: the job's
+    sampler (:meth:`open`, :meth:`close`), the weights and networks it acts with, and the
+    fragments of the current ones (:meth:`gather`; one made before a scene or network switch
+    is dropped).
+
+    Args:
+        workers: the job's ``workers`` section.
+        stop: set to stop waiting for fragments (``StopRequested`` is raised).
+    """
+
+    def __init__(self, workers: WorkersSpec, stop: threading.Event) -> None:
+        self.workers = workers
+        self.stop = stop
+        self._sampler: Sampler | None = None
+        self._min_version = 0
+        """fragments of older weights are dropped"""
+
+    @property
+    def sampler(self) -> Sampler:
+        if self._sampler is None:
+            raise RuntimeError("rollouts: no sampler open (Rollouts.open first)")
+        return self._sampler
+
+    @property
+    def version(self) -> int:
+        """the newest weights' version"""
+        return self.sampler.version
+
+    def open(self, scene: Scene, backend: str, policy: ActorCritic, seed: int) -> None:
+        """Start the job's workers on ``scene`` with ``backend``, acting with ``policy``; the
+        workers' seeds come from ``seed``."""
+        self._sampler = open_sampler(self.workers, scene, backend, policy_factory(policy), seed)
+        self._min_version = self._sampler.set_weights(policy.state_dict())
+
+    def close(self) -> None:
+        if self._sampler is not None:
+            self._sampler.close()
+            self._sampler = None
+
+    def gather(self, env_steps: int, count: Callable[[Fragment], None]) -> list[Fragment]:
+        """Fragments of the current weights or newer, at least ``env_steps`` env steps of
+        them; each is passed to ``count`` as it comes (every one counts in the run's env
+        steps and the stage's episodes, even if a stop drops the batch).
+
+        Raises:
+            StopRequested: ``stop`` was set while fragments were awaited.
+        """
+        fragments: list[Fragment] = []
+        while sum(f.steps for f in fragments) < env_steps:
+            fragment, version = self.sampler.next_fragment(self.workers.timeout_s, self.stop)
+            if version < self._min_version:
+                continue  # made before a scene or network switch
+            fragments.append(fragment)
+            count(fragment)
+        return fragments
+
+    def publish(self, policy: ActorCritic) -> None:
+        """The workers act with ``policy``'s new weights from their next fragments on (ones
+        already asked for finish on the weights they were asked with)."""
+        self.sampler.set_weights(policy.state_dict())
+
+    def set_policy(self, policy: ActorCritic) -> None:
+        """The workers act with ``policy``, a new network (or one changed in shape): only
+        its fragments are gathered from now on."""
+        self._min_version = self.sampler.set_policy(policy_factory(policy), policy.state_dict())
+
+    def set_scene(self, scene: Scene, backend: str, policy: ActorCritic) -> None:
+        """The workers go on in ``scene`` with ``backend``, acting with ``policy``: only
+        fragments of the new scene are gathered from now on."""
+        self.sampler.set_scene(scene, backend)
+        self._min_version = self.sampler.set_weights(policy.state_dict())
