@@ -7,7 +7,7 @@ import logging
 from pathlib import Path
 
 import pytest
-from gaitforge.learner.evaluate import EvaluationError
+from gaitforge.learner.evaluation.evaluate import EvaluationError
 from gaitforge.learner.job import load_job
 from gaitforge.service.ops import InputError, SpecError, validate_request
 from gaitforge.service.ops import evaluate as evaluate_ops
@@ -56,7 +56,7 @@ def test_bad_arguments_are_one_line_input_errors(call, field: str, words: str) -
 
 
 def test_a_bad_scene_or_job_is_a_spec_error_naming_file_and_field(tmp_path: Path) -> None:
-    with pytest.raises(SpecError, match="unknown; catalogue"):
+    with pytest.raises(SpecError, match=r"unknown base; bases: \[.*walk-2d"):
         scene_ops.show_scene("walk-9d")
     job = tmp_path / "job.yaml"
     job.write_text("name: x\nstages: [{scene: elbow-reach, env_steps: 0}]\n")
