@@ -20,8 +20,8 @@ from typing import Any
 import matplotlib
 import numpy as np
 from gaitforge.learner.checkpoint import load_policy
-from gaitforge.learner.evaluate import resolve_checkpoint
-from gaitforge.learner.evaluate_episodes import make_runner, policy_act
+from gaitforge.learner.evaluation.episodes import make_runner, policy_act
+from gaitforge.learner.evaluation.evaluate import resolve_checkpoint
 from gaitforge.learner.policy import ActorCritic
 from gaitforge.workers.env import GRAVITY
 from gaitforge.workers.episode import Observer

@@ -21,9 +21,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from gaitforge.learner.checkpoint import load_policy
-from gaitforge.learner.evaluate import resolve_checkpoint
-from gaitforge.learner.evaluate_episodes import make_runner, policy_act
-from gaitforge.learner.video import VideoRecorder
+from gaitforge.learner.evaluation.episodes import make_runner, policy_act
+from gaitforge.learner.evaluation.evaluate import resolve_checkpoint
+from gaitforge.learner.evaluation.video import VideoRecorder
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.episode import Observer
 from gaitforge.workers.scenes import load_scene

@@ -50,7 +50,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import ray
-from gaitforge.learner.evaluate import evaluate_checkpoint
+from gaitforge.learner.evaluation.evaluate import evaluate_checkpoint
 from gaitforge.learner.job import Job, PromotionRule, load_job
 from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.ray_start import start_ray

@@ -15,7 +15,7 @@ import time
 
 import torch
 from gaitforge.learner.curriculum import EpisodeStats
-from gaitforge.learner.evaluate import EvaluationReport, evaluate_policy
+from gaitforge.learner.evaluation.evaluate import EvaluationReport, evaluate_policy
 from gaitforge.learner.job import METRICS, Job
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import Scene

@@ -26,8 +26,8 @@ import mujoco
 import numpy as np
 import opensim
 from gaitforge.learner.checkpoint import load_policy
-from gaitforge.learner.evaluate import resolve_checkpoint
-from gaitforge.learner.evaluate_episodes import make_runner, policy_act
+from gaitforge.learner.evaluation.episodes import make_runner, policy_act
+from gaitforge.learner.evaluation.evaluate import resolve_checkpoint
 from gaitforge.workers.env import GRAVITY
 from gaitforge.workers.episode import Observer
 from gaitforge.workers.scenes import Scene, load_scene

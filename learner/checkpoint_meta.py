@@ -121,8 +121,8 @@ class CheckpointMeta(_Model):
     optimizer_param_groups: list[dict[str, Any]] | None = None
     """the optimizer's param groups when ``optimizer.safetensors`` holds its state"""
     provenance: dict[str, Any] | None = None
-    """a shipped policy (``learner.ship``): the command, seed and commit that made it, the
-    checkpoint it was copied from and, if given, its evaluation's headline figures"""
+    """a shipped policy (``learner.evaluation.ship``): the command, seed and commit that made
+    it, the checkpoint it was copied from and, if given, its evaluation's headline figures"""
 
     @property
     def backend(self) -> str:

@@ -1,6 +1,6 @@
 """What the trainer does around its iterations besides PPO, as hooks: the blend ramp, the
 iteration's metrics (history, TensorBoard, the progress callback) and the checkpoints.
-Stage judging and recordings are hooks too (``learner.training_hooks``: they run
+Stage judging and recordings are hooks too (``learner.evaluation.training_hooks``: they run
 evaluations and write MCAP, which the trainer's core leaves to them).
 
 The trainer calls every hook, in its list's order, at each of the points of

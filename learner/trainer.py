@@ -11,10 +11,10 @@ the old statistics) and publishes the new weights. Everything else is a hook
 ``blend.ramp_env_steps`` and then collapses to pi_new, before the weights are published
 (``learner.hooks.BlendRamp``); at the iteration's end a stage with ``evaluate`` is judged on
 deterministic evaluations and may end with its best network
-(``learner.training_hooks.StageJudging``), the metrics are kept and reported
+(``learner.evaluation.training_hooks.StageJudging``), the metrics are kept and reported
 (``learner.hooks.MetricsReport``), a checkpoint is written every ``checkpoint.every_iters``
 iterations and at each stage end (``learner.hooks.Checkpoints``) and a recording where one is
-due (``learner.training_hooks.Recordings``).
+due (``learner.evaluation.training_hooks.Recordings``).
 
 The run's state (``learner.run_state.RunState``) is where the curriculum is: after each
 update the curriculum decides whether the stage is over (its promotion rule passed or its
@@ -35,6 +35,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from gaitforge.learner.evaluation.training_hooks import Recordings, StageJudging
 from gaitforge.learner.hooks import (
     BlendRamp,
     Checkpoints,
@@ -46,7 +47,6 @@ from gaitforge.learner.job import Job, resolve_scenes
 from gaitforge.learner.policy import ActorCritic
 from gaitforge.learner.run_log import batch_stats, iteration_metrics
 from gaitforge.learner.run_state import RunState
-from gaitforge.learner.training_hooks import Recordings, StageJudging
 from gaitforge.learner.transitions import stage_network
 from gaitforge.workers.fragment import Fragment, StopRequested
 from gaitforge.workers.scenes import Scene

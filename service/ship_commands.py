@@ -9,7 +9,7 @@ from typing import Annotated
 
 import typer
 from gaitforge.learner.checkpoint import CheckpointError
-from gaitforge.learner.ship import ship_policy
+from gaitforge.learner.evaluation.ship import ship_policy
 from gaitforge.service.console import fail, out
 
 

@@ -34,6 +34,12 @@ Rules (each failure names the file, the line and the import):
 
    A new module directly in ``workers/`` that imports gaitforge modules must be given a
    rank in ``TOP_LEVEL_RANKS``; a new sub-package in ``PACKAGE_RANKS``.
+4. **Evaluation apart in learner**: ``learner/evaluation/`` (evaluations, recordings,
+   videos, shipping, stage judging) may import the rest of the learner but not the trainer;
+   the rest of the learner imports none of it, but for the trainer, which imports only its
+   hooks (``EVALUATION_ENTRIES``): the training loop reaches evaluations, recordings and
+   videos through hooks alone. The modules that record or render (``EVALUATION_ONLY``) are
+   in the package.
 
 Also checked: every folder with an ``__init__.py`` is a package listed in pyproject's
 ``[tool.setuptools] packages``; every ``package-data`` glob matches files and every data
@@ -66,6 +72,7 @@ PACKAGE_RANKS = {"bodies": 1, "motions": 1.5, "scenes": 2, "sim": 3, "fidelity":
 """Sub-packages of workers and their rank (every module inside has it)."""
 TOP_LEVEL_RANKS = {
     "spec_io": 0,
+    "overrides": 0,
     "policy_api": 0,
     "rewards": 4,
     "imitation": 4,
@@ -78,6 +85,15 @@ TOP_LEVEL_RANKS = {
 }
 """Modules directly in workers/ and their rank; one not listed that imports no gaitforge
 module is base (0)."""
+
+EVALUATION = "gaitforge.learner.evaluation"
+"""The learner's sub-package for running policies outside training."""
+RUNNER = "gaitforge.learner.trainer"
+"""The training loop: evaluation modules may not import it."""
+EVALUATION_ENTRIES = {RUNNER: {f"{EVALUATION}.training_hooks"}}
+"""Learner modules outside the evaluation package that may import it, and what."""
+EVALUATION_ONLY = ("evaluate", "recording", "video", "ship", "stage_judge", "training_hooks")
+"""Modules that must be in the evaluation package."""
 
 
 @dataclass(frozen=True)
@@ -246,6 +262,32 @@ def test_workers_layers() -> None:
     assert not wrong, (
         "imports against the workers layers (rank 0 base < 1 bodies < 1.5 motions < 2 scenes < "
         "3 sim < 4 env < 5 probe/episode/fidelity < 6 rollout/pool):\n" + "\n".join(wrong)
+    )
+
+
+def _in_evaluation(module: str) -> bool:
+    return module == EVALUATION or module.startswith(EVALUATION + ".")
+
+
+def test_evaluation_apart_in_learner() -> None:
+    modules = _modules()
+    placed = [f"{EVALUATION}.{name}" for name in EVALUATION_ONLY]
+    assert all(m in modules for m in placed), (
+        f"missing from learner/evaluation/: {[m for m in placed if m not in modules]}"
+    )
+    wrong = []
+    for e in _edges():
+        if _top(e.source) != "learner" or _top(e.target) != "learner":
+            continue
+        if _in_evaluation(e.source) and e.target == RUNNER:
+            wrong.append(f"{e.where()}: {e.source} imports the trainer {e.target}")
+        entries = EVALUATION_ENTRIES.get(e.source, set())
+        if not _in_evaluation(e.source) and _in_evaluation(e.target) and e.target not in entries:
+            wrong.append(f"{e.where()}: {e.source} imports {e.target}")
+    assert not wrong, (
+        "imports against the evaluation package's place (it may import the learner but the "
+        "trainer; of the learner only the trainer imports it, its training_hooks only):\n"
+        + "\n".join(wrong)
     )
 
 

@@ -44,7 +44,7 @@ from gaitforge.service.jobs.progress import (
 from gaitforge.service.signals import SignalStop
 
 if TYPE_CHECKING:
-    from gaitforge.learner.evaluate_results import EvaluationReport
+    from gaitforge.learner.evaluation.results import EvaluationReport
     from gaitforge.service.ops.train import Training
 
 logger = logging.getLogger("gaitforge.service.jobs.entry")

@@ -278,7 +278,7 @@ def _check_num_workers(job: Job, max_num_workers: int | None) -> list[tuple[str,
 def _check_loads(spec: dict[str, Any], source: str) -> None:
     """Write ``spec`` into a scratch job folder and load it as the trainer will."""
     from gaitforge.learner.curriculum import check_stages  # lazy: heavier imports
-    from gaitforge.learner.stage_judge import judged_scene
+    from gaitforge.learner.evaluation.stage_judge import judged_scene
 
     with tempfile.TemporaryDirectory(prefix="gaitforge-submit-") as tmp:
         layout = JobLayout(Path(tmp), "check")

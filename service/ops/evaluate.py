@@ -13,7 +13,7 @@ from gaitforge.workers.spec_types import Seed
 from pydantic import BaseModel, ConfigDict, Field
 
 if TYPE_CHECKING:
-    from gaitforge.learner.evaluate import EvaluationReport
+    from gaitforge.learner.evaluation.evaluate import EvaluationReport
 
 Mode = Literal["deterministic", "stochastic"]
 ProgressFn = Callable[[str, int, int], None]
@@ -70,7 +70,7 @@ def evaluate(request: EvaluateRequest, progress: ProgressFn | None = None) -> Ev
         EvaluationError: bad path, scene, backend, sizes or options (one line).
         CheckpointError: a damaged checkpoint (naming the file).
     """
-    from gaitforge.learner.evaluate import evaluate_checkpoint  # lazy: imports torch, MuJoCo
+    from gaitforge.learner.evaluation.evaluate import evaluate_checkpoint  # lazy: torch, MuJoCo
 
     return evaluate_checkpoint(
         request.checkpoint, scene=request.scene, backend=request.backend,
@@ -87,7 +87,7 @@ def report_json(report: EvaluationReport) -> dict[str, Any]:
 
 def write_report(report: EvaluationReport, path: Path) -> None:
     """Write :func:`report_json` to ``path`` (indented JSON; its folder is made)."""
-    from gaitforge.learner.evaluate import write_json
+    from gaitforge.learner.evaluation.evaluate import write_json
 
     write_json(report, path)
 
@@ -95,6 +95,6 @@ def write_report(report: EvaluationReport, path: Path) -> None:
 def user_errors() -> tuple[type[Exception], ...]:
     """The exceptions :func:`evaluate` raises for bad input, each with a one-line message."""
     from gaitforge.learner.checkpoint import CheckpointError  # lazy: imports torch
-    from gaitforge.learner.evaluate import EvaluationError
+    from gaitforge.learner.evaluation.evaluate import EvaluationError
 
     return (EvaluationError, CheckpointError, InputError)

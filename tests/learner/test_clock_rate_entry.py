@@ -12,7 +12,7 @@ import pytest
 import torch
 from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint, load_policy
 from gaitforge.learner.curriculum import StageIO
-from gaitforge.learner.evaluate import evaluate_checkpoint
+from gaitforge.learner.evaluation.evaluate import evaluate_checkpoint
 from gaitforge.learner.job import Job
 from gaitforge.learner.policy import GaussianPolicy, widen_actions
 from gaitforge.learner.trainer import Trainer

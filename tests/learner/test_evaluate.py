@@ -15,7 +15,7 @@ import pytest
 import torch
 import yaml
 from gaitforge.learner.checkpoint import CheckpointError, load_policy, save_checkpoint
-from gaitforge.learner.evaluate import (
+from gaitforge.learner.evaluation.evaluate import (
     EvaluationError,
     evaluate_checkpoint,
     evaluate_episode,
@@ -25,8 +25,8 @@ from gaitforge.learner.evaluate import (
     speed_sweep,
     with_target_speed,
 )
+from gaitforge.learner.evaluation.stats import Rate, Stat
 from gaitforge.learner.policy import BlendedPolicy, GaussianPolicy
-from gaitforge.learner.stats import Rate, Stat
 from gaitforge.service.cli import app
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.episode import EpisodeSummary, Observer
@@ -213,7 +213,7 @@ def test_a_scene_that_observes_more_gets_zero_weights_for_it(
     """The shipped runner on the obstacles before it learned them: the 3 obstacle inputs are
     added with zero weights (its actions are those it takes without them)."""
     runner = Path(__file__).parents[2] / "examples" / "policies" / "run-2d"
-    with caplog.at_level(logging.WARNING, logger="gaitforge.learner.evaluate"):
+    with caplog.at_level(logging.WARNING, logger="gaitforge.learner.evaluation.evaluate"):
         report = evaluate_checkpoint(runner, scene="obstacles-2d+clock", episodes=1)
     assert report.scene == "obstacles-2d+clock"
     assert "obstacle_dx" in caplog.text and "zero weights" in caplog.text
@@ -291,7 +291,7 @@ def test_cli_errors_are_one_line(walk: tuple[Path, Scene], tmp_path: Path) -> No
 
 
 def test_the_first_episode_is_recorded(walk: tuple[Path, Scene], tmp_path: Path) -> None:
-    from gaitforge.learner.recording import TOPICS
+    from gaitforge.learner.evaluation.recording import TOPICS
     from mcap.reader import make_reader
 
     run, _ = walk
@@ -312,7 +312,7 @@ def test_the_first_episode_is_recorded(walk: tuple[Path, Scene], tmp_path: Path)
 
 
 def test_the_first_episode_as_a_video(walk: tuple[Path, Scene], tmp_path: Path) -> None:
-    video = pytest.importorskip("gaitforge.learner.video")
+    video = pytest.importorskip("gaitforge.learner.evaluation.video")
     if (why := video.osmesa_available()) is not None:
         pytest.skip(f"no offscreen rendering here: {why}")
     run, _ = walk

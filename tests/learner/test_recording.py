@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import torch
 from gaitforge.learner.checkpoint import save_checkpoint
-from gaitforge.learner.recording import (
+from gaitforge.learner.evaluation.recording import (
     METADATA_NAME,
     SCALAR_TOPICS,
     TOPICS,
@@ -21,7 +21,7 @@ from gaitforge.learner.recording import (
     checkpoint_metadata,
     record_episode,
 )
-from gaitforge.learner.video import MujocoReplay, osmesa_available, record_video
+from gaitforge.learner.evaluation.video import MujocoReplay, osmesa_available, record_video
 from gaitforge.workers.env import MuscleEnv
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from mcap.reader import make_reader
@@ -244,8 +244,8 @@ def test_video_and_mcap_of_an_opensim_episode(tmp_path: Path) -> None:
 
 
 def test_an_imitation_episode_records_its_reference(tmp_path: Path) -> None:
-    from gaitforge.learner.recording import IMITATION_TOPICS
-    from gaitforge.learner.reference_pose import ReferenceBody
+    from gaitforge.learner.evaluation.recording import IMITATION_TOPICS
+    from gaitforge.learner.evaluation.reference_pose import ReferenceBody
 
     env = MuscleEnv("imitate-walk-2d", backend="mujoco")
     summary = record_episode(
@@ -286,7 +286,7 @@ def test_an_imitation_episode_records_its_reference(tmp_path: Path) -> None:
 
 @needs_gl
 def test_an_imitation_video_draws_the_reference(tmp_path: Path) -> None:
-    from gaitforge.learner.video import VideoRecorder
+    from gaitforge.learner.evaluation.video import VideoRecorder
 
     env = MuscleEnv("imitate-walk-2d", backend="mujoco")
     summary = record_video(

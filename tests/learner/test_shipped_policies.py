@@ -15,8 +15,8 @@ import json
 from pathlib import Path
 
 import pytest
-from gaitforge.learner.evaluate import evaluate_checkpoint
-from gaitforge.learner.evaluate_results import ModeResult
+from gaitforge.learner.evaluation.evaluate import evaluate_checkpoint
+from gaitforge.learner.evaluation.results import ModeResult
 from gaitforge.workers.scenes.compose import FORMER_NAMES
 
 POLICIES = Path(__file__).resolve().parents[2] / "examples" / "policies"

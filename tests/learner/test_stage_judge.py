@@ -1,4 +1,4 @@
-"""A stage judged on deterministic evaluations (learner.stage_judge): when they run, what
+"""A stage judged on deterministic evaluations (learner.evaluation.stage_judge): when they run, what
 they report, the best network kept and restored at the stage's end, and bad evaluation
 scenes refused before training."""
 
@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 import torch
 from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint
-from gaitforge.learner.evaluate_episodes import evaluate_policy
+from gaitforge.learner.evaluation.episodes import evaluate_policy
+from gaitforge.learner.evaluation.stage_judge import EVALUATION_SEED, evaluation_metrics, score
 from gaitforge.learner.job import Job, load_job
-from gaitforge.learner.stage_judge import EVALUATION_SEED, evaluation_metrics, score
 from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.scenes import load_scene
 from gaitforge.workers.spec_io import SpecError

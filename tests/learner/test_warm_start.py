@@ -21,7 +21,7 @@ from gaitforge.learner.clone_excitations import (
     mirror_name,
     phases_of,
 )
-from gaitforge.learner.evaluate import make_runner, policy_act
+from gaitforge.learner.evaluation.evaluate import make_runner, policy_act
 from gaitforge.learner.job import Job, load_job
 from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.episode import Observer

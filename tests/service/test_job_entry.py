@@ -71,7 +71,7 @@ def _wait_for(check: Callable[[], T], timeout_s: float, what: str) -> T:
 
 
 def _video_works() -> bool:
-    from gaitforge.learner.video import osmesa_available
+    from gaitforge.learner.evaluation.video import osmesa_available
 
     return osmesa_available() is None
 

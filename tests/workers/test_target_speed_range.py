@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from gaitforge.learner.evaluate_episodes import with_target_speed
+from gaitforge.learner.evaluation.episodes import with_target_speed
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import load_scene, scene_fields
 from gaitforge.workers.scenes.spec import Scene

@@ -14,7 +14,7 @@ seen in profile) with the body's up axis up, at a fixed height; stripes on the f
 at 1, and a skeleton (a sphere per body origin, capsules parent to child) is
 drawn over the model, since pruned scenes keep no visual geoms. In imitation scenes the
 reference pose is drawn too, a translucent green copy of the skeleton overlaid in place and
-moved with the pelvis along the ground (``learner.video_reference``).
+moved with the pelvis along the ground (``learner.evaluation.video_reference``).
 
 OpenSim episodes are rendered by replaying the OpenSim coordinates (by name), activations
 and obstacles on the MuJoCo model of the same scene, which shares the body's coordinate
@@ -32,7 +32,11 @@ from typing import Any
 import imageio_ffmpeg
 import mujoco
 import numpy as np
-from gaitforge.learner.video_reference import ReferenceSkeleton, add_geom, add_model_skeleton
+from gaitforge.learner.evaluation.video_reference import (
+    ReferenceSkeleton,
+    add_geom,
+    add_model_skeleton,
+)
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.episode import Act, ClosingObserver, run_episode
 from gaitforge.workers.sim.mujoco import MujocoSimulator

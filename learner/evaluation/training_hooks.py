@@ -1,16 +1,16 @@
 """The trainer's hooks that run the policy outside training: stage judging on deterministic
-evaluations (``learner.stage_judge``) and MCAP recordings of the checkpoints
-(``learner.recording``)."""
+evaluations (``learner.evaluation.stage_judge``) and MCAP recordings of the checkpoints
+(``learner.evaluation.recording``)."""
 
 from __future__ import annotations
 
 import logging
 from pathlib import Path
 
+from gaitforge.learner.evaluation.stage_judge import StageJudge
 from gaitforge.learner.hooks import Checkpoints, TrainingHook, recording_due
 from gaitforge.learner.policy import ActorCritic
 from gaitforge.learner.run_state import RunState
-from gaitforge.learner.stage_judge import StageJudge
 from gaitforge.workers.episode import EpisodeRunner
 from gaitforge.workers.scenes import Scene
 
@@ -90,8 +90,11 @@ def record_policy(
     checkpoint it shows named in the metadata (the episode loop of ``workers.episode``, the
     recorder its observer). A failure is logged, never raised: a recording must not stop
     training."""
-    from gaitforge.learner.evaluate import policy_act
-    from gaitforge.learner.recording import EpisodeRecorder, checkpoint_metadata  # lazy: foxglove
+    from gaitforge.learner.evaluation.episodes import policy_act
+    from gaitforge.learner.evaluation.recording import (  # lazy: foxglove
+        EpisodeRecorder,
+        checkpoint_metadata,
+    )
 
     try:
         with EpisodeRunner(scene, backend) as runner:

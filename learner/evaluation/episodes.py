@@ -1,6 +1,6 @@
 """Evaluation of a policy on a scene: N episodes through the one episode loop
 (``workers.episode``) with the statistics as an observer, in a deterministic or stochastic
-action mode, and the speed-against-safety sweep (see ``learner.evaluate`` for the whole).
+action mode, and the speed-against-safety sweep (see ``learner.evaluation.evaluate`` for the whole).
 
 Episode ``i`` resets with seed ``seed + i``; stochastic actions are drawn from a generator
 seeded per episode, so every evaluation repeats exactly.
@@ -13,8 +13,8 @@ from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 import torch
-from gaitforge.learner.eval_observers import EpisodeMetrics, EvaluationError
-from gaitforge.learner.evaluate_results import (
+from gaitforge.learner.evaluation.observers import EpisodeMetrics, EvaluationError
+from gaitforge.learner.evaluation.results import (
     MODES,
     EpisodeResult,
     Mode,
@@ -144,20 +144,29 @@ def evaluate_policy(
     result = ModeResult.of(mode, scene, backend, results)
     logger.info(
         "%s: distance %.2f m, speed %.2f m/s, fall rate %.0f %%, return %.1f",
-        label, result.distance_m.mean, result.mean_speed_m_s.mean, 100 * result.fall_rate.value,
+        label,
+        result.distance_m.mean,
+        result.mean_speed_m_s.mean,
+        100 * result.fall_rate.value,
         result.return_.mean,
-    )  # fmt: skip
+    )
     if result.tracking_error_rad is not None and result.kept_gait_rate is not None:
         logger.info(
-            "%s: tracking error %.3f rad, kept the gait in %.0f %% of episodes", label,
-            result.tracking_error_rad.mean, 100 * result.kept_gait_rate.value,
-        )  # fmt: skip
+            "%s: tracking error %.3f rad, kept the gait in %.0f %% of episodes",
+            label,
+            result.tracking_error_rad.mean,
+            100 * result.kept_gait_rate.value,
+        )
     if result.touched_rate is not None:
         logger.info(
             "%s: a foot touched an obstacle in %d of %d episodes; falls %d of them, %d of the "
-            "others", label, result.touched_rate.count, len(results),
-            result.fall_rate_touched.count, result.fall_rate_untouched.count,
-        )  # fmt: skip
+            "others",
+            label,
+            result.touched_rate.count,
+            len(results),
+            result.fall_rate_touched.count,
+            result.fall_rate_untouched.count,
+        )
     return result
 
 
@@ -210,8 +219,14 @@ def speed_sweep(
         target = nominal * (1.0 - r)
         slower = with_target_speed(scene, target)
         result = evaluate_policy(
-            policy, slower, backend, episodes=episodes, mode=mode, seed=seed,
-            progress=progress, label=f"{scene.name} at {target:.2f} m/s (-{100 * r:.0f} %)",
-        )  # fmt: skip
+            policy,
+            slower,
+            backend,
+            episodes=episodes,
+            mode=mode,
+            seed=seed,
+            progress=progress,
+            label=f"{scene.name} at {target:.2f} m/s (-{100 * r:.0f} %)",
+        )
         points.append(SweepPoint(r, target, result))
     return points

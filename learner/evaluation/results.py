@@ -30,7 +30,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from gaitforge.learner.stats import Rate, Stat
+from gaitforge.learner.evaluation.stats import Rate, Stat
 from gaitforge.workers.episode import EpisodeSummary
 from gaitforge.workers.scenes import Scene
 

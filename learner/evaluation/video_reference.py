@@ -1,7 +1,8 @@
-"""Skeletons drawn into a MuJoCo render scene (``learner.video``): the body's own (opaque)
-and, in imitation scenes, the reference pose's, a translucent green copy of the same
+"""Skeletons drawn into a MuJoCo render scene (``learner.evaluation.video``): the body's own
+(opaque) and, in imitation scenes, the reference pose's, a translucent green copy of the same
 skeleton overlaid in place and moved with the body's pelvis along the ground
-(``learner.reference_pose``), so a person sees how closely the body follows the motion."""
+(``learner.evaluation.reference_pose``), so a person sees how closely the body follows the
+motion."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
-from gaitforge.learner.reference_pose import ReferenceBody, imitating
+from gaitforge.learner.evaluation.reference_pose import ReferenceBody, imitating
 
 if TYPE_CHECKING:
     from gaitforge.workers.env import MuscleEnv
@@ -25,9 +26,12 @@ REFERENCE_RGBA = np.array([0.1, 0.9, 0.4, 0.35], dtype=np.float32)
 
 
 def add_geom(
-    scene: mujoco.MjvScene, kind: mujoco.mjtGeom, size: np.ndarray, pos: np.ndarray,
+    scene: mujoco.MjvScene,
+    kind: mujoco.mjtGeom,
+    size: np.ndarray,
+    pos: np.ndarray,
     rgba: np.ndarray,
-) -> mujoco.MjvGeom | None:  # fmt: skip
+) -> mujoco.MjvGeom | None:
     """Append a geom (world frame, unrotated) to ``scene``; None when it is full."""
     if scene.ngeom >= scene.maxgeom:
         return None

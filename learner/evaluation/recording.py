@@ -32,7 +32,7 @@ Imitation scenes (``task.imitate``) add two channels, one message each per step:
                    (protobuf)                  reference pose (``env.reference_state()``) as a
                                                translucent green skeleton on a second copy of
                                                the body's kinematics, moved with the body's
-                                               pelvis along the ground (``learner.reference_pose``)
+                                               pelvis along the ground (``reference_pose``)
 ``/imitation``     gaitforge.Imitation (json)  ``phase`` [0, 1), ``pose_error_rad`` (RMS over the
                                                tracked kept joints), ``kept`` (1/0)
 =================  ==========================  ===================================================
@@ -43,7 +43,7 @@ In Foxglove's 3D panel the reference is a topic of its own, shown or hidden besi
 Frames: Foxglove is Z-up. Poses, paths and obstacles are rotated from the simulator's world
 (gait2d and OpenSim bodies are Y-up with X forward; MyoLeg is Z-up with X forward) into a
 Z-up, X-forward ``world`` frame, so that both stand upright in the 3D panel. The messages are
-built by ``learner.recording_messages``; this module writes them.
+built by ``learner.evaluation.recording_messages``; this module writes them.
 
 A metadata record ``gaitforge`` holds scene, backend, profile, body, control rate and what the
 caller adds (checkpoint hash, stage, ...). The writer is foxglove-sdk's (a ``Context`` per
@@ -66,8 +66,8 @@ import numpy as np
 from foxglove.channels import FrameTransformsChannel, JointStatesChannel, SceneUpdateChannel
 from foxglove.messages import Timestamp
 from gaitforge.learner.checkpoint_meta import META_FILE, read_meta
-from gaitforge.learner.recording_messages import EpisodeMessages
-from gaitforge.learner.reference_pose import ReferenceBody, imitating
+from gaitforge.learner.evaluation.recording_messages import EpisodeMessages
+from gaitforge.learner.evaluation.reference_pose import ReferenceBody, imitating
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.episode import (
     Act,
@@ -228,8 +228,13 @@ class EpisodeRecorder(ClosingObserver):
         if not self._closed:
             self._closed = True
             self._writer.close()
-            channels = (self._tf, self._scene, self._joints, *self._scalars.values(),
-                        *self._imitation)  # fmt: skip
+            channels = (
+                self._tf,
+                self._scene,
+                self._joints,
+                *self._scalars.values(),
+                *self._imitation,
+            )
             for channel in channels:
                 channel.close()
             logger.info("recording: %d steps to %s", self.steps, self.path)
@@ -267,7 +272,7 @@ def record_episode(
     """One episode of ``act_fn`` (observation [n_obs] -> excitations [n_muscles] in [0, 1])
     on ``env`` from ``env.reset(seed=seed)`` (``workers.episode.run_episode``) until it ends
     or ``max_steps``, recorded to the MCAP ``path`` and/or rendered to the MP4 ``video_path``
-    (width, height ``video_size`` pixels; see :mod:`learner.video`). Either may be None.
+    (width, height ``video_size`` pixels; see :mod:`learner.evaluation.video`). Either may be None.
 
     Returns a summary: ``path``, ``video_path``, ``steps``, ``frames`` (video frames),
     ``sim_time`` (s), ``return`` (sum of rewards), ``distance`` (m), ``fell``, ``health``
@@ -279,7 +284,7 @@ def record_episode(
         if path is not None:
             observers.append(stack.enter_context(EpisodeRecorder(path, env, metadata)))
         if video_path is not None:
-            from gaitforge.learner.video import VideoRecorder  # lazy: needs a GL context
+            from gaitforge.learner.evaluation.video import VideoRecorder  # lazy: needs a GL context
 
             video = stack.enter_context(VideoRecorder(video_path, env, *video_size))
             observers.append(video)

@@ -11,10 +11,10 @@ The *speed-against-safety sweep* lowers the scene's target speed (m/s) by fracti
 same policy is asked to go slower, and the fall rate at each speed says what speed buys.
 
 Everything runs in-process on one env (no Ray), through the one episode loop
-(``workers.episode``): the statistics are an observer (``learner.eval_observers``), and so are
+(``workers.episode``): the statistics are an observer (``learner.evaluation.observers``), and so are
 the MCAP recording and the video of the first episode. This module picks and loads the
-checkpoint; ``learner.evaluate_episodes`` runs the episodes and the sweep. Results are
-dataclasses (``learner.evaluate_results``, units there); ``to_dict()`` gives JSON-able dicts
+checkpoint; ``learner.evaluation.episodes`` runs the episodes and the sweep. Results are
+dataclasses (``learner.evaluation.results``, units there); ``to_dict()`` gives JSON-able dicts
 and :func:`write_json` a file.
 """
 
@@ -28,14 +28,7 @@ from typing import Literal
 from gaitforge.learner.checkpoint import checkpoints, load_policy, select_checkpoint
 from gaitforge.learner.checkpoint_meta import META_FILE, CheckpointMeta
 from gaitforge.learner.curriculum import StageIO
-from gaitforge.learner.eval_observers import (
-    EvaluationError,
-    check_recording_available,
-    mcap_observer,
-    recording_metadata,
-    video_observer,
-)
-from gaitforge.learner.evaluate_episodes import (
+from gaitforge.learner.evaluation.episodes import (
     DEFAULT_REDUCTIONS,
     ProgressFn,
     check_sweep,
@@ -46,7 +39,14 @@ from gaitforge.learner.evaluate_episodes import (
     speed_sweep,
     with_target_speed,
 )
-from gaitforge.learner.evaluate_results import (
+from gaitforge.learner.evaluation.observers import (
+    EvaluationError,
+    check_recording_available,
+    mcap_observer,
+    recording_metadata,
+    video_observer,
+)
+from gaitforge.learner.evaluation.results import (
     MODES,
     EpisodeResult,
     EvaluationReport,
@@ -85,8 +85,9 @@ __all__ = [
 ]
 
 
-def resolve_checkpoint(path: Path, pick: Literal["latest", "best"] = "latest",
-                       best_metric: str = "return") -> Path:  # fmt: skip
+def resolve_checkpoint(
+    path: Path, pick: Literal["latest", "best"] = "latest", best_metric: str = "return"
+) -> Path:
     """The checkpoint directory ``path`` names: a checkpoint itself, or a run directory (with
     ``checkpoints/`` under it) or a checkpoints directory, from which the latest or the best
     (highest ``metrics[best_metric]``) is taken (``learner.checkpoint.select_checkpoint``).
@@ -144,8 +145,9 @@ def fitted_to_scene(
     if extra and len(names) - len(extra) == len(obs_names):
         logger.warning(
             "scene %r observes %s, which the policy never saw: zero weights for them",
-            scene.name, extra,
-        )  # fmt: skip
+            scene.name,
+            extra,
+        )
         policy, obs_names = widen_inputs(collapsed(policy), obs_names, names).eval(), names
     paced = with_clock_rate(collapsed(policy), io.act_names, std=0.3)
     if paced.act_dim != collapsed(policy).act_dim:
@@ -183,8 +185,8 @@ def evaluate_checkpoint(
         sweep: target-speed reductions (fractions in [0, 1)) for the speed-against-safety
             sweep, run in ``sweep_mode``; None for no sweep.
         observers: see every step of the first episode (seed ``seed``) of the first mode.
-        record: write that episode as an MCAP recording here (``learner.recording``).
-        video: write that episode as an MP4 video here (``learner.video``).
+        record: write that episode as an MCAP recording here (``learner.evaluation.recording``).
+        video: write that episode as an MP4 video here (``learner.evaluation.video``).
         pick: "latest" or "best" when ``path`` is a run directory.
         progress: ``(label, done, total)`` after each episode.
 
@@ -226,15 +228,28 @@ def evaluate_checkpoint(
                         observer.on_end(None)  # close the recording already opened
                     raise
             results[mode] = evaluate_policy(
-                policy, chosen, backend, episodes=episodes, mode=mode, seed=seed, runner=run,
-                observers=watching, progress=progress,
-            )  # fmt: skip
+                policy,
+                chosen,
+                backend,
+                episodes=episodes,
+                mode=mode,
+                seed=seed,
+                runner=run,
+                observers=watching,
+                progress=progress,
+            )
     points: list[SweepPoint] = []
     if sweep_list is not None:
         points = speed_sweep(
-            policy, chosen, backend, reductions=sweep_list, episodes=episodes, mode=sweep_mode,
-            seed=seed, progress=progress,
-        )  # fmt: skip
+            policy,
+            chosen,
+            backend,
+            reductions=sweep_list,
+            episodes=episodes,
+            mode=sweep_mode,
+            seed=seed,
+            progress=progress,
+        )
     return EvaluationReport(
         checkpoint=str(ckpt),
         env_steps=meta.env_steps,

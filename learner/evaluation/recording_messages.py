@@ -1,4 +1,4 @@
-"""The messages of an episode recording (``learner.recording`` writes them): Foxglove's
+"""The messages of an episode recording (``learner.evaluation.recording`` writes them): Foxglove's
 well-known schemas built from one simulator state, and the JSON messages of the scalar
 channels, all in the Z-up, X-forward ``world`` frame that Foxglove and Lichtblick expect.
 
@@ -159,8 +159,11 @@ class EpisodeMessages:
     ) -> tuple[FrameTransforms, SceneUpdate, JointStates]:
         """The ``/tf``, ``/scene`` and ``/joints`` messages of ``sim`` in a finite ``state``."""
         frames = sim.body_frames()
-        return self._transforms(frames, stamp), self._scene(sim, frames, state, stamp), \
-            self._joints(sim, state, stamp)  # fmt: skip
+        return (
+            self._transforms(frames, stamp),
+            self._scene(sim, frames, state, stamp),
+            self._joints(sim, state, stamp),
+        )
 
     def _transforms(self, frames: dict[str, BodyPose], stamp: Timestamp) -> FrameTransforms:
         """World pose of every body: parent ``world``, child the body's name."""
@@ -193,14 +196,16 @@ class EpisodeMessages:
             for point in (_point(positions[frame.parent]), _point(positions[name]))
         ]
         line_list = LinePrimitiveLineType.LineList
-        lines = [LinePrimitive(type=line_list, thickness=BONE_WIDTH, points=bones,
-                               color=color)] if bones else []  # fmt: skip
-        return SceneEntity(timestamp=stamp, frame_id=WORLD, id=entity, spheres=spheres,
-                           lines=lines)  # fmt: skip
+        lines = (
+            [LinePrimitive(type=line_list, thickness=BONE_WIDTH, points=bones, color=color)]
+            if bones
+            else []
+        )
+        return SceneEntity(timestamp=stamp, frame_id=WORLD, id=entity, spheres=spheres, lines=lines)
 
     def reference(self, frames: dict[str, BodyPose], stamp: Timestamp) -> SceneUpdate:
         """The ``/reference`` message: the reference pose's skeleton (entity ``reference``,
-        translucent green), from its body frames (``learner.reference_pose``)."""
+        translucent green), from its body frames (``learner.evaluation.reference_pose``)."""
         return SceneUpdate(entities=[self.skeleton(frames, stamp, "reference", REFERENCE_COLOUR)])
 
     def _scene(

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from gaitforge.learner.evaluate_results import EpisodeResult
+from gaitforge.learner.evaluation.results import EpisodeResult
 from gaitforge.workers.episode import EpisodeObserver, EpisodeSummary, Observer
 from gaitforge.workers.scenes.io_names import paces_clock
 from gaitforge.workers.sim.base import HEALTHY
@@ -79,17 +79,22 @@ class EpisodeMetrics(Observer):
             if self._pose_steps:
                 tracking = (math.sqrt(self._pose_sq / self._pose_steps), self._kept)
             self.result = EpisodeResult.of(
-                summary, self._effort_sum, self._terms, self._n_muscles, tracking,
-                obstacles=None if self._touch_steps is None
+                summary,
+                self._effort_sum,
+                self._terms,
+                self._n_muscles,
+                tracking,
+                obstacles=None
+                if self._touch_steps is None
                 else (self._touch_steps, self._first_touch_s),
-            )  # fmt: skip
+            )
 
 
 def check_recording_available(record: bool, video: bool) -> None:
     """Raise :class:`EvaluationError` (one line) if the modules that write recordings or
     videos cannot be imported."""
-    wanted = [("--record", "gaitforge.learner.recording")] if record else []
-    wanted += [("--video", "gaitforge.learner.video")] if video else []
+    wanted = [("--record", "gaitforge.learner.evaluation.recording")] if record else []
+    wanted += [("--video", "gaitforge.learner.evaluation.video")] if video else []
     for option, module in wanted:
         try:
             importlib.import_module(module)
@@ -98,19 +103,19 @@ def check_recording_available(record: bool, video: bool) -> None:
 
 
 def mcap_observer(path: Path, env: MuscleEnv, metadata: dict[str, str]) -> EpisodeObserver:
-    """An MCAP recorder of one episode of ``env`` (``learner.recording.EpisodeRecorder``)."""
-    from gaitforge.learner.recording import EpisodeRecorder  # lazy: imports foxglove
+    """An MCAP recorder of one episode of ``env`` (``recording.EpisodeRecorder``)."""
+    from gaitforge.learner.evaluation.recording import EpisodeRecorder  # lazy: imports foxglove
 
     return EpisodeRecorder(path, env, metadata)
 
 
 def video_observer(path: Path, env: MuscleEnv) -> EpisodeObserver:
-    """An MP4 of one episode of ``env`` (``learner.video.VideoRecorder``, offscreen, CPU).
+    """An MP4 of one episode of ``env`` (``video.VideoRecorder``, offscreen, on the CPU).
 
     Raises:
         EvaluationError: no renderer here, or a scene it cannot render (one line).
     """
-    from gaitforge.learner.video import VideoRecorder  # lazy: imports the renderer
+    from gaitforge.learner.evaluation.video import VideoRecorder  # lazy: imports the renderer
 
     try:
         return VideoRecorder(path, env)
@@ -121,9 +126,13 @@ def video_observer(path: Path, env: MuscleEnv) -> EpisodeObserver:
 
 def recording_metadata(ckpt: Path, mode: str, seed: int) -> dict[str, str]:
     """Strings for a recording's metadata: the checkpoint's (path, sha256 of its manifest,
-    which holds every file's sha256, stage, env steps; ``learner.recording``), the action
+    which holds every file's sha256, stage, env steps; ``learner.evaluation.recording``), the action
     mode and the seed."""
-    from gaitforge.learner.recording import checkpoint_metadata  # lazy: imports foxglove
+    from gaitforge.learner.evaluation.recording import checkpoint_metadata  # lazy: imports foxglove
 
-    return {"source": "gaitforge evaluate", **checkpoint_metadata(ckpt), "mode": mode,
-            "seed": str(seed)}  # fmt: skip
+    return {
+        "source": "gaitforge evaluate",
+        **checkpoint_metadata(ckpt),
+        "mode": mode,
+        "seed": str(seed),
+    }

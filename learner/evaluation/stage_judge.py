@@ -32,8 +32,8 @@ from gaitforge.learner.checkpoint import (
 )
 from gaitforge.learner.checkpoint_meta import CheckpointMeta
 from gaitforge.learner.curriculum import StageIO
-from gaitforge.learner.evaluate_episodes import evaluate_policy
-from gaitforge.learner.evaluate_results import ModeResult
+from gaitforge.learner.evaluation.episodes import evaluate_policy
+from gaitforge.learner.evaluation.results import ModeResult
 from gaitforge.learner.job import PromotionRule, Stage, StageEvaluation, evaluation_scene
 from gaitforge.learner.policy import ActorCritic, build_policy
 from gaitforge.workers.scenes import Scene
@@ -67,8 +67,9 @@ def score(metrics: dict[str, float], rules: list[PromotionRule]) -> Score:
     return passed, -metrics["eval_fall_rate"], metrics["eval_return"]
 
 
-def judged_scene(stage: Stage, index: int, trained_scene: Scene, trained_io: StageIO,
-                 backend: str) -> Scene:  # fmt: skip
+def judged_scene(
+    stage: Stage, index: int, trained_scene: Scene, trained_io: StageIO, backend: str
+) -> Scene:
     """The scene stage ``index`` (with ``evaluate``) is judged on: ``evaluate.scene``, or the
     stage's own scene as trained (``trained_scene``, whose names are ``trained_io``).
 
@@ -107,8 +108,15 @@ class StageJudge:
             or observes or actuates other names than the stage.
     """
 
-    def __init__(self, stage: Stage, index: int, trained_scene: Scene, trained_io: StageIO,
-                 backend: str, best_dir: Path) -> None:  # fmt: skip
+    def __init__(
+        self,
+        stage: Stage,
+        index: int,
+        trained_scene: Scene,
+        trained_io: StageIO,
+        backend: str,
+        best_dir: Path,
+    ) -> None:
         assert stage.evaluate is not None
         self.spec: StageEvaluation = stage.evaluate
         self.index = index
@@ -129,8 +137,12 @@ class StageJudge:
             return
         _, meta = load_checkpoint(saved)
         if meta.env_steps > run_env_steps:
-            logger.warning("%s: kept at %d env steps, after the run's resume point (%d); removed",
-                           saved, meta.env_steps, run_env_steps)  # fmt: skip
+            logger.warning(
+                "%s: kept at %d env steps, after the run's resume point (%d); removed",
+                saved,
+                meta.env_steps,
+                run_env_steps,
+            )
             shutil.rmtree(self.best_dir, ignore_errors=True)
             return
         self.best = score(meta.metrics, self.rules)
@@ -147,13 +159,18 @@ class StageJudge:
         """Run the evaluation of ``policy`` (mean actions); returns its ``eval_*`` metrics."""
         self._evaluated_at = stage_env_steps // self.spec.every_env_steps
         result = evaluate_policy(
-            policy, self.scene, self.backend, episodes=self.spec.episodes,
-            seed=EVALUATION_SEED, label=f"evaluation on {self.scene.name}",
-        )  # fmt: skip
+            policy,
+            self.scene,
+            self.backend,
+            episodes=self.spec.episodes,
+            seed=EVALUATION_SEED,
+            label=f"evaluation on {self.scene.name}",
+        )
         return evaluation_metrics(result)
 
-    def offer(self, policy: ActorCritic, metrics: dict, meta: CheckpointMeta,
-              env_steps: int) -> bool:  # fmt: skip
+    def offer(
+        self, policy: ActorCritic, metrics: dict, meta: CheckpointMeta, env_steps: int
+    ) -> bool:
         """Keep ``policy`` (its checkpoint ``meta``, evaluated ``metrics`` and the run's
         ``env_steps``) if it is the best so far; returns whether it was kept."""
         candidate = score(metrics, self.rules)
@@ -192,8 +209,11 @@ class StageJudge:
         # eval_* stay the last network's; kept_eval_* are the network the stage ends with
         metrics.update({f"kept_{k}": v for k, v in meta.metrics.items() if k.startswith("eval_")})
         metrics["kept_best_from_env_steps"] = meta.env_steps
-        logger.info("stage %d ends with its best evaluated network, from %d env steps",
-                    self.index, meta.env_steps)  # fmt: skip
+        logger.info(
+            "stage %d ends with its best evaluated network, from %d env steps",
+            self.index,
+            meta.env_steps,
+        )
         return network
 
     def best_network(self) -> tuple[ActorCritic, CheckpointMeta] | None:
