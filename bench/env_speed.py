@@ -153,18 +153,20 @@ def pruning_table(seconds: float, repeats: int) -> Table:
 
 
 ALL_LAWS = {
-    "contact_model": "hunt-crossley",
-    "joint_limits": "opensim",
-    "muscle_curves": "opensim",
-    "muscle_passive": "opensim",
+    "mujoco": {
+        "contact_model": "hunt-crossley",
+        "joint_limits": "opensim",
+        "muscle_curves": "opensim",
+        "muscle_passive": "opensim",
+    }
 }
 OPENSIM_PROFILE = {"integrator": "semi-explicit-euler2", "timestep": 0.001, "fixed_step": True}
 LAWS = {
     "MuJoCo as it is": ("mujoco", {}),
-    "contact_model: hunt-crossley": ("mujoco", {"contact_model": "hunt-crossley"}),
-    "joint_limits: opensim": ("mujoco", {"joint_limits": "opensim"}),
+    "contact_model: hunt-crossley": ("mujoco", {"mujoco": {"contact_model": "hunt-crossley"}}),
+    "joint_limits: opensim": ("mujoco", {"mujoco": {"joint_limits": "opensim"}}),
     "muscle_curves and muscle_passive: opensim": (
-        "mujoco", {"muscle_curves": "opensim", "muscle_passive": "opensim"}),
+        "mujoco", {"mujoco": {"muscle_curves": "opensim", "muscle_passive": "opensim"}}),
     "all four": ("mujoco", ALL_LAWS),
     "all four, semi-implicit Euler 1 ms": ("mujoco", {**ALL_LAWS, "fidelity": {
         "mujoco": {"integrator": "euler", "timestep": 0.001}, "opensim": OPENSIM_PROFILE}}),

@@ -74,6 +74,12 @@ def lift(sim, backend: str, lift_m: float) -> None:
         lift.setValue(sim.osim_state, lift.getValue(sim.osim_state) + lift_m, False)
 
 
+def with_contact_timeconst(scene: Scene, timeconst_s: float) -> Scene:
+    """``scene`` with MuJoCo's contact time constant ``timeconst_s`` (s)."""
+    options = scene.mujoco.model_copy(update={"contact_timeconst_s": timeconst_s})
+    return scene.model_copy(update={"mujoco": options})
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="walk-2d+clock", help="a catalogue name or a file")
@@ -103,8 +109,7 @@ def main() -> None:
     scene = load_scene(args.scene).resolved()
     steps = round(args.until_s / args.every_s)
     variants = {
-        f"mujoco {t:g} s": (scene.model_copy(update={"contact_timeconst_s": t}), "mujoco")
-        for t in args.timeconst
+        f"mujoco {t:g} s": (with_contact_timeconst(scene, t), "mujoco") for t in args.timeconst
     }
     variants["opensim"] = (scene, "opensim")
     logs = {

@@ -67,7 +67,8 @@ def set_fields(raw: dict[str, Any], fields: dict[str, Any], where: str) -> dict[
                 if not last and node.get(key) is None:
                     node[key] = {}
             else:
-                raise SpecError(f"{where}: {path!r}: {above} is a value, not a group of fields")
+                value_at = ".".join(parts[:depth])
+                raise SpecError(f"{where}: {path!r}: {value_at} is a value, not a group of fields")
             if last:
                 current = node[key] if isinstance(node, list) else node.get(key)
                 node[key] = _merged(current, copy.deepcopy(value))

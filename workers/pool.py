@@ -26,10 +26,12 @@ cluster it joined, an autoscaler may add nodes for them (a warning is logged).
 from __future__ import annotations
 
 import logging
+import os
 import threading
 import time
 from collections import Counter, deque
 from dataclasses import dataclass, field
+from typing import Any
 
 import ray
 from gaitforge.workers.fragment import Fragment, StopRequested
@@ -230,7 +232,7 @@ class WorkerPool:
     def _new_slot(self) -> _Slot:
         worker_id = self._next_id
         self._next_id += 1
-        actor = self._actor_class.remote(
+        actor = self._actor_class.options(**_test_hooks()).remote(
             self.scene, seed=self._seed + worker_id, worker_id=worker_id, **self._actor_kwargs
         )
         self.stats.actors_started += 1
@@ -388,3 +390,13 @@ __all__ = [
     "default_max_failures",
     "default_num_workers",
 ]
+
+
+def _test_hooks() -> dict[str, Any]:
+    """Actor options passing this process's fault injection on to the actors (a test hook:
+    ``workers.sim.faults``); none when no test asks for it."""
+    from gaitforge.workers.sim.faults import FAULTS_ENV
+
+    if not os.environ.get(FAULTS_ENV):
+        return {}
+    return {"runtime_env": {"env_vars": {FAULTS_ENV: os.environ[FAULTS_ENV]}}}

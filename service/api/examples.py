@@ -24,7 +24,6 @@ def schema_examples(schemas: dict[str, Any]) -> dict[str, Any]:
         "WarmStartSpec": {"excitations": "walk", "env_steps": 8192, "rounds": 2},
         "StagePPO": {"lr": 1e-4, "lr_end": 5e-5},
         "StageEvaluation": {"scene": "run-2d+clock", "episodes": 100, "every_env_steps": 250000},
-        "FaultInjection": {"abort_prob": 0.0, "hang_prob": 0.0, "nan_prob": 0.001},
         "Action": status["actions"][0],
         "Artifact": artifacts["items"][0],
         "FieldError": {"field": "stages.0.scene", "message": "unknown scene 'walk-9d'"},

@@ -4,8 +4,7 @@ as data only, then written into a job's folder for its trainer.
 Data only: a stage's ``scene`` is a catalogue name or an inline scene (a mapping validated as a
 ``Scene``); names that reach the file system (the scene, an inline scene's ``body`` and
 ``task.imitate.motion``, ``warm_start.excitations``, ``evaluate.scene``) must be plain names,
-never paths; ``workers.ray_address`` is refused (the service decides where jobs run), as is an
-inline scene's ``fault`` (fault injection, which hangs or poisons simulators, is for tests);
+never paths; ``workers.ray_address`` is refused (the service decides where jobs run);
 anything not in the schema is refused, as are more rollout actors than the cluster has CPUs
 (where the caller knows them: ``max_num_workers``). Then the job is written into a scratch
 folder and loaded exactly as its trainer will load it (``learner.job.load_job``: every scene
@@ -118,11 +117,16 @@ def _name_problem(value: str, what: str) -> str | None:
     return f"{shorten(repr(value))}: {what}; file paths are not accepted"
 
 
+def _within(field: str, inner: str) -> str:
+    """The dotted path of ``inner`` (a scene's own field, or ``<root>``) below ``field``."""
+    return field if inner == "<root>" else f"{field}.{inner}"
+
+
 def _inline_scene(raw: dict, field: str, errors: list[tuple[str, str]]) -> Scene | None:
     try:
         scene = Scene.model_validate(raw)
     except ValidationError as err:
-        errors.extend((f"{field}.{f}", m) for f, m in validation_problems(err, limit=None))
+        errors.extend((_within(field, f), m) for f, m in validation_problems(err, limit=None))
         return None
     bad = _scene_problems(scene, field)
     errors.extend(bad)
@@ -131,20 +135,18 @@ def _inline_scene(raw: dict, field: str, errors: list[tuple[str, str]]) -> Scene
 
 def _scene_problems(scene: Scene, field: str) -> list[tuple[str, str]]:
     """Why ``scene`` (inline, or a catalogue scene with a stage's ``scene_set``) is not data
-    only: a body or motion named by a path, or fault injection."""
+    only: a body or motion named by a path."""
     names = [("body", scene.body, "a shipped body name")]
     imitate = getattr(scene.task, "imitate", None)
     if imitate is not None:
         names.append(("task.imitate.motion", imitate.motion, "a motion shipped for the body"))
     bad = [(f"{field}.{f}", p) for f, v, what in names if (p := _name_problem(v, what))]
-    if scene.fault is not None:
-        bad.append((f"{field}.fault", "not accepted: fault injection is for tests, not jobs"))
     return bad
 
 
 def _check_scene_set(stage: dict, index: int, errors: list[tuple[str, str]]) -> None:
-    """A catalogue scene with the stage's ``scene_set``: the fields it sets may not bring in
-    paths or fault injection (an inline scene's are checked with the scene)."""
+    """A catalogue or inline scene with the stage's ``scene_set``: the fields it sets may not
+    bring in paths."""
     scene_set, ref = stage.get("scene_set"), stage.get("scene")
     if not isinstance(scene_set, dict) or not scene_set:
         return
@@ -157,7 +159,7 @@ def _check_scene_set(stage: dict, index: int, errors: list[tuple[str, str]]) -> 
         else:
             return  # the scene's own error is reported
     except ValidationError as err:
-        errors.extend((f"{field}: {f}", m) for f, m in validation_problems(err, limit=None))
+        errors.extend((_within(field, f), m) for f, m in validation_problems(err, limit=None))
         return
     except (SpecError, RecursionError) as exc:
         errors.append((field, shorten(str(exc), 300)))

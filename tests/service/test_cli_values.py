@@ -8,10 +8,9 @@ import os
 from pathlib import Path
 
 import pytest
-import yaml
 from gaitforge.learner.job import MAX_NUM_WORKERS
 from gaitforge.service.cli import app
-from gaitforge.workers.scenes import load_scene
+from gaitforge.workers.sim.faults import FaultInjection
 from gaitforge.workers.spec_types import SEED_LIMIT
 from typer.testing import CliRunner
 
@@ -101,16 +100,11 @@ def test_more_workers_than_the_local_ray_has_cpus_is_one_line(tmp_path: Path) ->
 def test_actors_that_keep_dying_end_a_training_run_with_their_error(tmp_path: Path) -> None:
     """Every actor's simulator aborts its process (SIGABRT) on its first step: after
     ``workers.max_actor_failures`` the run ends, exit status 1, with the actors' error."""
-    scene = load_scene("elbow-reach").model_dump(mode="json")
-    scene.update(name="elbow-abort", fault={"abort_prob": 1.0})
-    (tmp_path / "elbow-abort.yaml").write_text(yaml.safe_dump(scene))
     job = tmp_path / "job.yaml"
-    job.write_text(
-        JOB.format(seed=0, workers="1, max_actor_failures: 2").replace(
-            "scene: elbow-reach", "scene: elbow-abort.yaml"
-        )
-    )
-    result = _invoke("train", str(job), "--run-dir", str(tmp_path / "run"), "--no-tensorboard")
+    job.write_text(JOB.format(seed=0, workers="1, max_actor_failures: 2"))
+    args = ["train", str(job), "--run-dir", str(tmp_path / "run"), "--no-tensorboard"]
+    aborting = FaultInjection(abort_prob=1.0).as_environment()
+    result = runner.invoke(app, args, env={"COLUMNS": "200", **aborting})
     assert result.exit_code == 1, result.output
     assert "Traceback" not in result.output
     lines = [line for line in result.output.splitlines() if line.startswith("error: ")]

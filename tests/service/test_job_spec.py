@@ -62,7 +62,7 @@ def test_ray_address_and_unknown_fields_are_refused_each_named() -> None:
         ({"body": "nobody"}, "stages.0.scene.body"),
         ({"keep": {"joints": ["no_such_joint"]}}, "stages.0.scene.keep.joints.0"),
         ({"name": "Bad Name"}, "stages.0.scene.name"),
-        ({"fault": {"hang_prob": 1.0}}, "stages.0.scene.fault"),
+        ({"fault": {"hang_prob": 1.0}}, "stages.0.scene"),  # a test hook, not a field
     ],
 )
 def test_a_bad_inline_scene_is_refused_naming_its_field(changes: dict, field: str) -> None:

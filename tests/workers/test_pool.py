@@ -6,7 +6,7 @@ from __future__ import annotations
 import functools
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import numpy as np
 import pytest
@@ -15,8 +15,8 @@ import torch
 from gaitforge.workers.fragment import StopRequested
 from gaitforge.workers.policy_api import UniformExcitationPolicy
 from gaitforge.workers.pool import WorkerPool
-from gaitforge.workers.scenes import Scene, load_scene
-from gaitforge.workers.scenes.spec import FaultInjection
+from gaitforge.workers.scenes import load_scene
+from gaitforge.workers.sim.faults import FaultInjection
 
 POLICY = functools.partial(UniformExcitationPolicy, 6)  # elbow-reach has 6 muscles
 ELBOW = load_scene("elbow-reach").resolved()
@@ -34,8 +34,16 @@ def test_an_unresolved_scene_is_refused() -> None:
         WorkerPool(load_scene("elbow-reach"), POLICY, num_workers=1)
 
 
-def _faulty(**fault: float) -> Scene:
-    return ELBOW.model_copy(update={"fault": FaultInjection(**fault)})
+@pytest.fixture
+def inject(monkeypatch: pytest.MonkeyPatch) -> Callable[..., None]:
+    """``inject(nan_prob=0.02)``: the actors' simulators fail so (the test hook's variable,
+    which the pool passes on to its actors)."""
+
+    def set_faults(**fault: float) -> None:
+        for name, value in FaultInjection(**fault).as_environment().items():
+            monkeypatch.setenv(name, value)
+
+    return set_faults
 
 
 def _collect(pool: WorkerPool, n: int) -> list[tuple[dict, int]]:
@@ -86,9 +94,10 @@ def test_a_new_scene_reaches_live_actors_without_restarting_them() -> None:
         pool.close()
 
 
-def test_crashing_simulators_are_replaced_and_collection_goes_on() -> None:
+def test_crashing_simulators_are_replaced_and_collection_goes_on(inject) -> None:
     # 64 env steps a fragment: about one fragment in eight aborts its actor
-    pool = WorkerPool(_faulty(abort_prob=0.002), POLICY, num_workers=2, fragment_length=16)
+    inject(abort_prob=0.002)
+    pool = WorkerPool(ELBOW, POLICY, num_workers=2, fragment_length=16)
     try:
         _collect_until(pool, "actor_deaths")
         _collect(pool, 4)  # and collection goes on
@@ -117,10 +126,9 @@ def test_after_a_stop_request_nothing_is_fetched_and_no_actor_replaced() -> None
         pool.close()
 
 
-def test_a_hung_simulator_times_out_and_is_replaced() -> None:
-    pool = WorkerPool(
-        _faulty(hang_prob=0.002), POLICY, num_workers=2, fragment_length=16, timeout_s=4.0
-    )
+def test_a_hung_simulator_times_out_and_is_replaced(inject) -> None:
+    inject(hang_prob=0.002)
+    pool = WorkerPool(ELBOW, POLICY, num_workers=2, fragment_length=16, timeout_s=4.0)
     try:
         _collect_until(pool, "timeouts")
         _collect(pool, 4)
@@ -130,8 +138,9 @@ def test_a_hung_simulator_times_out_and_is_replaced() -> None:
         pool.close()
 
 
-def test_nan_steps_are_counted_and_never_reach_the_fragments() -> None:
-    pool = WorkerPool(_faulty(nan_prob=0.02), POLICY, num_workers=2, fragment_length=32)
+def test_nan_steps_are_counted_and_never_reach_the_fragments(inject) -> None:
+    inject(nan_prob=0.02)
+    pool = WorkerPool(ELBOW, POLICY, num_workers=2, fragment_length=32)
     try:
         frags = [frag for frag, _ in _collect(pool, 6)]
         assert sum(pool.stats.health.values()) >= 1

@@ -13,6 +13,7 @@ from gaitforge.workers.reflex import ReflexLayer
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.scenes.action import ActionSpec
 from gaitforge.workers.scenes.io_names import action_names, lateral_axis
+from gaitforge.workers.sim.faults import FaultInjection
 from gaitforge.workers.spec_io import SpecError
 from pydantic import ValidationError
 
@@ -110,10 +111,12 @@ def test_moment_arms_agree_between_backends() -> None:
     np.testing.assert_allclose(arms["mujoco"][big], arms["opensim"][big], rtol=0.5)
 
 
-def test_a_simulator_failure_ends_the_step_with_its_cause() -> None:
-    raw = _targets("walk-2d").model_dump()
-    raw["fault"] = {"nan_prob": 1.0}
-    env = MuscleEnv(Scene.model_validate(raw))
+def test_a_simulator_failure_ends_the_step_with_its_cause(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    for name, value in FaultInjection(nan_prob=1.0).as_environment().items():
+        monkeypatch.setenv(name, value)
+    env = MuscleEnv(_targets("walk-2d"))
     obs, _ = env.reset(seed=0)
     after, reward, terminated, _, info = env.step(np.full(6, 0.5))
     assert terminated and reward == 0.0 and info["health"] != "ok"

@@ -13,7 +13,7 @@ from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.policy_api import UniformExcitationPolicy
 from gaitforge.workers.rollout import RolloutWorker
 from gaitforge.workers.scenes import load_scene
-from gaitforge.workers.scenes.spec import FaultInjection
+from gaitforge.workers.sim.faults import FaultInjection
 
 ELBOW_MUSCLES = 6
 MUSCLES = {"elbow-reach": ELBOW_MUSCLES, "walk-2d": 18}
@@ -91,9 +91,12 @@ def test_new_weights_change_the_actions_and_set_the_version() -> None:
     assert frag.action.mean() > 0.7
 
 
-def test_unhealthy_steps_are_flagged_and_counted_and_never_nan() -> None:
-    scene = load_scene("walk-2d").model_copy(update={"fault": FaultInjection(nan_prob=0.1)})
-    worker = _worker("walk-2d", scene=scene, num_envs=2, fragment_length=100)
+def test_unhealthy_steps_are_flagged_and_counted_and_never_nan(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    for name, value in FaultInjection(nan_prob=0.1).as_environment().items():
+        monkeypatch.setenv(name, value)
+    worker = _worker("walk-2d", num_envs=2, fragment_length=100)
     frag = worker.sample()
     assert frag.unhealthy.any()
     assert sum(frag.health.values()) == frag.unhealthy.sum()

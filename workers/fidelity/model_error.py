@@ -74,10 +74,8 @@ def tendon(scene: Scene, backend: str, short: float, long: float, accuracy: floa
     if backend != "opensim":
         return None
     profile = REFERENCE["opensim"].model_copy(update={"accuracy": accuracy})
-    rigid = held_rollout(scene.model_copy(update={"tendon": "rigid"}), backend, profile, long)
-    compliant = held_rollout(
-        scene.model_copy(update={"tendon": "compliant"}), backend, profile, long
-    )
+    rigid = held_rollout(_with_tendon(scene, "rigid"), backend, profile, long)
+    compliant = held_rollout(_with_tendon(scene, "compliant"), backend, profile, long)
     return _compare("compliant vs rigid tendon", describe(profile), rigid, compliant, short, long,
                     1.0 / scene.control_hz)  # fmt: skip
 
@@ -107,3 +105,9 @@ def pruning(scene: Scene, backend: str, reference: Rollout, size: SweepSize) -> 
     diff.speed_ratio = float(np.median(ratios))
     diff.note = (diff.note + f" speed at {describe(own)}, with contact").strip()
     return diff
+
+
+def _with_tendon(scene: Scene, tendon: str) -> Scene:
+    """``scene`` with OpenSim's muscles' tendons ``tendon`` (rigid or compliant)."""
+    options = scene.opensim.model_copy(update={"tendon": tendon})
+    return scene.model_copy(update={"opensim": options})

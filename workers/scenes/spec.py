@@ -9,16 +9,13 @@ import numpy as np
 from gaitforge.workers.bodies.topology import MJCF_BODIES
 from gaitforge.workers.scenes import saved_profiles
 from gaitforge.workers.scenes.action import ActionSpec
-from gaitforge.workers.scenes.imitate import Imitate
-from gaitforge.workers.scenes.mujoco_options import (
-    ContactModel,
-    ContactSolimp,
-    ContactTimeconst,
-    JointLimits,
-    MuscleCurves,
-    MuscleMinActivation,
-    MusclePassive,
+from gaitforge.workers.scenes.backend_options import (
+    MUJOCO_FIELDS,
+    OPENSIM_FIELDS,
+    MujocoOptions,
+    OpenSimOptions,
 )
+from gaitforge.workers.scenes.imitate import Imitate
 from gaitforge.workers.scenes.profiles import (
     BACKENDS,
     NAMED_PROFILES,
@@ -171,15 +168,6 @@ class Task(_Strict):
         return self
 
 
-class FaultInjection(_Strict):
-    """Test-only: make the real simulator fail, per control step, with these probabilities."""
-
-    abort_prob: Annotated[float, Field(ge=0, le=1)] = 0.0
-    hang_prob: Annotated[float, Field(ge=0, le=1)] = 0.0
-    hang_s: Annotated[float, Field(gt=0)] = 3600.0
-    nan_prob: Annotated[float, Field(ge=0, le=1)] = 0.0
-
-
 class Scene(_Strict):
     """A scene: a body, what of it to keep, the world around it and the task."""
 
@@ -213,26 +201,35 @@ class Scene(_Strict):
         description="set by Scene.resolved, for records: per backend, the name its profile "
         "was resolved from (built-in or saved name, 'auto: <saved name>')",
     )
-    tendon: Literal["rigid", "compliant"] = Field(
-        default="rigid", description="OpenSim muscles' tendons (MuJoCo's are always rigid)"
+    mujoco: MujocoOptions = Field(
+        default_factory=MujocoOptions,
+        description="how MuJoCo models contact, joint limits and muscles (OpenSim: ignored)",
     )
-    contact_timeconst_s: ContactTimeconst = None
-    contact_solimp: ContactSolimp = None
-    contact_model: ContactModel = "mujoco"
-    joint_limits: JointLimits = "mujoco"
-    muscle_min_activation: MuscleMinActivation = 0.0
-    muscle_curves: MuscleCurves = "mujoco"
-    muscle_passive: MusclePassive = "gait"
-    rebuild_every: Annotated[int, Field(ge=1)] = Field(
-        default=100, description="OpenSim: episodes between model rebuilds (a memory bound)"
-    )
-    step_wall_limit_s: Annotated[float, Field(gt=0)] = Field(
-        default=10.0, description="s of wall-clock time one control step may take (OpenSim)"
+    opensim: OpenSimOptions = Field(
+        default_factory=OpenSimOptions,
+        description="OpenSim's tendons and run bounds (MuJoCo: ignored)",
     )
     init_noise: NonNegative = Field(default=0.01, description="rad, m: uniform reset noise")
-    fault: FaultInjection | None = Field(
-        default=None, description="test-only: abort, hang or NaN the simulator on purpose"
-    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _older_layout(cls, raw: object) -> object:
+        """Scene fields as older files and checkpoints wrote them, read as today's: the
+        backend options at the top level move into ``mujoco`` and ``opensim``; a ``fault``
+        of null goes (fault injection is a test hook, ``workers.sim.faults``)."""
+        if not isinstance(raw, dict):
+            return raw
+        raw = dict(raw)
+        for block, names in (("mujoco", MUJOCO_FIELDS), ("opensim", OPENSIM_FIELDS)):
+            flat = {name: raw.pop(name) for name in names if name in raw}
+            if flat:
+                nested = raw.get(block)
+                raw[block] = {**nested, **flat} if isinstance(nested, dict) else flat
+        if "fault" in raw and raw.pop("fault") is not None:
+            raise ValueError(
+                "fault: fault injection is a test hook (workers.sim.faults), not a scene field"
+            )
+        return raw
 
     @model_validator(mode="after")
     def _check(self) -> Scene:
@@ -252,13 +249,6 @@ class Scene(_Strict):
             raise ValueError(
                 f"task.reward.obstacle_touch {self.task.reward.obstacle_touch}: the scene has no "
                 "obstacles to touch (set obstacles, or the weight to 0)"
-            )
-        timeconst = self.contact_timeconst_s
-        if isinstance(timeconst, tuple) and timeconst[0] > timeconst[1]:
-            raise ValueError(f"contact_timeconst_s: low {timeconst[0]} > high {timeconst[1]}")
-        if self.contact_solimp is not None and self.contact_solimp[0] > self.contact_solimp[1]:
-            raise ValueError(
-                f"contact_solimp: dmin {self.contact_solimp[0]} > dmax {self.contact_solimp[1]}"
             )
         return self
 
@@ -388,7 +378,6 @@ def resolve_profile(
 
 __all__ = [
     "BACKENDS",
-    "FaultInjection",
     "Imitate",
     "Keep",
     "Obstacles",

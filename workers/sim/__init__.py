@@ -22,12 +22,13 @@ __all__ = [
 
 def make_simulator(scene: Scene, backend: str = "mujoco") -> Simulator:
     """Compile ``scene`` for ``backend`` and return its simulator (wrapped for fault
-    injection when the scene asks for it, in tests)."""
-    sim = _backend_simulator(scene, backend)
-    if scene.fault is not None:
-        from gaitforge.workers.sim.faults import FaultySimulator  # lazy: test-only
+    injection when a test asks for it: ``workers.sim.faults``)."""
+    from gaitforge.workers.sim.faults import FaultySimulator, injected_faults
 
-        return FaultySimulator(sim, scene.fault)  # type: ignore[return-value]
+    sim = _backend_simulator(scene, backend)
+    fault = injected_faults()
+    if fault is not None:
+        return FaultySimulator(sim, fault)  # type: ignore[return-value]
     return sim
 
 

@@ -1,8 +1,12 @@
-"""Fault injection (test-only scene setting): a real simulator made to crash, hang or NaN.
+"""Fault injection, a test hook: a real simulator made to crash, hang or NaN.
+
+    GAITFORGE_TEST_FAULTS='{"nan_prob": 0.1}' pytest ...     # every simulator of the process
 
 ``abort`` kills the process with ``os.abort`` (SIGABRT, as a segfaulting simulator would);
 ``hang`` sleeps inside ``step`` (as a stuck integrator would); ``nan`` writes NaN into the
-simulator's own state and steps it, so the backend's health checks see a real failure.
+simulator's own state and steps it, so the backend's health checks see a real failure. The
+environment variable is read when a simulator is made; the rollout pool passes it on to its
+Ray actors. It is no part of a scene or a job: nothing a user submits can set it.
 """
 
 from __future__ import annotations
@@ -10,12 +14,45 @@ from __future__ import annotations
 import logging
 import os
 import time
+from typing import Annotated
 
 import numpy as np
-from gaitforge.workers.scenes.spec import FaultInjection
 from gaitforge.workers.sim.base import Health, Reflex, Simulator
+from pydantic import BaseModel, ConfigDict, Field
 
 logger = logging.getLogger(__name__)
+
+FAULTS_ENV = "GAITFORGE_TEST_FAULTS"
+"""the environment variable holding the faults to inject, as JSON"""
+Probability = Annotated[float, Field(ge=0, le=1)]
+
+
+class FaultInjection(BaseModel):
+    """Per control step, the chance of each fault."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    abort_prob: Probability = 0.0
+    hang_prob: Probability = 0.0
+    hang_s: Annotated[float, Field(gt=0)] = 3600.0
+    nan_prob: Probability = 0.0
+
+    def as_environment(self) -> dict[str, str]:
+        """``{FAULTS_ENV: json}``: set it (``monkeypatch.setenv``) to inject these faults."""
+        return {FAULTS_ENV: self.model_dump_json()}
+
+
+def injected_faults() -> FaultInjection | None:
+    """The faults :data:`FAULTS_ENV` asks for in this process (None: none).
+
+    Raises:
+        ValueError: the variable is set but not a valid :class:`FaultInjection` (a test's
+            mistake, named).
+    """
+    text = os.environ.get(FAULTS_ENV)
+    if not text:
+        return None
+    return FaultInjection.model_validate_json(text)
 
 
 class FaultySimulator:

@@ -84,7 +84,7 @@ class MujocoSimulator:
             # The obstacles are world geoms moved every reset, but the world body's bounding
             # volume tree is built once, at compile time, around their parked places: with
             # it the midphase dropped every foot pair of the six farthest spheres (their
-            # branch lay 100 m behind) and the feet went through them (session 27). Without
+            # branch lay 100 m behind) and the feet went through them. Without
             # it each geom pair of two bodies is tested by its bounding spheres
             # (geom_rbound, set with each placement).
             m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_MIDPHASE)
@@ -141,7 +141,7 @@ class MujocoSimulator:
         d.qpos[self._qadr] = np.clip(d.qpos[self._qadr] + jitter, self._qlo, self._qhi)
         self._place_obstacles()
         self._touch_floor()
-        floor = self.scene.muscle_min_activation
+        floor = self.scene.mujoco.muscle_min_activation
         if floor > 0:  # the muscles start at their least activation, as OpenSim's do
             d.act[self._muscle_act] = np.maximum(d.act[self._muscle_act], floor)
         mujoco.mj_forward(m, d)
@@ -330,9 +330,9 @@ class MujocoSimulator:
         return -1
 
     def _set_contact_timeconst(self, rng: np.random.Generator) -> None:
-        """The contacts' time constant (s) from ``scene.contact_timeconst_s``: the value, or
-        one drawn from the range with ``rng``; nothing if it is None (MuJoCo's own)."""
-        timeconst = self.scene.contact_timeconst_s
+        """The contacts' time constant (s) from ``scene.mujoco.contact_timeconst_s``: the
+        value, or one drawn from the range with ``rng``; nothing if it is None (MuJoCo's)."""
+        timeconst = self.scene.mujoco.contact_timeconst_s
         if timeconst is not None:
             drawn = rng.uniform(*timeconst) if isinstance(timeconst, tuple) else timeconst
             self._apply_contact_timeconst(float(drawn))

@@ -109,14 +109,16 @@ def _fit_passive_to_thelen_whole(model: mujoco.MjModel, scene: Scene) -> None:
     """
     if scene.body in MJCF_SOURCES:
         raise ValueError(
-            f"scene {scene.name!r}: muscle_passive {scene.muscle_passive!r} needs a body with "
-            f"Thelen passive parameters (a body file such as gait2d); {scene.body!r} is a "
-            "MuJoCo MJCF"
+            f"scene {scene.name!r}: mujoco.muscle_passive {scene.mujoco.muscle_passive!r} needs "
+            f"a body with Thelen passive parameters (a body file such as gait2d); "
+            f"{scene.body!r} is a MuJoCo MJCF"
         )
     for muscle in load_body(scene.body).muscles:
         actuator = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, muscle.name)
         if actuator >= 0:  # kept by the scene
-            pennation = muscle.pennation_angle if scene.muscle_passive == "thelen-fibre" else 0.0
+            pennation = (
+                muscle.pennation_angle if scene.mujoco.muscle_passive == "thelen-fibre" else 0.0
+            )
             lmax, fpmax = fit_mujoco_passive_whole(
                 muscle.passive_fibre_strain, muscle.passive_shape, pennation
             )
@@ -141,7 +143,7 @@ def opensim_limits(scene: Scene, dofs: list[str]) -> dict[str, JointLimit]:
     Raises:
         ValueError: the scene's body is a MuJoCo MJCF.
     """
-    _need_body_file(scene, "joint_limits 'opensim'", "passive limits")
+    _need_body_file(scene, "mujoco.joint_limits 'opensim'", "passive limits")
     limits = {d.name: d.limit for j in load_body(scene.body).joints for d in j.dofs if d.limit}
     return {name: limits[name] for name in dofs if name in limits}
 
@@ -167,31 +169,32 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
     spec.option.timestep = profile.timestep
     model = spec.compile()
     muscles = model.actuator_gaintype == mujoco.mjtGain.mjGAIN_MUSCLE
-    if scene.muscle_min_activation > 0:
+    options = scene.mujoco
+    if options.muscle_min_activation > 0:
         model.actuator_ctrllimited[muscles] = 1
-        model.actuator_ctrlrange[muscles] = (scene.muscle_min_activation, 1.0)
-    if scene.contact_model == "hunt-crossley":  # the floor's contact is workers.sim.hunt_crossley's
-        _need_body_file(scene, "contact_model 'hunt-crossley'", "contact parameters")
+        model.actuator_ctrlrange[muscles] = (options.muscle_min_activation, 1.0)
+    if options.contact_model == "hunt-crossley":  # the floor's is workers.sim.hunt_crossley's
+        _need_body_file(scene, "mujoco.contact_model 'hunt-crossley'", "contact parameters")
         model.geom_conaffinity[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR)] = 0
-    if scene.joint_limits == "opensim":  # the limits are workers.sim.limit_springs'
+    if options.joint_limits == "opensim":  # the limits are workers.sim.limit_springs'
         for name in opensim_limits(scene, list(plan.kept_dofs)):
             model.jnt_limited[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)] = 0
-    if scene.contact_solimp is not None:
-        model.geom_solimp[:] = scene.contact_solimp
-        model.pair_solimp[:] = scene.contact_solimp
-    if scene.muscle_curves == "millard":
+    if options.contact_solimp is not None:
+        model.geom_solimp[:] = options.contact_solimp
+        model.pair_solimp[:] = options.contact_solimp
+    if options.muscle_curves == "millard":
         _fit_muscle_curves_to_millard(model)
-    elif scene.muscle_curves == "opensim":  # the active force is workers.sim.opensim_muscles'
-        _need_body_file(scene, "muscle_curves 'opensim'", "muscle parameters")
+    elif options.muscle_curves == "opensim":  # the active force is workers.sim.opensim_muscles'
+        _need_body_file(scene, "mujoco.muscle_curves 'opensim'", "muscle parameters")
         model.actuator_gaintype[muscles] = mujoco.mjtGain.mjGAIN_FIXED
         model.actuator_gainprm[muscles] = 0.0
-    if scene.muscle_passive == "opensim":  # the passive force is workers.sim.opensim_muscles'
-        _need_body_file(scene, "muscle_passive 'opensim'", "muscle parameters")
+    if options.muscle_passive == "opensim":  # the passive force is workers.sim.opensim_muscles'
+        _need_body_file(scene, "mujoco.muscle_passive 'opensim'", "muscle parameters")
         model.actuator_biasprm[muscles, 7] = 0.0
         # the fibre damping too: without this the tendons kept mujoco_build's and the
-        # muscles damped twice (session 36: 32 N m more at a fast push-off ankle)
+        # muscles were damped twice (32 N m more at a fast push-off ankle)
         model.tendon_damping[model.actuator_trnid[muscles, 0]] = 0.0
-    elif scene.muscle_passive != "gait":
+    elif options.muscle_passive != "gait":
         _fit_passive_to_thelen_whole(model, scene)
     report = CompileReport(
         scene=scene.name,

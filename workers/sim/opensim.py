@@ -13,9 +13,9 @@ and it saves ``Manager.initialize`` each update (measured by ``bench/opensim_ref
 at 41d5e6b).
 
 Every SimTK exception ("Integrator step failed", "Unable to advance time", ...), a step
-slower than ``scene.step_wall_limit_s`` and a non-finite state end in a named
-:class:`Health`; nothing raises out of ``step``. OpenSim's own log is silenced. The
-model is rebuilt every ``scene.rebuild_every`` episodes, a bound on the memory OpenSim
+slower than ``scene.opensim.step_wall_limit_s`` and a non-finite state end in a named
+:class:`Health`; nothing raises out of ``step``. OpenSim's own log is silenced. The model
+is rebuilt every ``scene.opensim.rebuild_every`` episodes, a bound on the memory OpenSim
 environments are reported to leak over long runs. A step that never returns (a hung
 integration) cannot be cut short from inside the process: the rollout pool's timeout is
 the guard there.
@@ -70,7 +70,7 @@ class OpenSimSimulator:
         if scene.body not in available_bodies():
             raise ValueError(f"body {scene.body!r}: OpenSim runs neutral bodies only")
         self.scene = scene
-        self.rebuild_every = rebuild_every or scene.rebuild_every
+        self.rebuild_every = rebuild_every or scene.opensim.rebuild_every
         self.up_axis, self.forward_axis = UP, FORWARD
         self._body = load_body(scene.body)
         topology = topology_for(scene.body)
@@ -115,7 +115,7 @@ class OpenSimSimulator:
 
     def _build(self) -> None:
         built = build_model(
-            self._body, self._plan, tendon=self.scene.tendon, obstacles=self._plan.obstacles
+            self._body, self._plan, tendon=self.scene.opensim.tendon, obstacles=self._plan.obstacles
         )
         self._built = built
         self.model = built.model
@@ -221,7 +221,7 @@ class OpenSimSimulator:
         # integrate() returns a reference into its Manager: the previous Manager, and the
         # state it owned, are freed only here, once nothing reads that state any more.
         self._stepper, self.osim_state = manager, state
-        if time.perf_counter() - start > self.scene.step_wall_limit_s:
+        if time.perf_counter() - start > self.scene.opensim.step_wall_limit_s:
             return Health("opensim_wall_time"), manager
         y = self.osim_state.getY().to_numpy()
         if not np.isfinite(y).all():

@@ -36,7 +36,7 @@ class OpenSimLaws:
     ) -> None:
         self.floor: HuntCrossleyFloor | None = None
         self.laws: list[Law] = []
-        if scene.contact_model == "hunt-crossley":
+        if scene.mujoco.contact_model == "hunt-crossley":
             spheres = np.flatnonzero(
                 (model.geom_type == mujoco.mjtGeom.mjGEOM_SPHERE)
                 & (model.geom_contype & CONTACT_BIT != 0)
@@ -44,9 +44,12 @@ class OpenSimLaws:
             )
             self.floor = HuntCrossleyFloor(model, spheres, load_body(scene.body).contact, up_axis)
             self.laws.append(self.floor)
-        if scene.joint_limits == "opensim":
+        if scene.mujoco.joint_limits == "opensim":
             self.laws.append(LimitSprings(model, opensim_limits(scene, list(dof_names))))
-        active, passive = scene.muscle_curves == "opensim", scene.muscle_passive == "opensim"
+        active, passive = (
+            scene.mujoco.muscle_curves == "opensim",
+            scene.mujoco.muscle_passive == "opensim",
+        )
         if active or passive:
             muscles = load_body(scene.body).muscles
             self.laws.append(OpenSimMuscles(model, muscles, active=active, passive=passive))

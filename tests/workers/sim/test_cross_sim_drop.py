@@ -12,7 +12,7 @@ MuJoCo's 0.02 s) takes most of the gap away (measured: 1.6 cm, 1.1 cm, 0.037 rad
 from __future__ import annotations
 
 import numpy as np
-from gaitforge.workers.scenes import load_scene
+from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.sim import make_simulator
 
 TOLERANCE = {"height": 0.03, "forward": 0.05, "tilt": 0.1}
@@ -20,8 +20,9 @@ TOLERANCE = {"height": 0.03, "forward": 0.05, "tilt": 0.1}
 
 def _pelvis_trajectory(backend: str, contact_timeconst_s: float | None = None) -> np.ndarray:
     """[30, 3]: forward (m), height (m), tilt (rad) every 10 ms."""
-    update = {"init_noise": 0.0, "contact_timeconst_s": contact_timeconst_s}
-    scene = load_scene("stand-2d").model_copy(update=update)
+    raw = load_scene("stand-2d").model_dump()
+    raw.update(init_noise=0.0, mujoco={"contact_timeconst_s": contact_timeconst_s})
+    scene = Scene.model_validate(raw)
     sim = make_simulator(scene, backend)
     sim.reset(0)
     rows = []

@@ -95,7 +95,7 @@ def test_the_force_velocity_fit_is_the_least_squares_one() -> None:
 
 
 def _scene(curves: str) -> Scene:
-    return load_scene("walk-2d").model_copy(update={"muscle_curves": curves})
+    return load_scene("walk-2d", {"mujoco.muscle_curves": curves})
 
 
 class _Soleus:

@@ -54,7 +54,7 @@ def test_the_fit_is_the_least_squares_one_on_its_grid() -> None:
 def _relaxed_gastroc_pull(passive: str, ankle: float) -> tuple[float, float]:
     """(normalised fibre length, passive force / peak force) of a compiled walk-2d's relaxed
     right gastrocnemius, knee straight, ankle at ``ankle`` rad, nothing moving."""
-    scene = load_scene("walk-2d").model_copy(update={"muscle_passive": passive})
+    scene = load_scene("walk-2d", {"mujoco.muscle_passive": passive})
     m, _, _ = compile_scene(scene)
     d = mujoco.MjData(m)
     actuator = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, "gastroc_r")
@@ -86,9 +86,7 @@ def test_a_thelen_scene_pulls_as_thelens_curve_where_the_default_is_soft(ankle: 
 
 def test_only_the_passive_force_changes() -> None:
     own, _, _ = compile_scene(load_scene("walk-2d"))
-    fitted, _, _ = compile_scene(
-        load_scene("walk-2d").model_copy(update={"muscle_passive": "thelen"})
-    )
+    fitted, _, _ = compile_scene(load_scene("walk-2d", {"mujoco.muscle_passive": "thelen"}))
     np.testing.assert_array_equal(fitted.actuator_gainprm, own.actuator_gainprm)
     changed = [5, 7]
     kept = [i for i in range(own.actuator_biasprm.shape[1]) if i not in changed]
@@ -97,7 +95,7 @@ def test_only_the_passive_force_changes() -> None:
 
 
 def test_an_mjcf_body_is_refused_with_the_option_named() -> None:
-    scene = load_scene("walk-3d+planar").model_copy(update={"muscle_passive": "thelen"})
+    scene = load_scene("walk-3d+planar", {"mujoco.muscle_passive": "thelen"})
     with pytest.raises(ValueError, match=r"muscle_passive 'thelen'.*myoleg"):
         compile_scene(scene)
 
@@ -126,7 +124,7 @@ def test_the_fibre_fit_changes_only_the_pennated_muscles() -> None:
     at the standing gastrocnemius's 1.46."""
 
     def compiled(option: str) -> mujoco.MjModel:
-        return compile_scene(load_scene("walk-2d").model_copy(update={"muscle_passive": option}))[0]
+        return compile_scene(load_scene("walk-2d", {"mujoco.muscle_passive": option}))[0]
 
     thelen, fibre = compiled("thelen"), compiled("thelen-fibre")
 

@@ -1,12 +1,19 @@
-"""The scene's MuJoCo modelling options: how MuJoCo's contact, joint limits and muscles are
-made, nearer OpenSim's or its own (OpenSim ignores them all). Each is a field of
-``workers.scenes.spec.Scene``; its type here carries its bounds and its documentation."""
+"""A scene's backend options: how MuJoCo models contact, joint limits and muscles, nearer
+OpenSim's or its own (``mujoco:``, OpenSim ignores them all), and OpenSim's tendons and run
+bounds (``opensim:``, MuJoCo ignores them). Each type here carries its bounds and its
+documentation.
+
+Every option is set by a shipped scene option (``opensim-like``, ``opensim-laws``) or by a
+fidelity measurement (``contact_timeconst_s``: the relaxed drop's contact softness;
+``tendon``: the model-error check of compliant tendons; ``rebuild_every`` and
+``step_wall_limit_s``: OpenSim's memory and a hung integrator)."""
 
 from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field
+from gaitforge.workers.spec_types import SPEC_VALUES
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 Timeconst = Annotated[float, Field(gt=0, le=1)]
 Impedance = Annotated[float, Field(gt=0, lt=1)]
@@ -91,3 +98,50 @@ MusclePassive = Annotated[
         "as forces every MuJoCo step (workers.sim.opensim_muscles) (OpenSim: ignored)",
     ),
 ]
+
+
+class _Options(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, **SPEC_VALUES)
+
+
+class MujocoOptions(_Options):
+    """How MuJoCo models what OpenSim models otherwise; each left out keeps MuJoCo's own."""
+
+    contact_timeconst_s: ContactTimeconst = None
+    contact_solimp: ContactSolimp = None
+    contact_model: ContactModel = "mujoco"
+    joint_limits: JointLimits = "mujoco"
+    muscle_min_activation: MuscleMinActivation = 0.0
+    muscle_curves: MuscleCurves = "mujoco"
+    muscle_passive: MusclePassive = "gait"
+
+    @model_validator(mode="after")
+    def _ranges(self) -> MujocoOptions:
+        timeconst = self.contact_timeconst_s
+        if isinstance(timeconst, tuple) and timeconst[0] > timeconst[1]:
+            raise ValueError(f"contact_timeconst_s: low {timeconst[0]} > high {timeconst[1]}")
+        if self.contact_solimp is not None and self.contact_solimp[0] > self.contact_solimp[1]:
+            raise ValueError(
+                f"contact_solimp: dmin {self.contact_solimp[0]} > dmax {self.contact_solimp[1]}"
+            )
+        return self
+
+
+class OpenSimOptions(_Options):
+    """OpenSim's tendons and the bounds of a run on it."""
+
+    tendon: Literal["rigid", "compliant"] = Field(
+        default="rigid", description="the muscles' tendons (MuJoCo's are always rigid)"
+    )
+    rebuild_every: Annotated[int, Field(ge=1, le=100_000)] = Field(
+        default=100, description="episodes between model rebuilds (a bound on OpenSim's memory)"
+    )
+    step_wall_limit_s: Annotated[float, Field(gt=0, le=3600)] = Field(
+        default=10.0,
+        description="s of wall-clock time one control step may take (a hung integrator ends "
+        "its episode, named)",
+    )
+
+
+MUJOCO_FIELDS = tuple(MujocoOptions.model_fields)
+OPENSIM_FIELDS = tuple(OpenSimOptions.model_fields)
