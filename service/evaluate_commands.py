@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+from gaitforge.service.cli_options import SetFields, assignments
 from gaitforge.service.console import err, fail, out, print_json
 from gaitforge.service.evaluate_view import render, render_episodes
 from gaitforge.service.ops import InputError, validate_request
@@ -46,6 +47,7 @@ def evaluate(
     seed: Annotated[
         int, typer.Option(min=0, max=SEED_LIMIT - 1, help="Episode i resets with seed + i.")
     ] = 0,
+    set_fields: SetFields = None,
     sweep: Annotated[bool, typer.Option("--sweep", help="Speed-against-safety sweep.")] = False,
     sweep_percent: Annotated[
         str, typer.Option(help="Target speed reductions for --sweep, in percent.")
@@ -75,6 +77,7 @@ def evaluate(
             ops.EvaluateRequest, checkpoint=checkpoint, scene=scene,
             backend=backend.value if backend else None, episodes=episodes, modes=modes,
             seed=seed, sweep=reductions, pick=pick.value, record=record, video=video,
+            scene_set=assignments(set_fields),
         )  # fmt: skip
     except InputError as exc:
         raise fail(exc) from None

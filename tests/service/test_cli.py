@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 from gaitforge.service.cli import app
 from typer.testing import CliRunner
@@ -79,3 +80,16 @@ def test_name_and_all_together_is_an_error() -> None:
     result = runner.invoke(app, ["scenes", "check", "walk-2d", "--all"])
     assert result.exit_code == 2
     assert "not both" in result.output
+
+
+def test_evaluate_sets_fields_of_the_checkpoints_own_scene() -> None:
+    """``--set`` on ``evaluate`` changes the scene the checkpoint is judged on (here the
+    shipped walker asked for 1.0 m/s); a wrong field is one line naming ``--set``."""
+    walker = str(Path(__file__).resolve().parents[2] / "examples" / "policies" / "walk-2d")
+    args = ["evaluate", walker, "--episodes", "1", "--json"]
+    result = runner.invoke(app, [*args, "--set", "task.target_speed=1.0"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["results"]["deterministic"]["target_speed_m_s"] == 1.0
+    wrong = runner.invoke(app, [*args, "-o", "task.target_sped=1.0"])
+    assert wrong.exit_code == 2 and wrong.stderr.startswith("error: --set: ")
+    assert "task.target_sped: Extra inputs" in wrong.stderr
