@@ -2,9 +2,10 @@
 its stages, the episodes behind each promotion rule, and the decision to move on.
 
 The trainer feeds every fragment's finished episodes to :class:`CurriculumState`; after each
-update it asks :meth:`CurriculumState.verdict` whether the stage is over: its promotion rule
-passed (over a full window of episodes) or its env-step budget is spent. The state is plain
-data, saved in each checkpoint's ``meta.json`` so that a resumed run keeps its window.
+update it asks :meth:`CurriculumState.verdict` whether the stage is over: its promotion rules
+passed (each training rule over a full window of episodes, each evaluation rule on the
+deterministic evaluation just run) or its env-step budget is spent. The state is plain data,
+saved in each checkpoint's ``meta.json`` so that a resumed run keeps its window.
 """
 
 from __future__ import annotations
@@ -13,7 +14,8 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
-from gaitforge.learner.job import Job, Stage
+from gaitforge.learner.job import Job, PromotionRule, Stage
+from gaitforge.learner.stage_spec import EVALUATION_PREFIX
 from gaitforge.learner.symmetry import MirrorMap
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
@@ -27,6 +29,9 @@ from gaitforge.workers.scenes.io_names import (
 from gaitforge.workers.spec_io import SpecError
 
 WINDOW_MAX = 10_000
+PROMOTED = "promoted: "
+"""how a verdict of promotion starts"""
+BUDGET_SPENT = "budget spent"
 
 
 class StageIO:
@@ -151,13 +156,21 @@ class CurriculumState:
     entered: bool = False
     """the stage's transition (scene push, new network) is done"""
     episodes: deque[EpisodeStats] = field(default_factory=lambda: deque(maxlen=WINDOW_MAX))
+    evaluation: dict[str, float] = field(default_factory=dict)
+    """the stage's last deterministic evaluation (``eval_*`` metrics, ``StageJudge.evaluate``);
+    in memory only: empty before the stage's first evaluation, and after a resume until the
+    next"""
 
     def add(self, fragment: Fragment, scene: Scene) -> None:
         self.stage_env_steps += fragment.steps
         self.episodes.extend(episodes_of(fragment, scene))
 
     def window_mean(self, metric: str, window: int) -> float:
-        """Mean of ``metric`` over the last ``window`` episodes (NaN with none)."""
+        """Mean of ``metric`` over the last ``window`` episodes (NaN with none); for an
+        evaluation metric (``eval.fall_rate``), the stage's last evaluation's (NaN before
+        one)."""
+        if metric.startswith(EVALUATION_PREFIX):
+            return self.evaluation.get(_evaluated(metric), float("nan"))
         recent = list(self.episodes)[-window:]
         return float(np.mean([e.metric(metric) for e in recent])) if recent else float("nan")
 
@@ -168,26 +181,52 @@ class CurriculumState:
             for m in ("return", "distance", "speed", "fall_rate", "survival", "length")
         }
 
-    def verdict(self, stage: Stage) -> str | None:
-        """Why the stage ends now (``"promoted: ..."`` or ``"budget spent"``), or None."""
+    def verdict(self, stage: Stage, evaluation: dict[str, float] | None = None) -> str | None:
+        """Why the stage ends now (``"promoted: ..."`` or ``"budget spent"``), or None.
+
+        Promoted when all the stage's rules pass: each training rule on the mean over its
+        window of episodes (once the window is full), each evaluation rule (``eval.*``) on
+        ``evaluation``, the ``eval_*`` metrics of the stage's deterministic evaluation just
+        run (None where none ran now: a stage with evaluation rules promotes only at an
+        evaluation)."""
         rules = stage.promote
-        full = rules and len(self.episodes) >= max(rule.window for rule in rules)
-        if full:
-            means = [self.window_mean(rule.metric, rule.window) for rule in rules]
-            if all(rule.passes(mean) for rule, mean in zip(rules, means, strict=True)):
-                return "promoted: " + ", ".join(
-                    f"{rule.metric} {mean:.3g} {rule.op} {rule.value:g}"
-                    for rule, mean in zip(rules, means, strict=True)
-                )
+        figures = self._figures(rules, evaluation)
+        if figures is not None and all(
+            rule.passes(figure) for rule, figure in zip(rules, figures, strict=True)
+        ):
+            return PROMOTED + ", ".join(
+                f"{rule.metric} {figure:.3g} {rule.op} {rule.value:g}"
+                for rule, figure in zip(rules, figures, strict=True)
+            )
         if self.stage_env_steps >= stage.env_steps:
-            return "budget spent"
+            return BUDGET_SPENT
         return None
+
+    def _figures(
+        self, rules: list[PromotionRule], evaluation: dict[str, float] | None
+    ) -> list[float] | None:
+        """Each rule's figure, or None if not every rule can be judged now (none at all, a
+        training window not yet full, an evaluation rule and no evaluation)."""
+        if not rules:
+            return None
+        figures = []
+        for rule in rules:
+            if rule.on_evaluation:
+                if evaluation is None:
+                    return None
+                figures.append(evaluation[_evaluated(rule.metric)])
+            elif len(self.episodes) < rule.window:
+                return None
+            else:
+                figures.append(self.window_mean(rule.metric, rule.window))
+        return figures
 
     def advance(self) -> None:
         self.stage += 1
         self.stage_env_steps = 0
         self.entered = False
         self.episodes.clear()
+        self.evaluation = {}
 
     def to_json(self) -> dict:
         return {
@@ -204,3 +243,9 @@ class CurriculumState:
         state = cls(int(raw["stage"]), int(raw["stage_env_steps"]), bool(raw["entered"]))
         state.episodes.extend(EpisodeStats(*e) for e in raw["episodes"])
         return state
+
+
+def _evaluated(metric: str) -> str:
+    """The key of an evaluation metric (``eval.fall_rate``) among an evaluation's metrics
+    (``eval_fall_rate``)."""
+    return "eval_" + metric.removeprefix(EVALUATION_PREFIX)

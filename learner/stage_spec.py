@@ -11,17 +11,31 @@ from gaitforge.learner.ppo import EntropyWeight, LearningRate
 from gaitforge.workers.scenes.action import ActionSpec
 from gaitforge.workers.scenes.profiles import Fidelity
 from gaitforge.workers.spec_types import MAX_NAME_LENGTH, SPEC_VALUES, Name, Ref
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializerFunctionWrapHandler,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 
 METRICS = ("return", "distance", "speed", "fall_rate", "survival", "length")
-"""Episode statistics a promotion rule can test, each averaged over its window: return;
+"""Episode statistics a promotion rule can test, each averaged over its episodes: return;
 distance covered (m); mean speed (m/s); fall rate (fraction of episodes that fell);
 survival (fraction that lasted the whole episode without falling); length (s)."""
+EVALUATION_PREFIX = "eval."
+"""A rule's metric with this prefix (``eval.fall_rate``) reads the stage's deterministic
+evaluation (``evaluate:``) instead of its training episodes."""
+EVALUATION_METRICS = tuple(EVALUATION_PREFIX + metric for metric in METRICS)
+DEFAULT_WINDOW = 100
+"""training episodes a rule's mean is over when it names none"""
 
 MAX_RULE_LENGTH = 200
 """the longest promotion rule written as a string"""
 _RULE = re.compile(
-    r"^\s*(?P<metric>[a-z_]+)\s*(?P<op>>=|<=)\s*(?P<value>[-+0-9.eE]+)\s*"
+    r"^\s*(?P<metric>(?:eval\.)?[a-z_]+)\s*(?P<op>>=|<=)\s*(?P<value>[-+0-9.eE]+)\s*"
     r"(?:over\s+(?P<window>\d+))?\s*$"
 )
 
@@ -40,19 +54,76 @@ class StrictSpec(BaseModel):
 
 
 class PromotionRule(StrictSpec):
-    """Promote when the mean of ``metric`` over the last ``window`` episodes passes
-    ``value``. Written as a mapping or a string: ``"distance >= 5 over 100"``."""
+    """Promote when ``metric`` passes ``value``. Written as a mapping or a string:
+    ``"distance >= 5 over 100"``, ``"eval.fall_rate <= 0.1"``.
 
-    metric: Literal["return", "distance", "speed", "fall_rate", "survival", "length"]
+    A training metric (``distance``) is the mean over the last ``window`` training episodes
+    (sampled actions), judged after every update once that many episodes have finished. An
+    evaluation metric (``eval.distance``) is the stage's deterministic evaluation
+    (``evaluate:``, which the stage must have): the mean policy over the evaluation's
+    ``evaluate.episodes`` episodes, judged at each evaluation; it takes no ``over
+    <episodes>``, since the evaluation's episodes are its window. A stage's rules must all
+    pass at once, so a stage with an evaluation rule promotes only at an evaluation.
+    """
+
+    metric: Literal[
+        "return",
+        "distance",
+        "speed",
+        "fall_rate",
+        "survival",
+        "length",
+        "eval.return",
+        "eval.distance",
+        "eval.speed",
+        "eval.fall_rate",
+        "eval.survival",
+        "eval.length",
+    ]
     op: Literal[">=", "<="]
     value: float
-    window: Annotated[int, Field(ge=1, le=10_000)] = 100
+    window: Annotated[int, Field(ge=1, le=10_000)] = DEFAULT_WINDOW
+    """training episodes the mean is over (training metrics only)"""
+
+    @property
+    def on_evaluation(self) -> bool:
+        """The rule reads the stage's deterministic evaluation (an ``eval.`` metric)."""
+        return self.metric.startswith(EVALUATION_PREFIX)
+
+    @property
+    def statistic(self) -> str:
+        """The episode statistic tested: ``metric`` without ``eval.`` (one of ``METRICS``)."""
+        return self.metric.removeprefix(EVALUATION_PREFIX)
+
+    @model_validator(mode="after")
+    def _no_window_on_evaluation(self) -> PromotionRule:
+        if self.on_evaluation and "window" in self.model_fields_set:
+            raise ValueError(_NO_WINDOW.format(metric=self.metric))
+        return self
+
+    @model_serializer(mode="wrap")
+    def _without_unused_window(self, handler: SerializerFunctionWrapHandler):
+        """An evaluation rule is written without the window it does not use (and so reads
+        back). No return annotation: pydantic then keeps the model's own JSON schema for
+        serialization (a ``dict`` one would make it any object)."""
+        fields = handler(self)
+        if self.on_evaluation:
+            fields.pop("window", None)
+        return fields
 
     def __str__(self) -> str:
+        if self.on_evaluation:
+            return f"{self.metric} {self.op} {self.value:g} on the stage's evaluation"
         return f"{self.metric} {self.op} {self.value:g} over {self.window} episodes"
 
     def passes(self, mean: float) -> bool:
         return mean >= self.value if self.op == ">=" else mean <= self.value
+
+
+_NO_WINDOW = (
+    "{metric}: no 'over <episodes>' for an evaluation rule: it reads the whole of the stage's "
+    "evaluation (evaluate.episodes episodes)"
+)
 
 
 def _parse_rule(raw: object) -> object:
@@ -64,8 +135,11 @@ def _parse_rule(raw: object) -> object:
     if match is None:
         raise ValueError(
             f"expected '<metric> >=|<= <value> [over <episodes>]' (at most {MAX_RULE_LENGTH} "
-            f"characters), metric one of {METRICS}"
+            f"characters), metric one of {METRICS} or of the stage's evaluation, "
+            f"{EVALUATION_PREFIX}<metric> (no 'over')"
         )
+    if match["metric"].startswith(EVALUATION_PREFIX) and match["window"] is not None:
+        raise ValueError(_NO_WINDOW.format(metric=match["metric"]))
     fields: dict[str, object] = {"metric": match["metric"], "op": match["op"]}
     try:
         fields["value"] = float(match["value"])
@@ -215,6 +289,16 @@ class Stage(StrictSpec):
     def _parse_rules(cls, raw: object) -> object:
         rules = raw if isinstance(raw, list) else [] if raw is None else [raw]
         return [_parse_rule(rule) for rule in rules]
+
+    @model_validator(mode="after")
+    def _evaluation_rules_evaluated(self) -> Stage:
+        on_evaluation = [rule.metric for rule in self.promote if rule.on_evaluation]
+        if on_evaluation and self.evaluate is None:
+            raise ValueError(
+                f"promote: {on_evaluation[0]} reads the stage's deterministic evaluation; "
+                "the stage needs evaluate: (e.g. evaluate: {episodes: 50})"
+            )
+        return self
 
     @model_validator(mode="after")
     def _transition_fits(self) -> Stage:

@@ -10,18 +10,22 @@ same initial states; apart from ``gaitforge evaluate``'s default seeds, so that 
 can be checked on episodes it was not chosen on). The rollout actors go on sampling
 meanwhile.
 
+Each evaluation is where the stage's evaluation rules (``promote: eval.fall_rate <= 0.1``)
+are judged: the stage is promoted when they pass on it and its training rules pass on their
+windows then (``learner.curriculum.CurriculumState.verdict``).
+
 The best network so far is saved as a checkpoint in ``run_dir/best/stage-<i>`` (its
 evaluation in ``meta.json``'s metrics, so a resumed run knows what it must beat). With
 ``keep_best`` the stage ends with that network if it beats the last one: better means more
 of the stage's promotion rules passed on the evaluation, then fewer falls, then a higher mean
-return (:func:`score`).
+return (:func:`score`); a stage promoted on an evaluation ends with the network evaluated
+then, which passed its rules.
 """
 
 from __future__ import annotations
 
 import logging
 import shutil
-from collections.abc import Callable
 from pathlib import Path
 
 from gaitforge.learner.checkpoint import (
@@ -31,7 +35,7 @@ from gaitforge.learner.checkpoint import (
     save_checkpoint,
 )
 from gaitforge.learner.checkpoint_meta import CheckpointMeta
-from gaitforge.learner.curriculum import StageIO
+from gaitforge.learner.curriculum import PROMOTED, StageIO
 from gaitforge.learner.evaluation.episodes import evaluate_policy
 from gaitforge.learner.evaluation.results import ModeResult
 from gaitforge.learner.job import PromotionRule, Stage, StageEvaluation, evaluation_scene
@@ -62,8 +66,9 @@ def evaluation_metrics(result: ModeResult) -> dict[str, float]:
 
 
 def score(metrics: dict[str, float], rules: list[PromotionRule]) -> Score:
-    """How good an evaluation (``eval_*`` metrics) is for a stage with promotion ``rules``."""
-    passed = sum(rule.passes(metrics[f"eval_{rule.metric}"]) for rule in rules)
+    """How good an evaluation (``eval_*`` metrics) is for a stage with promotion ``rules``
+    (each, training rules too, tested on the evaluation)."""
+    passed = sum(rule.passes(metrics[f"eval_{rule.statistic}"]) for rule in rules)
     return passed, -metrics["eval_fall_rate"], metrics["eval_return"]
 
 
@@ -183,24 +188,27 @@ class StageJudge:
                 shutil.rmtree(other, ignore_errors=True)
         return True
 
+    def promoted_on_evaluation(self, verdict: str | None) -> bool:
+        """Whether ``verdict`` (given at an evaluation) promotes the stage on it: the stage
+        has evaluation rules (``eval.*``), which pass only on an evaluation."""
+        on_evaluation = any(rule.on_evaluation for rule in self.rules)
+        return on_evaluation and verdict is not None and verdict.startswith(PROMOTED)
+
     def judge(
-        self,
-        policy: ActorCritic,
-        stage_env_steps: int,
-        env_steps: int,
-        metrics: dict,
-        meta_of: Callable[[dict], CheckpointMeta],
-        stage_end: bool,
+        self, policy: ActorCritic, metrics: dict, meta: CheckpointMeta, env_steps: int
     ) -> ActorCritic | None:
-        """Evaluate ``policy`` (the stage at ``stage_env_steps``, the run at ``env_steps``)
-        into its iteration's ``metrics`` and keep it if it is the best so far (its checkpoint
-        meta made by ``meta_of(metrics)``). At the end of a ``keep_best`` stage
-        (``stage_end``) whose last network was not its best, returns the best network to end
-        with (``metrics`` then also name it: ``kept_eval_*``, ``kept_best_from_env_steps``);
-        otherwise None."""
-        metrics.update(self.evaluate(policy, stage_env_steps))
-        kept = self.offer(policy, metrics, meta_of(metrics), env_steps)
-        if not (stage_end and self.spec.keep_best) or kept:
+        """Keep ``policy``, just evaluated, if it is the best so far (its iteration's
+        ``metrics`` hold the evaluation and the stage's ``verdict``; ``meta`` is its
+        checkpoint's, the run at ``env_steps``). At the end of a ``keep_best`` stage (a
+        verdict) whose last network was not its best, returns the best network to end with
+        (``metrics`` then also name it: ``kept_eval_*``, ``kept_best_from_env_steps``);
+        otherwise None, and always when the stage was promoted on this evaluation: it ends
+        with the network that passed."""
+        kept = self.offer(policy, metrics, meta, env_steps)
+        verdict = metrics["verdict"]
+        if verdict is None or not self.spec.keep_best or kept:
+            return None
+        if self.promoted_on_evaluation(verdict):
             return None
         best = self.best_network()
         if best is None:

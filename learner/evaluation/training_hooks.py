@@ -21,8 +21,10 @@ class StageJudging(TrainingHook):
     """The deterministic evaluations of every stage of ``run`` with ``evaluate``
     (:class:`StageJudge`, keeping its best network in ``run_dir/best/stage-<i>``): after the
     stage's first update, every ``evaluate.every_env_steps`` and at its end, into the
-    iteration's metrics (``eval_*``). A ``keep_best`` stage that ends with a network worse
-    than its best goes on from the best.
+    iteration's metrics (``eval_*``). Each evaluation judges the stage's promotion rules again,
+    its evaluation rules (``eval.*``) on it, into ``metrics["verdict"]``. A ``keep_best``
+    stage that ends with a network worse than its best goes on from the best, unless it was
+    promoted on that evaluation.
 
     Raises:
         SpecError: a stage's ``evaluate.scene`` does not fit it.
@@ -54,14 +56,11 @@ class StageJudging(TrainingHook):
         stage_end = metrics["verdict"] is not None
         if judge is None or not (stage_end or judge.due(run.curriculum.stage_env_steps)):
             return
-        best = judge.judge(
-            run.policy,
-            run.curriculum.stage_env_steps,
-            run.env_steps,
-            metrics,
-            run.meta,
-            stage_end,
-        )
+        evaluation = judge.evaluate(run.policy, run.curriculum.stage_env_steps)
+        metrics.update(evaluation)
+        run.curriculum.evaluation = evaluation
+        metrics["verdict"] = run.curriculum.verdict(run.stage, evaluation)
+        best = judge.judge(run.policy, metrics, run.meta(metrics), run.env_steps)
         if best is not None:
             run.switch_policy(best, run.stage_io)
 
