@@ -18,6 +18,9 @@ SetFields = Annotated[
         help="Set a field by dotted path, the value read as YAML (repeat for more).",
     ),
 ]
+AsJson = Annotated[
+    bool, typer.Option("--json", help="Print the result as JSON (for programs) instead of text.")
+]
 JobSeed = Annotated[
     int | None,
     typer.Option(min=0, max=SEED_LIMIT - 1, help="The job's seed, in place of its own."),

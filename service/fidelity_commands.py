@@ -9,7 +9,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import typer
-from gaitforge.service.console import err, fail, out, table
+from gaitforge.service.cli_options import AsJson
+from gaitforge.service.console import err, fail, out, print_json, table
 from gaitforge.service.ops import SpecError, validate_request
 from gaitforge.service.ops import fidelity as ops
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -59,6 +60,7 @@ def sweep(
     task_tolerance: float = typer.Option(
         None, help="m: also require the mean distance covered within this of the reference's."
     ),
+    json_out: AsJson = False,
 ) -> None:
     """Measure every profile of the grid; write CSV, JSON and a Pareto plot; recommend and
     save the fastest profile within tolerance."""
@@ -73,6 +75,9 @@ def sweep(
             outcome = ops.sweep(request, progress)
     except SpecError as exc:
         raise fail(exc) from None
+    if json_out:
+        print_json(outcome.to_dict())
+        return
     result = outcome.result
     ref, size = result.reference, result.size
     out.print(
@@ -128,6 +133,7 @@ def stress(
     ),
     quick: bool = typer.Option(False, "--quick", help="Fewer profiles, scenarios and checks."),
     bisect: bool = typer.Option(True, help="Bisect for the largest stable step/accuracy."),
+    json_out: AsJson = False,
 ) -> None:
     """Every profile under hostile inputs (all 0, all 1, bang-bang, random, spinning joints,
     a 0.5 m drop), a stability map, and by bisection the largest stable timestep (MuJoCo)
@@ -141,6 +147,9 @@ def stress(
             outcome = ops.stress(request, progress)
     except SpecError as exc:
         raise fail(exc) from None
+    if json_out:
+        print_json(outcome.to_dict())
+        return
     scenarios = outcome.scenarios
     stability = table("profile", *scenarios,
                       title=f"stability map: {outcome.scene} on {outcome.backend}")  # fmt: skip

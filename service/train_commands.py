@@ -17,8 +17,8 @@ from typing import Annotated
 
 import typer
 from gaitforge.learner.job import MAX_NUM_WORKERS, Job
-from gaitforge.service.cli_options import JobSeed, SetFields, assignments
-from gaitforge.service.console import err, fail, out
+from gaitforge.service.cli_options import AsJson, JobSeed, SetFields, assignments
+from gaitforge.service.console import err, fail, out, print_json
 from gaitforge.service.ops import SpecError, validate_request
 from gaitforge.service.ops import train as ops
 from gaitforge.service.signals import SignalStop
@@ -117,6 +117,7 @@ def train(
     ] = None,
     seed: JobSeed = None,
     set_fields: SetFields = None,
+    json_out: AsJson = False,
     tensorboard: Annotated[bool, typer.Option(help="write TensorBoard scalars")] = True,
     log_every: Annotated[
         float, typer.Option(min=0.0, help="s between status lines off a terminal (0: each)")
@@ -149,7 +150,7 @@ def train(
                 if training.start_ray():
                     signals.install()  # Ray's driver put in its own handlers: take them back
                 signals.on_stop(training.request_stop)
-                result = _run(training, max_iterations, max_minutes, log_every)
+                result = _run(training, max_iterations, max_minutes, log_every, json_out)
             except SpecError as exc:  # a check that needs the cluster: the actors' CPUs
                 raise fail(exc) from None
             except _actor_failure() as exc:
@@ -163,6 +164,9 @@ def train(
         err.print(f"{sig.name}: stopped at once; newest checkpoint: {newest or 'none'}",
                   soft_wrap=True, highlight=False)  # fmt: skip
         raise typer.Exit(128 + sig.value) from None
+    if json_out:
+        print_json(result)
+        return
     if result.stopped:
         where = result.checkpoint or "none written yet"
         out.print(
@@ -184,10 +188,14 @@ def _actor_failure() -> type[Exception]:
 
 
 def _run(
-    training: ops.Training, max_iterations: int | None, max_minutes: float | None, log_every: float
+    training: ops.Training,
+    max_iterations: int | None,
+    max_minutes: float | None,
+    log_every: float,
+    json_out: bool = False,
 ) -> ops.TrainResult:
     """Train with a live display on a terminal, else with status lines (and the display's
-    last state printed at the end)."""
+    last state printed at the end, unless the result goes out as JSON)."""
     max_seconds = None if max_minutes is None else 60.0 * max_minutes
     display = TrainDisplay(training.job, training.stage_progress())
     if err.is_terminal:
@@ -201,5 +209,6 @@ def _run(
         log(metrics)
 
     result = training.run(max_iterations, max_seconds, on_iteration=on_iteration)
-    out.print(display)
+    if not json_out:
+        out.print(display)
     return result

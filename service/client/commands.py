@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from gaitforge.service.cli_options import JobSeed, SetFields, assignments
+from gaitforge.service.cli_options import AsJson, JobSeed, SetFields, assignments
 from gaitforge.service.client.download import Downloaded, download
 from gaitforge.service.client.follow import follow_events, status_line, tail_logs
 from gaitforge.service.client.http import DEFAULT_SERVER, ClientError, GaitforgeClient
@@ -44,7 +44,6 @@ TokenFile = Annotated[
         help="file holding the token [default: $GAITFORGE_HOME/token]",
     ),
 ]  # fmt: skip
-AsJson = Annotated[bool, typer.Option("--json", help="print JSON instead of tables")]
 JobId = Annotated[str, typer.Argument(help="the job's id (j-...)")]
 LogEvery = Annotated[
     float, typer.Option(min=0.5, help="s between status lines when not on a terminal")

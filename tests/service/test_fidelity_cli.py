@@ -113,25 +113,27 @@ def test_backend_the_scene_lacks_is_a_one_line_error() -> None:
 
 
 def test_quick_stress_prints_a_stability_map_and_a_limit() -> None:
-    result = runner.invoke(
-        app, ["fidelity", "stress", "walk-3d", "--quick", "--seconds", "0.3"], env=ENV
-    )
+    args = ["fidelity", "stress", "walk-3d", "--quick", "--seconds", "0.3"]
+    result = runner.invoke(app, args, env=ENV)
     assert result.exit_code == 0, result.output
     assert "stability map" in result.output
     assert "euler 20ms" in result.output and "diverged" in result.output
     assert "largest stable step" in result.output
+    as_json = runner.invoke(app, [*args, "--no-bisect", "--json"], env=ENV)
+    assert as_json.exit_code == 0, as_json.output
+    outcome = json.loads(as_json.stdout)
+    assert outcome["scene"] == "walk-3d" and outcome["limits"] == []
+    euler = next(row for row in outcome["rows"] if row["profile"] == "euler 20ms")
+    assert any(cause.startswith("diverged") for cause in euler.values())
 
 
 def test_a_task_tolerance_no_profile_meets_leaves_nothing_recommended(tmp_path: Path) -> None:
     """Every profile's mean distance differs from the reference's by more than 1e-12 m."""
-    result = runner.invoke(
-        app,
-        ["fidelity", "sweep", "walk-2d", "--quick", "--task-tolerance", "1e-12", "--no-save",
-         "--out", str(tmp_path)],
-        env=ENV,
-    )  # fmt: skip
+    args = ["fidelity", "sweep", "walk-2d", "--quick", "--task-tolerance", "1e-12"]
+    result = runner.invoke(app, [*args, "--no-save", "--out", str(tmp_path), "--json"], env=ENV)
     assert result.exit_code == 0, result.output
-    assert "no stable profile within" in result.output
+    printed = json.loads(result.stdout)
+    assert printed["result"]["recommended"] is None and printed["saved"] is None
     table = json.loads((tmp_path / "walk-2d-mujoco.json").read_text())
     assert table["recommended"] is None and not any(r["within"] for r in table["rows"])
     assert all(abs(r["task"]["distance_vs_ref"]) > 1e-12 for r in table["rows"])
