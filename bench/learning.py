@@ -22,8 +22,8 @@ window.
 gaitforge runs once per seed (``--seeds``, the job's ``seed``; RLlib runs with the first
 seed only); each run's newest checkpoint (RLlib's final module, its mean action) is then
 evaluated deterministically over ``--eval-episodes`` episodes of the scene its run ended on
-(``learner.evaluate``: fall rate, mean speed and, on imitation scenes, what the evaluation
-reports of the tracking), and the table gives each seed and the median over seeds.
+(``learner.evaluation.evaluate``: fall rate, mean speed and, on imitation scenes, what the
+evaluation reports of the tracking), and the table gives each seed and the median over seeds.
 
 Prints a table (target reached in training, i.e. promoted on the stochastic episodes'
 window?, wall-clock and env steps to it, or the last values; target met on the
@@ -75,7 +75,7 @@ def run_gaitforge(
 
     def record(m: dict) -> None:
         means = {r.metric: m[r.metric] for r in rules}
-        # a judged stage's deterministic evaluations (learner.stage_judge), where one ran
+        # a judged stage's deterministic evaluations (learner.evaluation.stage_judge), where one ran
         evaluated = {k: v for k, v in m.items() if k.startswith(("eval_", "kept_"))}
         curve.append({"wall_s": time.monotonic() - start, "env_steps": m["env_steps"],
                       "stage": m["stage"], "return": m["return"], **means,

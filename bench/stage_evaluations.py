@@ -1,8 +1,8 @@
-"""The in-training evaluations of runs (stages with ``evaluate``, ``learner.stage_judge``):
-falls and mean speed of the mean policy against env steps, from each run's TensorBoard
-scalars, as a table and a PNG (one line per run). ``--training`` plots the training
-episodes' falls and speed instead (the sampled policy's, over each update's episodes), for
-runs without evaluations.
+"""The in-training evaluations of runs (stages with ``evaluate``,
+``learner.evaluation.stage_judge``): falls and mean speed of the mean policy against env
+steps, from each run's TensorBoard scalars, as a table and a PNG (one line per run).
+``--training`` plots the training episodes' falls and speed instead (the sampled policy's,
+over each update's episodes), for runs without evaluations.
 
 Usage: python bench/stage_evaluations.py RUN_DIR [RUN_DIR ...] --out evaluations.png
                                          [--labels A B ...] [--training]

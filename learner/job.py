@@ -340,7 +340,7 @@ def evaluation_scene(
 ) -> Scene:
     """A stage's evaluation scene (``evaluate.scene`` with the stage's ``scene_set``), loaded
     and resolved for ``backend`` (that it takes the stage's policy is checked with the
-    stage's names: ``learner.stage_judge.judged_scene``).
+    stage's names: ``learner.evaluation.stage_judge.judged_scene``).
 
     Raises:
         SpecError: ``where`` (file and field): the scene does not load or runs elsewhere.

@@ -192,7 +192,7 @@ class WarmStartSpec(StrictSpec):
 
 
 class StageEvaluation(StrictSpec):
-    """Deterministic evaluations during a stage (``learner.stage_judge``): the stage is
+    """Deterministic evaluations during a stage (``learner.evaluation.stage_judge``): the stage is
     judged on an evaluation scene as ``gaitforge evaluate`` would judge it, not only on its
     training episodes (stochastic actions, and a training scene's mixed starts, hide how the
     mean policy does from standing)."""

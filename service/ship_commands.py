@@ -1,5 +1,5 @@
 """``gaitforge ship CKPT DEST``: copy a trained checkpoint into the repository as a shipped
-policy (``learner.ship``: no optimizer state, a provenance in its meta.json)."""
+policy (``learner.evaluation.ship``: no optimizer state, a provenance in its meta.json)."""
 
 from __future__ import annotations
 

@@ -193,7 +193,7 @@ def _check_range(http_range: str | None, size: int) -> None:
 _BINARY = {"type": "string", "format": "binary"}
 _REPORT_SCHEMA = {
     "type": "object",
-    "description": "a checkpoint's evaluation (learner.evaluate_results.EvaluationReport): "
+    "description": "a checkpoint's evaluation (learner.evaluation.results.EvaluationReport): "
     "the results per mode at the scene's own target speed, and the speed sweep if asked for",
     "properties": {
         "checkpoint": {"type": ["string", "null"]},

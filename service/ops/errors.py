@@ -3,7 +3,7 @@
 Operations raise :class:`~gaitforge.workers.spec_io.SpecError` (a bad scene or job file:
 the message names the file and the field) or :class:`InputError` (a bad argument: it names
 the argument). Evaluation raises ``EvaluationError`` and ``CheckpointError`` as
-``learner.evaluate`` does. A caller shows ``str(exc)``; the CLI shows an ``InputError``'s
+``learner.evaluation.evaluate`` does. A caller shows ``str(exc)``; the CLI shows an ``InputError``'s
 field as its option (``--tolerance``), the REST service as the request field.
 """
 

@@ -1,6 +1,6 @@
 """Evaluation operations: a checkpoint's distance, speed, falls, effort and health (on imitation
 scenes also the tracking error, rad, and the share of episodes that kept the gait) over seeded
-episodes, and the speed-against-safety sweep (the work is ``learner.evaluate``'s)."""
+episodes, and the speed-against-safety sweep (the work is ``learner.evaluation.evaluate``'s)."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ ProgressFn = Callable[[str, int, int], None]
 
 
 class EvaluateRequest(BaseModel):
-    """What to evaluate and how (see ``learner.evaluate.evaluate_checkpoint``)."""
+    """What to evaluate and how (see ``learner.evaluation.evaluate.evaluate_checkpoint``)."""
 
     model_config = ConfigDict(extra="forbid")
 

@@ -242,7 +242,7 @@ def start_line(training: Training) -> str:
 
 def status_line(m: dict) -> str:
     """One line of an iteration's metrics: stage, env steps, speed, return, falls, and the
-    stage's deterministic evaluation where one ran (``learner.stage_judge``)."""
+    stage's deterministic evaluation where one ran (``learner.evaluation.stage_judge``)."""
     verdict = f" ({m['verdict']})" if m.get("verdict") else ""
     evaluated = ""
     if "eval_fall_rate" in m:
