@@ -55,7 +55,11 @@ def build_openapi(app: FastAPI) -> dict[str, Any]:
     }
     rule = {
         "anyOf": [
-            {"type": "string", "description": "'<metric> >=|<= <value> [over <episodes>]'"},
+            {
+                "type": "string",
+                "description": "'<metric> >=|<= <value> [over <episodes>]' on training episodes, "
+                "or 'eval.<metric> >=|<= <value>' on the stage's evaluation",
+            },
             {"$ref": "#/components/schemas/PromotionRule"},
         ]
     }
