@@ -20,7 +20,6 @@ from gaitforge.learner.symmetry import MirrorMap
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.scenes.io_names import (
-    CLOCK_RATE_ACTION,
     action_names,
     lateral_axis,
     needs_planar_muscles,
@@ -60,13 +59,11 @@ def check_stages(job: Job, scenes: list[Scene]) -> tuple[list[StageIO], list[Mir
         SpecError: naming the stage (or ``ppo.mirror``) and what does not fit.
     """
     io = [StageIO(scene, job.stage_backend(i)) for i, scene in enumerate(scenes)]
-    acts = _unpaced(io[0].act_names)
+    acts = io[0].act_names
     mirrors: list[MirrorMap | None] = []
     for i, stage_io in enumerate(io):
-        if _unpaced(stage_io.act_names) != acts:
+        if stage_io.act_names != acts:
             raise SpecError(f"stages.{i}: muscles differ from stage 0's; one job, one body")
-        if i:
-            _check_pacing(i, io[i - 1], stage_io, job.stages[i].transition)
         previous = io[i - 1].obs_names if i else stage_io.obs_names
         lost = [n for n in previous if n not in stage_io.obs_names]
         if lost:
@@ -81,28 +78,6 @@ def check_stages(job: Job, scenes: list[Scene]) -> tuple[list[StageIO], list[Mir
         except ValueError as exc:
             raise SpecError(f"ppo.mirror: stages.{i} ({scenes[i].name}): {exc}") from None
     return io, mirrors
-
-
-def _unpaced(act_names: list[str]) -> list[str]:
-    """The action's entries but a ``clock_rate``."""
-    return [n for n in act_names if n != CLOCK_RATE_ACTION]
-
-
-def _check_pacing(index: int, before: StageIO, stage: StageIO, transition: str) -> None:
-    """A policy may start pacing its clock (a ``clock_rate`` entry added by ``continue``), not
-    stop."""
-    paced_before = CLOCK_RATE_ACTION in before.act_names
-    paced = CLOCK_RATE_ACTION in stage.act_names
-    if paced_before and not paced:
-        raise SpecError(
-            f"stages.{index}: stage {index - 1}'s policy paces its clock (clock_rate_span); "
-            "a later stage's scene must too"
-        )
-    if paced and not paced_before and transition != "continue":
-        raise SpecError(
-            f"stages.{index}: the policy starts pacing its clock here (clock_rate_span): only "
-            f"with transition continue, not {transition}"
-        )
 
 
 @dataclass

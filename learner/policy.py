@@ -13,7 +13,6 @@ and ``load_state_dict`` fills it in.
 from __future__ import annotations
 
 import itertools
-import math
 
 import torch
 from gaitforge.learner.normalizer import RunningNorm
@@ -219,29 +218,3 @@ def release_constant_inputs(policy: GaussianPolicy) -> list[int]:
         policy.critic[0].weight[:, constant] = 0.0
         policy.norm.var[constant] = 1.0
     return constant.tolist()
-
-
-@torch.no_grad()
-def widen_actions(
-    policy: GaussianPolicy, old_names: list[str], new_names: list[str], new_std: float
-) -> GaussianPolicy:
-    """``policy`` carried to a longer action ``new_names`` (a superset of ``old_names``, for
-    example a scene's ``clock_rate`` entry): the actor's last layer gets zero weights and bias
-    for the new entries, so their mean is 0.5 (the middle of [0, 1]) whatever the
-    observation, and their noise standard deviation is ``new_std`` (action units); the old
-    entries act exactly as before."""
-    missing = [n for n in old_names if n not in new_names]
-    if missing or len(old_names) != policy.act_dim:
-        raise ValueError(f"action entries lost between stages: {missing[:5]}")
-    index = torch.tensor([new_names.index(n) for n in old_names], dtype=torch.long)
-    wider = GaussianPolicy(policy.obs_dim, len(new_names), policy.hidden, policy.init_std)
-    last = f"actor.{len(policy.actor) - 1}."
-    state = wider.state_dict()
-    for key, value in policy.state_dict().items():
-        if key in (last + "weight", last + "bias", "log_std"):
-            state[key].fill_(math.log(new_std) if key == "log_std" else 0.0)
-            state[key][index] = value
-        else:
-            state[key] = value
-    wider.load_state_dict(state)
-    return wider

@@ -34,13 +34,11 @@ from gaitforge.learner.policy import (
     BlendedPolicy,
     GaussianPolicy,
     release_constant_inputs,
-    widen_actions,
     widen_inputs,
 )
 from gaitforge.learner.ppo import PPOSettings, batch_from_fragments
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
-from gaitforge.workers.scenes.io_names import CLOCK_RATE_ACTION
 
 logger = logging.getLogger(__name__)
 
@@ -72,9 +70,7 @@ def stage_network(
     net = stage.network or job.network
     if stage.transition == "continue":
         if index > 0:
-            policy, changed = continued(
-                policy, obs_names, io, index, stage.action_std, clock_rate_std=net.init_std
-            )
+            policy, changed = continued(policy, obs_names, io, index, stage.action_std)
             if changed:
                 switch(policy)
     else:
@@ -103,18 +99,14 @@ def continued(
     io: StageIO,
     index: int,
     action_std: float | None = None,
-    clock_rate_std: float = 0.3,
 ) -> tuple[ActorCritic, bool]:
     """The ``continue`` transition into stage ``index``: ``policy`` (observing ``obs_names``)
     widened with zero weights if the stage observes more, its inputs that were constant
-    so far released (``release_constant_inputs``), if ``action_std`` is given its action
-    noise started anew there (:func:`reset_action_std`), and if the stage's policy starts
-    pacing its clock a ``clock_rate`` entry added (:func:`with_clock_rate`, noise
-    ``clock_rate_std``); True if the network changed."""
+    so far released (``release_constant_inputs``), and if ``action_std`` is given its action
+    noise started anew there (:func:`reset_action_std`); True if the network changed."""
     widen = io.obs_names != obs_names
     if widen:
         policy = widen_inputs(collapsed(policy), obs_names, io.obs_names)
-    paces = len(io.act_names) > collapsed(policy).act_dim
     released = release_constant_inputs(policy) if isinstance(policy, GaussianPolicy) else []
     if released:
         logger.info("stage %d: inputs constant so far, released: %s", index,
@@ -122,9 +114,7 @@ def continued(
     if action_std is not None:
         reset_action_std(policy, action_std)
         logger.info("stage %d: action noise started anew at std %g", index, action_std)
-    if paces:
-        policy = with_clock_rate(collapsed(policy), io.act_names, clock_rate_std)
-    return policy, bool(widen or released or action_std is not None or paces)
+    return policy, bool(widen or released or action_std is not None)
 
 
 def reset_action_std(policy: ActorCritic, action_std: float) -> None:
@@ -146,14 +136,12 @@ def network_from_checkpoint(
     io: StageIO,
     scene_name: str,
     action_std: float | None = None,
-    clock_rate_std: float = 0.3,
 ) -> tuple[GaussianPolicy, CheckpointMeta]:
     """A job's ``init_from``: checkpoint ``path``'s network (collapsed to one) with its
     observation statistics, widened if the first stage (``io``, scene ``scene_name``)
     observes more, its constant inputs released, its action noise reset to ``action_std``
-    (every action entry; None: kept); and, if the stage's policy paces its clock and the
-    checkpoint's did not, its ``clock_rate`` entry added (:func:`with_clock_rate`, noise
-    ``clock_rate_std``); in training mode. Returns it and the checkpoint's metadata.
+    (every action entry; None: kept); in training mode. Returns it and the checkpoint's
+    metadata.
 
     Raises:
         ValueError: the checkpoint acts on other entries, or observes what the stage does not.
@@ -162,7 +150,6 @@ def network_from_checkpoint(
     policy = collapsed(loaded)
     if action_std is not None:
         reset_action_std(policy, action_std)
-    policy = with_clock_rate(policy, io.act_names, clock_rate_std)
     if policy.act_dim != len(io.act_names):
         raise ValueError(
             f"init_from: {path} acts on {policy.act_dim} entries; stage 0's scene "
@@ -180,16 +167,6 @@ def network_from_checkpoint(
     release_constant_inputs(policy)
     policy.train()
     return policy, meta
-
-
-def with_clock_rate(policy: GaussianPolicy, act_names: list[str], std: float) -> GaussianPolicy:
-    """``policy`` with a ``clock_rate`` entry added (``learner.policy.widen_actions``: 0.5,
-    the clock at its own rate, until training moves it; noise ``std``) if ``act_names`` (a
-    scene's whose policy paces its clock) are its entries and that one; else unchanged."""
-    if act_names[-1:] != [CLOCK_RATE_ACTION] or policy.act_dim != len(act_names) - 1:
-        return policy
-    logger.info("the network paces its clock from now on: a clock_rate entry added (std %g)", std)
-    return widen_actions(policy, act_names[:-1], act_names, std)
 
 
 def warm_start(

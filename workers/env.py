@@ -7,23 +7,20 @@ Observation (float32, names in ``env.obs_names``), in this order:
     muscle activations [n_muscles]; previous excitations [n_muscles];
     task: target speed (m/s; the episode's draw with ``task.target_speed_range``) or reach
     target (rad); with obstacles, the scene's ``obstacles.observe_ahead`` nearest spheres
-    ahead of the pelvis (one whose far edge it has not passed), then its ``observe_behind``
-    nearest passed ones: forward distance from the pelvis, centre height, radius (m; 0, 0,
-    0 for each that does not exist); imitating a motion (``task.imitate``): the gait phase
+    ahead of the pelvis (one whose far edge it has not passed): forward distance from the
+    pelvis, centre height, radius (m; 0, 0, 0 for each that does not exist); imitating a
+    motion (``task.imitate``): the gait phase
     as ``phase_sin``, ``phase_cos``, and ``phase_mirror`` (+1 in a mirrored episode, -1
     otherwise).
 Action (``env.act_names``): excitations [n_muscles] in [0, 1]; or, with ``action.kind:
 joint_targets``, targets [n_dofs] in [0, 1] around a base pose that the reflex layer
 (``workers.reflex``) turns into excitations (``prev_exc`` then holds the step's mean
-excitations, and the effort terms use them). A scene whose policy paces the imitation clock
-(``task.imitate.clock_rate_span``) has one more entry last, ``clock_rate`` in [0, 1]: the
-clock plays at ``1 + span * (2 a - 1)`` times its rate for the step.
+excitations, and the effort terms use them).
 
 Imitation scenes (``workers.imitation``) start each episode in the motion, add the tracking
 terms to the reward, end the episode when the pose error passes the scene's bound, and
-report ``info["imitation"] = {"phase", "pose_error_rad", "kept", "mirrored", "clock_rate"}``
-on reset and every step (``clock_rate``: the clock's rate in that step, 1 unless the policy
-paces it); ``reference_state()`` is the reference at the current phase.
+report ``info["imitation"] = {"phase", "pose_error_rad", "kept", "mirrored"}`` on reset and
+every step; ``reference_state()`` is the reference at the current phase.
 
 On scenes with obstacles ``touching_obstacle()`` says whether a foot touches one now (the
 evaluation asks after every step, so that it can tell the falls that came after a touch
@@ -85,7 +82,6 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         targets = self.scene.action.targets
         self.reflex = ReflexLayer(self.scene.action, self.sim) if targets else None
         self.act_names = action_layout(self.scene, self.sim.dof_names, self.sim.muscle_names)
-        self._paced = self.imitation is not None and self.imitation.paced
         self.action_space = gym.spaces.Box(0.0, 1.0, (len(self.act_names),), dtype=np.float32)
         defaults = topology_for(self.scene.body).dof_defaults
         self._default_pose = np.array([defaults.get(d, 0.0) for d in self.sim.dof_names])
@@ -124,7 +120,6 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
                 "pose_error_rad": float(np.sqrt(np.mean(error**2))),
                 "kept": True,
                 "mirrored": self.imitation.mirrored,
-                "clock_rate": 1.0,
             }
         self._start_forward = float(self._state.pelvis_pos[self.sim.forward_axis])
         self._obs = self._observe(self._state)
@@ -135,8 +130,6 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             raise RuntimeError("call reset() before step()")
         self._steps += 1
         truncated = self._steps >= self.scene.steps_per_episode
-        if self._paced:
-            action = self._pace_clock(action)
         if self.reflex is None:
             excitation = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64)), 0.0, 1.0)
             health = self.sim.step(excitation, self.dt)
@@ -164,14 +157,11 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             target_speed=self.target_speed(),
             reach_index=self._reach_index,
             reach_target=self._reach_target,
-            touching_obstacle=bool(self.scene.task.reward.obstacle_touch)
-            and bool(self.touching_obstacle()),
         )
         terms = weighted(reward_terms(state, ctx), self.scene.task.reward)
         kept = True
         if self.imitation is not None:
-            travelled = self._distance(state)
-            tracking = self.imitation.track(state, self._state, self.sim, self._steps, travelled)
+            tracking = self.imitation.track(state, self._state, self.sim, self._steps)
             terms.update(self.imitation.weighted(tracking.kernels))
             kept = self._imitation_info["kept"] and self.imitation.kept(tracking.pose_error_rad)
             self._imitation_info = {
@@ -179,7 +169,6 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
                 "pose_error_rad": tracking.pose_error_rad,
                 "kept": kept,
                 "mirrored": self.imitation.mirrored,
-                "clock_rate": self.imitation.clock_rate(self._steps),
             }
         self._prev_excitation = excitation
         self._state = state
@@ -193,14 +182,6 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             info["lost_track"] = not kept
             ended = fell or not kept
         return self._obs.copy(), float(sum(terms.values())), ended, truncated and not ended, info
-
-    def _pace_clock(self, action: np.ndarray) -> np.ndarray:
-        """Hand the action's last entry (``clock_rate`` in [0, 1], clipped; NaN: 0.5) to the
-        imitation clock for this step; the rest of the action [n_act - 1]."""
-        assert self.imitation is not None
-        action = np.asarray(action, dtype=np.float64)
-        self.imitation.advance(float(np.clip(np.nan_to_num(action[-1], nan=0.5), 0.0, 1.0)))
-        return action[:-1]
 
     def _step_reflex(self, action: np.ndarray) -> tuple[np.ndarray, Health]:
         """One control step through the reflex layer: the targets' base is the motion's pose
@@ -252,7 +233,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         return np.concatenate([np.ravel(p) for p in parts]).astype(np.float32)
 
     def _observed_obstacles(self, s: SimState) -> np.ndarray:
-        """[3 * (ahead + behind)]: see the module's docstring."""
+        """[3 * observe_ahead]: see the module's docstring."""
         spec = self.scene.obstacles
         here = s.pelvis_pos[self.sim.forward_axis]
         obstacles = self.sim.obstacles()
@@ -260,17 +241,15 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         is_ahead = obstacles[:, 0] + obstacles[:, 2] > here
         relative = obstacles - [here, 0.0, 0.0]
         ahead = relative[is_ahead][: spec.observe_ahead]
-        behind = relative[~is_ahead][::-1][: spec.observe_behind]
-        seen = np.zeros((spec.observe_ahead + spec.observe_behind, 3))
+        seen = np.zeros((spec.observe_ahead, 3))
         seen[: len(ahead)] = ahead
-        seen[spec.observe_ahead : spec.observe_ahead + len(behind)] = behind
         return seen
 
     def touching_obstacle(self) -> bool | None:
         """Whether a foot's contact sphere overlaps an obstacle sphere now, as both
         simulators' contacts begin (the feet's spheres are what meets the obstacles on
-        either); None if the scene has no obstacles. For observers: about 0.1 ms, so the
-        step itself does not ask."""
+        either); None if the scene has no obstacles. For observers (about 0.1 ms; the step
+        itself does not ask)."""
         if self.scene.obstacles is None:
             return None
         obstacles = self.sim.obstacles()

@@ -3,15 +3,15 @@
 The gait phase runs with the env's time: ``phase = phase0 + t * tempo / period (mod 1)``,
 ``t`` the control steps taken times the control period; ``imitate.tempo`` plays the motion
 faster or slower (its speeds scale with it), times the episode's target speed over the
-scene's ``task.target_speed`` to the power ``imitate.tempo_speed_exponent`` in a scene that
-draws one (``task.target_speed_range``). Each reset draws ``phase0`` (uniform, or 0) and
-whether the episode is mirrored (left and right legs swapped, p = 0.5), and starts the body
-in the reference state there (joint angles plus uniform noise, their speeds, pelvis height,
-pitch, list, rotation and their rates, forward and vertical speed; ``Simulator.set_pose``);
-or, with ``init.start: standing`` or in a fraction ``init.standing_fraction`` of episodes,
-in the body's standing reset pose, and then :meth:`Imitation.ramp` says how far (0..1) the
-joint-target base, and the pose the pose term and ``max_pose_error_rad`` compare with, have
-blended from standing into the motion (over ``init.ramp_s``). With ``imitate.lead_in``, an
+scene's ``task.target_speed`` in a scene that draws one (``task.target_speed_range``). Each
+reset draws ``phase0`` (uniform, or 0) and whether the episode is mirrored (left and right
+legs swapped, p = 0.5), and starts the body in the reference state there (joint angles plus
+uniform noise, their speeds, pelvis height, pitch, list, rotation and their rates, forward
+and vertical speed; ``Simulator.set_pose``); or, with ``init.start: standing`` or in a
+fraction ``init.standing_fraction`` of episodes, in the body's standing reset pose, and then
+:meth:`Imitation.ramp` says how far (0..1) the joint-target base, and the pose the pose term
+and ``max_pose_error_rad`` compare with, have blended from standing into the motion (over
+``init.ramp_s``). With ``imitate.lead_in``, an
 episode that starts standing plays the lead-in motion first and cross-fades into the scene's
 (``workers.motions.playback``: a run that starts as a walk); the phase, the reference and
 (with ``speed_target_from_clock``) the target speed of the ``target_speed`` term follow it.
@@ -19,14 +19,6 @@ In a fraction ``init.lead_in_fraction`` of episodes the body starts part way alo
 in, in the faded reference state at a random time ``start_s`` past the ramp, and the
 episode's clock reads ``start_s`` plus the time since (reference state initialisation along
 the fade).
-
-With ``imitate.clock_rate_span`` the policy paces the clock: the env hands each step's
-``clock_rate`` action entry ``a`` to :meth:`Imitation.advance` before anything reads the
-step's reference, the step's rate is ``1 + span * (2 a - 1)``, and the clock then reads
-``start_s`` plus the control periods played, each times its rate (``t`` above); the step's
-reference is played at that rate (its speeds times the rate, as ``tempo`` does). The target
-speed the clock sets (``speed_target_from_clock``) keeps the env's time: the task does not
-slow down with the clock. Without pacing every rate is 1.
 
 Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imitate.weights``:
 
@@ -38,13 +30,6 @@ Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imita
 | imitate_pelvis_height   | (pelvis height - reference)^2                            | m^2       |
 | imitate_pelvis_pitch    | (pitch - reference)^2 + (list - reference)^2 (OpenSim's) | rad^2     |
 | imitate_pelvis_speed    | (forward speed over the step - reference at its end)^2   | (m/s)^2   |
-| imitate_pelvis_position | (forward distance since the reset - the reference's)^2   | m^2       |
-| imitate_pelvis_lag      | max(0, the reference's distance - the pelvis's)^2        | m^2       |
-
-The reference's distance is its forward speed times :meth:`Imitation.ramp`, summed over the
-episode's control steps (the motions record no position): a body that lags the clock, as one
-getting going from standing does, loses these terms until it catches up; ``pelvis_lag`` is 1
-for a body level with or ahead of the reference (going faster costs nothing).
 
 The tracked joints are the motion's joints that the scene keeps. The episode ends early
 (``terminated``, ``info["imitation"]["kept"]`` False) when the RMS pose error over them passes
@@ -119,15 +104,7 @@ class Imitation:
         self.standing_start = False
         self.start_s = 0.0
         """s along the lead-in at which this episode started (0 unless it started inside it)"""
-        self.paced = imitate.clock_rate_span is not None
-        """the policy paces the clock (:meth:`advance`)"""
-        self._rates = [1.0]
-        """[steps + 1] the clock's rate in each control step so far (1 at the reset)"""
-        self._played = [0.0]
-        """[steps + 1] control periods the clock has played after each step (sum of rates)"""
         self._last_reference: tuple[tuple, MotionState] | None = None
-        self._reference_distance_m = [0.0]
-        """[steps + 1] m the reference has gone forward after each control step so far"""
 
     # ---- phase and reference ----------------------------------------------------------
 
@@ -136,28 +113,9 @@ class Imitation:
         inside the lead-in)."""
         return self.crossfade if self.standing_start or self.start_s > 0.0 else None
 
-    def advance(self, pace: float) -> None:
-        """The policy's ``clock_rate`` entry ``pace`` in [0, 1] for the next control step: the
-        clock plays at ``1 + span * (2 pace - 1)`` times its rate there (only in a paced
-        scene, once per step, before the step's reference is read)."""
-        span = self.spec.clock_rate_span
-        if span is None:
-            raise RuntimeError("advance: this scene's clock runs with the env's time")
-        rate = 1.0 + span * (2.0 * pace - 1.0)
-        self._rates.append(rate)
-        self._played.append(self._played[-1] + rate)
-
-    def _periods(self, steps: int) -> float:
-        """Control periods the clock has played after ``steps`` control steps."""
-        return self._played[steps] if self.paced else float(steps)
-
     def _clock_s(self, steps: int) -> float:
         """s on the episode's clock after ``steps`` control steps (from ``start_s``)."""
-        return self.start_s + self._periods(steps) * self.dt
-
-    def clock_rate(self, steps: int) -> float:
-        """The clock's rate in control step ``steps`` (1 unless the policy paces it)."""
-        return self._rates[steps] if self.paced else 1.0
+        return self.start_s + steps * self.dt
 
     def _phase_at(self, clock_s: float) -> float:
         """Phase in [0, 1) at ``clock_s`` s on the episode's clock."""
@@ -185,13 +143,13 @@ class Imitation:
 
     def reference(self, steps: int) -> MotionState:
         """The reference after ``steps`` control steps (mirrored if the episode is; speeds
-        times ``tempo`` and the step's clock rate; cross-faded from the lead-in after a
-        standing start or a start inside the lead-in). A step asks
-        for it twice (the targets' base, then tracking): the last one is kept."""
+        times ``tempo``; cross-faded from the lead-in after a standing start or a start
+        inside the lead-in). A step asks for it twice (the targets' base, then tracking): the
+        last one is kept."""
         key = (steps, self.phase0, self.mirrored, self.standing_start, self.start_s, self.tempo)
         if self._last_reference is not None and self._last_reference[0] == key:
             return self._last_reference[1]
-        state = faster(self._motion_at(self._clock_s(steps)), self.clock_rate(steps))
+        state = self._motion_at(self._clock_s(steps))
         if self.mirrored:
             state = self.motion.mirrored_state(state)
         self._last_reference = (key, state)
@@ -206,25 +164,12 @@ class Imitation:
     def target_speed(self, steps: int, task_target: float | None) -> float | None:
         """The ``target_speed`` term's target (m/s) after ``steps`` steps: ``task_target``, or
         with ``speed_target_from_clock`` the smaller of it and the reference's forward speed
-        times :meth:`ramp` (from standing into the motion, faded from the lead-in) on the
-        clock at its own rate: a policy that paces the clock changes the pose it is asked
-        for, not the task's speed."""
+        times :meth:`ramp` (from standing into the motion, faded from the lead-in)."""
         if task_target is None or not self.spec.speed_target_from_clock:
             return task_target
-        own_clock_s = self.start_s + steps * self.dt
-        speed = self._motion_at(own_clock_s).forward_speed * self._ramp_at(own_clock_s)
+        clock_s = self._clock_s(steps)
+        speed = self._motion_at(clock_s).forward_speed * self._ramp_at(clock_s)
         return min(task_target, speed)
-
-    def reference_distance(self, steps: int) -> float:
-        """m the reference has gone forward after ``steps`` control steps of this episode: the
-        sum over steps 1..``steps`` of its forward speed (m/s) times :meth:`ramp` times the
-        control period (s)."""
-        distances = self._reference_distance_m
-        while len(distances) <= steps:
-            k = len(distances)
-            speed = self.reference(k).forward_speed * self.ramp(k)
-            distances.append(distances[-1] + speed * self.dt)
-        return distances[steps]
 
     def target_base(
         self, steps: int, dofs: Sequence[str], standing: np.ndarray
@@ -246,12 +191,11 @@ class Imitation:
     # ---- reference state initialisation ----------------------------------------------
 
     def follow_target_speed(self, target_speed: float) -> None:
-        """Play the scene's main motion at ``imitate.tempo`` times (``target_speed``, m/s,
-        over the scene's ``task.target_speed``) to the power ``imitate.tempo_speed_exponent``
-        (the lead-in keeps its own tempo): the env calls it at each reset of a scene that
-        draws its target speed, before :meth:`start`."""
-        ratio = target_speed / self.nominal_speed
-        self.tempo = self.spec.tempo * ratio**self.spec.tempo_speed_exponent
+        """Play the scene's main motion at ``imitate.tempo`` times ``target_speed`` (m/s)
+        over the scene's ``task.target_speed`` (the lead-in keeps its own tempo): the env
+        calls it at each reset of a scene that draws its target speed, before
+        :meth:`start`."""
+        self.tempo = self.spec.tempo * target_speed / self.nominal_speed
         if self.crossfade is not None:
             self.crossfade = replace(self.crossfade, main_tempo=self.tempo)
 
@@ -265,8 +209,6 @@ class Imitation:
         mixed_standing = fraction > 0.0 and bool(rng.uniform() < fraction)
         self.standing_start = init.start == "standing" or mixed_standing
         self.start_s = 0.0
-        self._rates, self._played = [1.0], [0.0]
-        self._reference_distance_m = [0.0]
         # of the episodes not standing, a share lead_in_fraction / (1 - fraction) starts
         # inside the lead-in: lead_in_fraction of all
         inside_lead_in = not self.standing_start and init.lead_in_fraction > 0.0
@@ -313,11 +255,8 @@ class Imitation:
         angles = np.array([ref.joints[j] for j in self.joints])
         return state.dof_pos[self._index] - (self._standing + ramp * (angles - self._standing))
 
-    def track(
-        self, state: SimState, previous: SimState, sim: Simulator, steps: int, travelled_m: float
-    ) -> Tracking:
-        """The tracking kernels of the state after step ``steps`` (see the module table);
-        ``travelled_m`` is the pelvis's forward distance since the reset (m)."""
+    def track(self, state: SimState, previous: SimState, sim: Simulator, steps: int) -> Tracking:
+        """The tracking kernels of the state after step ``steps`` (see the module table)."""
         ref = self.reference(steps)
         scales = self.spec.scales
         pose = self.pose_error(state, ref, self.ramp(steps))
@@ -325,7 +264,6 @@ class Imitation:
         pitch, list_ = pelvis_pitch_list(state.pelvis_up, self.up, self.forward)
         height = float(state.pelvis_pos[self.up]) - ref.pelvis_height
         forward = float(state.pelvis_pos[self.forward] - previous.pelvis_pos[self.forward])
-        behind = self.reference_distance(steps) - travelled_m
         errors = {
             "pose": float(pose @ pose),
             "joint_speed": float(speed @ speed),
@@ -333,8 +271,6 @@ class Imitation:
             "pelvis_height": height**2,
             "pelvis_pitch": (pitch - ref.pelvis_pitch) ** 2 + (list_ - ref.pelvis_list) ** 2,
             "pelvis_speed": (forward / self.dt - ref.forward_speed) ** 2,
-            "pelvis_position": behind**2,
-            "pelvis_lag": max(0.0, behind) ** 2,
         }
         kernels = {
             f"imitate_{name}": float(np.exp(-getattr(scales, name) * err))

@@ -11,7 +11,6 @@ weights and reports every term, weighted, in ``info["reward_terms"]``.
 | upright        | pelvis up axis . world up (1 upright)            | 1       |
 | alive          | 1 while not terminated                           | 1       |
 | reach          | -|dof angle - target|                            | rad     |
-| obstacle_touch | -1 if a foot is in an obstacle at the step's end | 1       |
 
 A scene whose task imitates a motion (``task.imitate``) also has the tracking terms
 ``imitate_pose``, ``imitate_joint_speed``, ``imitate_feet``, ``imitate_pelvis_height``,
@@ -54,9 +53,6 @@ class StepContext:
     target_speed: float | None
     reach_index: int | None
     reach_target: float
-    touching_obstacle: bool = False
-    """a foot touches an obstacle sphere at the step's end (asked only where the scene weighs
-    ``obstacle_touch``: a touch that begins and ends within one control step is not seen)"""
 
 
 def reward_terms(state: SimState, ctx: StepContext) -> dict[str, float]:
@@ -76,7 +72,6 @@ def reward_terms(state: SimState, ctx: StepContext) -> dict[str, float]:
         "upright": float(state.pelvis_up[ctx.up_axis]),
         "alive": 1.0,
         "reach": reach,
-        "obstacle_touch": -1.0 if ctx.touching_obstacle else 0.0,
     }
 
 

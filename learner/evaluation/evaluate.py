@@ -56,7 +56,7 @@ from gaitforge.learner.evaluation.results import (
     write_json,
 )
 from gaitforge.learner.policy import ActorCritic, widen_inputs
-from gaitforge.learner.transitions import collapsed, with_clock_rate
+from gaitforge.learner.transitions import collapsed
 from gaitforge.workers.episode import EpisodeObserver
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.spec_io import SpecError
@@ -132,15 +132,12 @@ def fitted_to_scene(
 ) -> tuple[ActorCritic, list[str] | None]:
     """``policy`` (observing ``obs_names``) widened with zero weights for the inputs
     ``scene`` observes besides (as ``init_from`` does), so a runner can be evaluated on the
-    obstacles it has not yet learned to see, and with a ``clock_rate`` entry at 0.5 (its clock
-    at its own rate; noise 0.3 in stochastic episodes) if the scene's policy paces its clock
-    and this one did not; and the
-    names it now observes. Unchanged if the scene observes nothing new or something the
-    policy did not observe (then the sizes are checked as before)."""
+    obstacles it has not yet learned to see; and the names it now observes. Unchanged if the
+    scene observes nothing new or something the policy did not observe (then the sizes are
+    checked as before)."""
     if not obs_names or backend not in scene.backends:
         return policy, obs_names
-    io = StageIO(scene, backend)
-    names = io.obs_names
+    names = StageIO(scene, backend).obs_names
     extra = [n for n in names if n not in obs_names]
     if extra and len(names) - len(extra) == len(obs_names):
         logger.warning(
@@ -149,10 +146,6 @@ def fitted_to_scene(
             extra,
         )
         policy, obs_names = widen_inputs(collapsed(policy), obs_names, names).eval(), names
-    paced = with_clock_rate(collapsed(policy), io.act_names, std=0.3)
-    if paced.act_dim != collapsed(policy).act_dim:
-        logger.warning("scene %r paces its clock, which the policy never did: at 0.5", scene.name)
-        policy = paced.eval()
     return policy, obs_names
 
 

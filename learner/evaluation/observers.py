@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from gaitforge.learner.evaluation.results import EpisodeResult
 from gaitforge.workers.episode import EpisodeObserver, EpisodeSummary, Observer
-from gaitforge.workers.scenes.io_names import paces_clock
 from gaitforge.workers.sim.base import HEALTHY
 
 if TYPE_CHECKING:
@@ -41,8 +40,7 @@ class EpisodeMetrics(Observer):
 
     def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
         self.result, self._effort_sum, self._terms = None, 0.0, {}
-        # the action's entries but a clock_rate, the clock's pace rather than an effort
-        self._n_muscles = int(env.action_space.shape[0]) - int(paces_clock(env.scene))
+        self._n_muscles = int(env.action_space.shape[0])
         self._pose_sq, self._pose_steps, self._kept = 0.0, 0, True
         self._touch_steps = 0 if env.scene.obstacles is not None else None
         self._first_touch_s = None

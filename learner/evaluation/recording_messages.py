@@ -130,14 +130,13 @@ class EpisodeMessages:
     @staticmethod
     def imitation_schema() -> dict:
         """JSON schema of the ``/imitation`` channel (imitation scenes)."""
-        return json_schema("gaitforge.Imitation", ["phase", "pose_error_rad", "kept", "clock_rate"])
+        return json_schema("gaitforge.Imitation", ["phase", "pose_error_rad", "kept"])
 
     @staticmethod
     def imitation(info: Mapping[str, Any]) -> dict[str, Any]:
         """The ``/imitation`` message of a step: ``phase`` [0, 1), ``pose_error_rad`` (RMS
-        over the tracked kept joints), ``kept`` (1/0: within the bound so far), ``clock_rate``
-        (the clock's rate in the step: 1 unless the policy paces it); empty when the step's
-        info has none."""
+        over the tracked kept joints), ``kept`` (1/0: within the bound so far); empty when the
+        step's info has none."""
         imitation = info.get("imitation")
         if imitation is None:
             return {}
@@ -147,7 +146,6 @@ class EpisodeMessages:
             "phase": phase if np.isfinite(phase) else None,
             "pose_error_rad": error if np.isfinite(error) else None,
             "kept": int(bool(imitation.get("kept", False))),
-            "clock_rate": float(imitation.get("clock_rate", 1.0)),
         }
 
     def to_world(self, p: np.ndarray) -> np.ndarray:

@@ -164,7 +164,7 @@ def test_a_body_held_in_the_reference_earns_the_full_tracking_reward(make, backe
         ref = imitation.reference(steps)
         env.sim.set_pose(imitation.pose_of(ref))
         state = env.sim.state()
-        kernels = imitation.track(state, previous, env.sim, steps, 0.0).kernels
+        kernels = imitation.track(state, previous, env.sim, steps).kernels
         for term in ("imitate_pose", "imitate_joint_speed", "imitate_feet", "imitate_pelvis_pitch"):
             assert kernels[term] > 0.99, (term, kernels)
         assert kernels["imitate_pelvis_height"] > 0.99
@@ -254,4 +254,4 @@ def test_the_feet_term_compares_in_the_bodys_heading() -> None:
     turned = dataclasses.replace(imitation.pose_of(ref), pelvis_rotation=ref.pelvis_rotation + 0.5)
     env.sim.set_pose(turned)
     state = env.sim.state()
-    assert imitation.track(state, state, env.sim, 1, 0.0).kernels["imitate_feet"] > 0.95
+    assert imitation.track(state, state, env.sim, 1).kernels["imitate_feet"] > 0.95

@@ -59,14 +59,6 @@ def test_the_reward_aims_at_the_draw_once_the_clock_is_faster() -> None:
     assert obs[env.obs_names.index("target_speed")] == pytest.approx(1.0)
 
 
-def test_the_clock_keeps_its_cadence_with_exponent_zero() -> None:
-    data = _ranged(2.0, 3.0).model_dump(mode="json")
-    data["task"]["imitate"]["tempo_speed_exponent"] = 0.0
-    env = MuscleEnv(Scene.model_validate(data))
-    assert _drawn(env, 3) < NOMINAL
-    assert env.imitation.tempo == env.imitation.spec.tempo
-
-
 def test_the_sweep_pins_a_drawn_target_and_scales_the_clock_from_the_nominal() -> None:
     env = MuscleEnv(with_target_speed(_ranged(2.0, 3.0), 2.4))
     assert [_drawn(env, seed) for seed in range(3)] == pytest.approx([2.4] * 3)

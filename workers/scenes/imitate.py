@@ -36,8 +36,6 @@ class ImitationWeights(_Strict):
     pelvis_height: NonNegative = 0.1
     pelvis_pitch: NonNegative = 0.05
     pelvis_speed: NonNegative = 0.1
-    pelvis_position: NonNegative = 0.0
-    pelvis_lag: NonNegative = 0.0
 
 
 class ImitationScales(_Strict):
@@ -50,12 +48,6 @@ class ImitationScales(_Strict):
     pelvis_height: Positive = Field(default=50.0, description="1/m^2")
     pelvis_pitch: Positive = Field(default=10.0, description="1/rad^2; pitch (and list) error")
     pelvis_speed: Positive = Field(default=2.0, description="s^2/m^2; forward speed error")
-    pelvis_position: Positive = Field(
-        default=0.5, description="1/m^2; forward distance since the reset minus the reference's"
-    )
-    pelvis_lag: Positive = Field(
-        default=0.1, description="1/m^2; how far the pelvis is behind the reference's distance"
-    )
 
 
 class ImitationInit(_Strict):
@@ -147,14 +139,9 @@ class Imitate(_Strict):
     tempo: Annotated[float, Field(ge=0.5, le=2.0)] = Field(
         default=1.0,
         description="the motion plays this many times faster (a shorter period; joint, pelvis "
-        "and forward speeds times tempo): a walk at another pace with the same strides",
-    )
-    tempo_speed_exponent: Annotated[float, Field(ge=0, le=1)] = Field(
-        default=1.0,
-        description="in a scene that draws its target speed (task.target_speed_range), the "
-        "motion plays at tempo times (draw / task.target_speed) to this power: 1 scales the "
-        "cadence with the target (the same strides), 0 keeps the cadence (the speed from the "
-        "stride's length); the lead-in keeps its tempo",
+        "and forward speeds times tempo): a walk at another pace with the same strides; in a "
+        "scene that draws its target speed (task.target_speed_range), times (draw / "
+        "task.target_speed): the same strides at the drawn speed (the lead-in keeps its tempo)",
     )
     lead_in: LeadIn | None = Field(
         default=None,
@@ -167,16 +154,6 @@ class Imitate(_Strict):
         "and the reference's forward speed now (ramped from standing, faded from the lead-in), "
         "so a standing start is not asked for full speed at once; the observation keeps "
         "task.target_speed",
-    )
-
-    clock_rate_span: Annotated[float, Field(gt=0, le=0.9)] | None = Field(
-        default=None,
-        description="the policy sets the clock's pace: one more action entry, clock_rate "
-        "a in [0, 1], plays the clock (phase, lead-in, standing ramp and the reference with "
-        "its speeds, so the joint targets' base) at 1 + span * (2 a - 1) times its rate for "
-        "that step (a = 0.5: as without it); the target speed from the clock "
-        "(speed_target_from_clock) keeps the env's time; none: the clock runs with the "
-        "env's time",
     )
 
     @model_validator(mode="after")

@@ -42,40 +42,25 @@ def observation_layout(
     names += [f"prev_exc:{m}" for m in muscles]
     names += ["target_speed"] if locomotion else ["reach_target"]
     if scene.obstacles is not None:
-        names += obstacle_names(scene.obstacles.observe_ahead, scene.obstacles.observe_behind)
+        names += obstacle_names(scene.obstacles.observe_ahead)
     if scene.task.imitate is not None:
         names += ["phase_sin", "phase_cos", "phase_mirror"]
     return names
 
 
-def obstacle_names(ahead: int, behind: int) -> list[str]:
+def obstacle_names(ahead: int) -> list[str]:
     """Forward distance, height and radius of each observed sphere: the nearest one ahead
-    ``obstacle_{dx,height,radius}`` (the names of a scene that observes one), the k-th ahead
-    ``obstacle_<k>_*`` (k >= 2), then the k-th nearest passed ``obstacle_behind_<k>_*``."""
+    ``obstacle_{dx,height,radius}`` (the names of a scene that observes one), then the k-th
+    ahead ``obstacle_<k>_*`` (k >= 2)."""
     prefixes = ["obstacle"] + [f"obstacle_{k}" for k in range(2, ahead + 1)]
-    prefixes += [f"obstacle_behind_{k}" for k in range(1, behind + 1)]
     return [f"{p}_{field}" for p in prefixes for field in ("dx", "height", "radius")]
-
-
-CLOCK_RATE_ACTION = "clock_rate"
-"""The last action entry of a scene whose imitation clock the policy paces
-(``task.imitate.clock_rate_span``)."""
 
 
 def action_layout(scene: Scene, dofs: Sequence[str], muscles: Sequence[str]) -> list[str]:
     """The action's entry names, in order, for ``scene`` and the given kept dofs and muscles:
-    the muscles [n_muscles]; with ``action.kind: joint_targets``, ``target:<dof>`` [n_dofs];
-    then, with ``task.imitate.clock_rate_span``, ``clock_rate``."""
-    names = [f"target:{d}" for d in dofs] if scene.action.targets else list(muscles)
-    if paces_clock(scene):
-        names.append(CLOCK_RATE_ACTION)
-    return names
-
-
-def paces_clock(scene: Scene) -> bool:
-    """Whether the policy paces ``scene``'s imitation clock (one more action entry)."""
-    imitate = scene.task.imitate
-    return imitate is not None and imitate.clock_rate_span is not None
+    the muscles [n_muscles]; or, with ``action.kind: joint_targets``, ``target:<dof>``
+    [n_dofs]."""
+    return [f"target:{d}" for d in dofs] if scene.action.targets else list(muscles)
 
 
 def needs_planar_muscles(scene: Scene, backend: str) -> bool:

@@ -81,9 +81,6 @@ class Obstacles(_Strict):
     observe_ahead: Annotated[int, Field(ge=1, le=10)] = Field(
         default=1, description="spheres observed ahead of the pelvis, nearest first"
     )
-    observe_behind: Annotated[int, Field(ge=0, le=10)] = Field(
-        default=0, description="spheres observed that the pelvis has passed, nearest first"
-    )
 
     @model_validator(mode="after")
     def _ranges(self) -> Obstacles:
@@ -117,7 +114,6 @@ class RewardWeights(_Strict):
     upright: float = 0.0
     alive: float = 0.0
     reach: float = 0.0
-    obstacle_touch: float = 0.0
 
 
 class Task(_Strict):
@@ -126,8 +122,7 @@ class Task(_Strict):
     target_speed_range: Range | None = Field(
         default=None,
         description="m/s; drawn uniformly each episode in place of target_speed (observed and "
-        "rewarded; an imitation clock's main motion plays at tempo times (drawn / target_speed) "
-        "** imitate.tempo_speed_exponent)",
+        "rewarded; an imitation clock's main motion plays at tempo times drawn / target_speed)",
     )
     min_pelvis_height: float | None = Field(
         default=None, description="m; the episode terminates below it (a fall)"
@@ -216,10 +211,12 @@ class Scene(_Strict):
     def _older_layout(cls, raw: object) -> object:
         """Scene fields as older files and checkpoints wrote them, read as today's: the
         backend options at the top level move into ``mujoco`` and ``opensim``; a ``fault``
-        of null goes (fault injection is a test hook, ``workers.sim.faults``)."""
+        of null goes (fault injection is a test hook, ``workers.sim.faults``); a retired
+        setting (``RETIRED_SETTINGS``) at its former default goes, at any other value it is
+        refused naming the field."""
         if not isinstance(raw, dict):
             return raw
-        raw = dict(raw)
+        raw = _without_retired_settings(dict(raw))
         for block, names in (("mujoco", MUJOCO_FIELDS), ("opensim", OPENSIM_FIELDS)):
             flat = {name: raw.pop(name) for name in names if name in raw}
             if flat:
@@ -245,11 +242,6 @@ class Scene(_Strict):
                 )
         if self.action.targets:
             self._check_reflex()
-        if self.task.reward.obstacle_touch and self.obstacles is None:
-            raise ValueError(
-                f"task.reward.obstacle_touch {self.task.reward.obstacle_touch}: the scene has no "
-                "obstacles to touch (set obstacles, or the weight to 0)"
-            )
         return self
 
     def _check_reflex(self) -> None:
@@ -344,6 +336,49 @@ class Scene(_Strict):
         )
 
 
+RETIRED_SETTINGS: tuple[tuple[str, object, str], ...] = (
+    ("task.imitate.clock_rate_span", None, "it made falls worse"),
+    ("task.imitate.weights.pelvis_position", 0.0, "it made falls worse"),
+    ("task.imitate.weights.pelvis_lag", 0.0, "it made falls worse"),
+    ("task.imitate.scales.pelvis_position", 0.5, "its term made falls worse"),
+    ("task.imitate.scales.pelvis_lag", 0.1, "its term made falls worse"),
+    (
+        "task.imitate.tempo_speed_exponent",
+        1.0,
+        "the cadence always scales with a drawn target speed",
+    ),
+    ("obstacles.observe_behind", 0, "no scene observed the spheres passed"),
+    ("task.reward.obstacle_touch", 0.0, "no scene weighed it; evaluation still reports touches"),
+)
+"""Scene settings no longer read: (dotted field, the value that meant "off", why retired).
+Older files and checkpoints that hold one at that value load without it."""
+
+
+def _without_retired_settings(raw: dict) -> dict:
+    """``raw`` (a scene's fields) without the ``RETIRED_SETTINGS`` it holds at their former
+    defaults; the mappings on the way copied, ``raw``'s own left as they are.
+
+    Raises:
+        ValueError: one line naming a retired field that holds another value.
+    """
+    for dotted, default, reason in RETIRED_SETTINGS:
+        *path, name = dotted.split(".")
+        parent = raw
+        for key in path:
+            child = parent.get(key)
+            if not isinstance(child, dict):
+                break
+            parent[key] = child = dict(child)
+            parent = child
+        else:
+            if name not in parent:
+                continue
+            value = parent.pop(name)
+            if value != default or isinstance(value, bool):
+                raise ValueError(f"{dotted}: retired ({reason}); remove it")
+    return raw
+
+
 def resolve_profile(
     fidelity: Fidelity, backend: str, scene: str | None = None, tolerance: float | None = None
 ) -> tuple[FidelityProfile, str | None]:
@@ -378,6 +413,7 @@ def resolve_profile(
 
 __all__ = [
     "BACKENDS",
+    "RETIRED_SETTINGS",
     "Imitate",
     "Keep",
     "Obstacles",

@@ -1,0 +1,71 @@
+"""Retired scene settings (``workers.scenes.spec.RETIRED_SETTINGS``): older scene files and
+checkpoints that hold one at its former default load without it; any other value is refused
+with one line naming the field."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+from gaitforge.workers.scenes import load_scene, scene_fields
+from gaitforge.workers.scenes.spec import RETIRED_SETTINGS, Scene
+from gaitforge.workers.spec_io import SpecError
+
+POLICIES = Path(__file__).parents[3] / "examples" / "policies"
+
+
+def with_setting(fields: dict, dotted: str, value: object) -> dict:
+    """``fields`` with ``dotted`` (a path of mappings, created where missing) set to
+    ``value``."""
+    *path, name = dotted.split(".")
+    parent = fields
+    for key in path:
+        parent = parent.setdefault(key, {})
+    parent[name] = value
+    return fields
+
+
+def test_each_retired_setting_at_its_former_default_is_dropped_on_load() -> None:
+    fields = scene_fields("obstacles-2d+clock")
+    expected = Scene.model_validate(fields).model_dump(mode="json")
+    for dotted, default, _ in RETIRED_SETTINGS:
+        fields = with_setting(fields, dotted, default)
+    migrated = Scene.model_validate(fields)
+    assert migrated.model_dump(mode="json") == expected
+    assert fields["task"]["imitate"]["clock_rate_span"] is None  # the input left as it was
+
+
+@pytest.mark.parametrize(
+    ("dotted", "value"),
+    [
+        ("task.imitate.clock_rate_span", 0.5),
+        ("task.imitate.weights.pelvis_position", 0.2),
+        ("task.imitate.weights.pelvis_lag", 0.3),
+        ("task.imitate.scales.pelvis_lag", 1.0),
+        ("task.imitate.tempo_speed_exponent", 0.0),
+        ("obstacles.observe_behind", 2),
+        ("task.reward.obstacle_touch", 1.0),
+    ],
+)
+def test_a_retired_setting_at_another_value_is_refused_naming_it(
+    tmp_path: Path, dotted: str, value: object
+) -> None:
+    path = tmp_path / "older.yaml"
+    path.write_text(yaml.safe_dump(with_setting(scene_fields("obstacles-2d+clock"), dotted, value)))
+    with pytest.raises(SpecError) as info:
+        load_scene(path)
+    message = str(info.value)
+    assert "\n" not in message and str(path) in message
+    assert f"{dotted}: retired (" in message and "remove it" in message
+
+
+def test_the_shipped_policies_stored_scenes_load_without_the_retired_settings() -> None:
+    metas = sorted(POLICIES.glob("*/meta.json"))
+    assert len(metas) == 5
+    retired = {dotted.rsplit(".", 1)[1] for dotted, _, _ in RETIRED_SETTINGS}
+    for meta in metas:
+        stored = json.loads(meta.read_text())["scene"]
+        dumped = json.dumps(Scene.model_validate(stored).model_dump(mode="json"))
+        assert not [name for name in retired if f'"{name}"' in dumped], meta
