@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -73,9 +74,11 @@ def test_seed_and_set_override_the_job_file(tmp_path: Path) -> None:
     """``--seed`` and ``--set`` (dotted paths, values as YAML) change the job that runs, as
     its checkpoint records it; the stage's ``scene_set`` reaches the scene it trains on."""
     overrides = ["--set", "ppo.epochs=2", "-o", "stages.0.scene_set={episode_s: 1.5}"]
-    args = _train_args(tmp_path, "--max-iterations", "1", "--seed", "7", *overrides)
+    args = _train_args(tmp_path, "--max-iterations", "1", "--seed", "7", *overrides, "--json")
     result = runner.invoke(app, args, env={"COLUMNS": "200"})
     assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout)  # --json: the run's summary, and nothing else
+    assert summary["iteration"] == 1 and summary["checkpoint"] and not summary["finished"]
     meta = _newest_meta(tmp_path)
     assert meta.job["seed"] == 7 and meta.job["ppo"]["epochs"] == 2
     assert meta.scene["episode_s"] == 1.5
