@@ -9,13 +9,9 @@ import numpy as np
 from gaitforge.workers.bodies.topology import MJCF_BODIES
 from gaitforge.workers.scenes import saved_profiles
 from gaitforge.workers.scenes.action import ActionSpec
-from gaitforge.workers.scenes.backend_options import (
-    MUJOCO_FIELDS,
-    OPENSIM_FIELDS,
-    MujocoOptions,
-    OpenSimOptions,
-)
+from gaitforge.workers.scenes.backend_options import MujocoOptions, OpenSimOptions
 from gaitforge.workers.scenes.imitate import Imitate
+from gaitforge.workers.scenes.older_layout import read_older_layout
 from gaitforge.workers.scenes.profiles import (
     BACKENDS,
     NAMED_PROFILES,
@@ -212,21 +208,9 @@ class Scene(_Strict):
         """Scene fields as older files and checkpoints wrote them, read as today's: the
         backend options at the top level move into ``mujoco`` and ``opensim``; a ``fault``
         of null goes (fault injection is a test hook, ``workers.sim.faults``); a retired
-        setting (``RETIRED_SETTINGS``) at its former default goes, at any other value it is
-        refused naming the field."""
-        if not isinstance(raw, dict):
-            return raw
-        raw = _without_retired_settings(dict(raw))
-        for block, names in (("mujoco", MUJOCO_FIELDS), ("opensim", OPENSIM_FIELDS)):
-            flat = {name: raw.pop(name) for name in names if name in raw}
-            if flat:
-                nested = raw.get(block)
-                raw[block] = {**nested, **flat} if isinstance(nested, dict) else flat
-        if "fault" in raw and raw.pop("fault") is not None:
-            raise ValueError(
-                "fault: fault injection is a test hook (workers.sim.faults), not a scene field"
-            )
-        return raw
+        setting at its former default goes, at any other value it is refused naming the field
+        (``workers.scenes.older_layout``)."""
+        return read_older_layout(raw) if isinstance(raw, dict) else raw
 
     @model_validator(mode="after")
     def _check(self) -> Scene:
@@ -336,49 +320,6 @@ class Scene(_Strict):
         )
 
 
-RETIRED_SETTINGS: tuple[tuple[str, object, str], ...] = (
-    ("task.imitate.clock_rate_span", None, "it made falls worse"),
-    ("task.imitate.weights.pelvis_position", 0.0, "it made falls worse"),
-    ("task.imitate.weights.pelvis_lag", 0.0, "it made falls worse"),
-    ("task.imitate.scales.pelvis_position", 0.5, "its term made falls worse"),
-    ("task.imitate.scales.pelvis_lag", 0.1, "its term made falls worse"),
-    (
-        "task.imitate.tempo_speed_exponent",
-        1.0,
-        "the cadence always scales with a drawn target speed",
-    ),
-    ("obstacles.observe_behind", 0, "no scene observed the spheres passed"),
-    ("task.reward.obstacle_touch", 0.0, "no scene weighed it; evaluation still reports touches"),
-)
-"""Scene settings no longer read: (dotted field, the value that meant "off", why retired).
-Older files and checkpoints that hold one at that value load without it."""
-
-
-def _without_retired_settings(raw: dict) -> dict:
-    """``raw`` (a scene's fields) without the ``RETIRED_SETTINGS`` it holds at their former
-    defaults; the mappings on the way copied, ``raw``'s own left as they are.
-
-    Raises:
-        ValueError: one line naming a retired field that holds another value.
-    """
-    for dotted, default, reason in RETIRED_SETTINGS:
-        *path, name = dotted.split(".")
-        parent = raw
-        for key in path:
-            child = parent.get(key)
-            if not isinstance(child, dict):
-                break
-            parent[key] = child = dict(child)
-            parent = child
-        else:
-            if name not in parent:
-                continue
-            value = parent.pop(name)
-            if value != default or isinstance(value, bool):
-                raise ValueError(f"{dotted}: retired ({reason}); remove it")
-    return raw
-
-
 def resolve_profile(
     fidelity: Fidelity, backend: str, scene: str | None = None, tolerance: float | None = None
 ) -> tuple[FidelityProfile, str | None]:
@@ -413,7 +354,6 @@ def resolve_profile(
 
 __all__ = [
     "BACKENDS",
-    "RETIRED_SETTINGS",
     "Imitate",
     "Keep",
     "Obstacles",

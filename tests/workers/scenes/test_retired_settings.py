@@ -1,4 +1,4 @@
-"""Retired scene settings (``workers.scenes.spec.RETIRED_SETTINGS``): older scene files and
+"""Retired scene settings (``workers.scenes.older_layout.RETIRED_SETTINGS``): older scene files and
 checkpoints that hold one at its former default load without it; any other value is refused
 with one line naming the field."""
 
@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 import yaml
 from gaitforge.workers.scenes import load_scene, scene_fields
-from gaitforge.workers.scenes.spec import RETIRED_SETTINGS, Scene
+from gaitforge.workers.scenes.older_layout import RETIRED_SETTINGS
+from gaitforge.workers.scenes.spec import Scene
 from gaitforge.workers.spec_io import SpecError
 
 POLICIES = Path(__file__).parents[3] / "examples" / "policies"

@@ -1,0 +1,78 @@
+"""Scene fields as older scene files and checkpoints wrote them, read as today's.
+
+    raw = read_older_layout(raw)      # before a Scene validates it
+
+* the backend options at the top level move into ``mujoco:`` and ``opensim:``
+  (``workers.scenes.backend_options``);
+* a ``fault`` of null goes (fault injection is a test hook, ``workers.sim.faults``); any
+  other value is refused;
+* a retired setting (:data:`RETIRED_SETTINGS`) at the value that meant "off" goes; at any
+  other value it is refused, naming the field and why it was retired.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from gaitforge.workers.scenes.backend_options import MUJOCO_FIELDS, OPENSIM_FIELDS
+
+RETIRED_SETTINGS: tuple[tuple[str, object, str], ...] = (
+    ("task.imitate.clock_rate_span", None, "it made falls worse"),
+    ("task.imitate.weights.pelvis_position", 0.0, "it made falls worse"),
+    ("task.imitate.weights.pelvis_lag", 0.0, "it made falls worse"),
+    ("task.imitate.scales.pelvis_position", 0.5, "its term made falls worse"),
+    ("task.imitate.scales.pelvis_lag", 0.1, "its term made falls worse"),
+    (
+        "task.imitate.tempo_speed_exponent",
+        1.0,
+        "the cadence always scales with a drawn target speed",
+    ),
+    ("obstacles.observe_behind", 0, "no scene observed the spheres passed"),
+    ("task.reward.obstacle_touch", 0.0, "no scene weighed it; evaluation still reports touches"),
+)
+"""Scene settings no longer read: (dotted field, the value that meant "off", why retired).
+Older files and checkpoints that hold one at that value load without it."""
+
+
+def read_older_layout(raw: dict[str, Any]) -> dict[str, Any]:
+    """``raw`` (a scene's fields) in today's layout; ``raw`` itself is left as it is.
+
+    Raises:
+        ValueError: one line naming a ``fault`` or a retired field that holds a value.
+    """
+    raw = _without_retired_settings(dict(raw))
+    for block, names in (("mujoco", MUJOCO_FIELDS), ("opensim", OPENSIM_FIELDS)):
+        flat = {name: raw.pop(name) for name in names if name in raw}
+        if flat:
+            nested = raw.get(block)
+            raw[block] = {**nested, **flat} if isinstance(nested, dict) else flat
+    if "fault" in raw and raw.pop("fault") is not None:
+        raise ValueError(
+            "fault: fault injection is a test hook (workers.sim.faults), not a scene field"
+        )
+    return raw
+
+
+def _without_retired_settings(raw: dict[str, Any]) -> dict[str, Any]:
+    """``raw`` without the ``RETIRED_SETTINGS`` it holds at their former defaults; the
+    mappings on the way copied, ``raw``'s own left as they are.
+
+    Raises:
+        ValueError: one line naming a retired field that holds another value.
+    """
+    for dotted, default, reason in RETIRED_SETTINGS:
+        *path, name = dotted.split(".")
+        parent = raw
+        for key in path:
+            child = parent.get(key)
+            if not isinstance(child, dict):
+                break
+            parent[key] = child = dict(child)
+            parent = child
+        else:
+            if name not in parent:
+                continue
+            value = parent.pop(name)
+            if value != default or isinstance(value, bool):
+                raise ValueError(f"{dotted}: retired ({reason}); remove it")
+    return raw
