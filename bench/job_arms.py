@@ -40,6 +40,9 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from gaitforge.learner.job import read_job_fields
+from gaitforge.workers.overrides import parse_assignments
+from gaitforge.workers.spec_io import SpecError
 from rich.console import Console
 from rich.logging import RichHandler
 from rich.table import Table
@@ -50,26 +53,10 @@ logger = logging.getLogger("job_arms")
 def parse_arm(words: list[str]) -> tuple[str, dict[str, Any]]:
     """``[NAME, KEY=VALUE, ...]`` -> (name, {dotted key: value read as YAML})."""
     name, *pairs = words
-    overrides = {}
-    for pair in pairs:
-        key, sep, value = pair.partition("=")
-        if not sep or not key:
-            raise SystemExit(f"--arm {name}: {pair!r} is not KEY=VALUE (e.g. ppo.gamma=0.99)")
-        overrides[key] = yaml.safe_load(value)
-    return name, overrides
-
-
-def set_dotted(data: dict[str, Any], key: str, value: Any) -> None:
-    """Set ``data[a][b]...`` for ``key`` "a.b..." (a number indexes a list: stages.0.scene);
-    missing mappings on the way are made."""
-    *path, last = key.split(".")
-    node: Any = data
-    for part in path:
-        node = node[int(part)] if isinstance(node, list) else node.setdefault(part, {})
-    if isinstance(node, list):
-        node[int(last)] = value
-    else:
-        node[last] = value
+    try:
+        return name, parse_assignments(pairs, where=f"--arm {name}")
+    except SpecError as exc:
+        raise SystemExit(str(exc)) from None
 
 
 def _absolute(ref: Any, base: Path) -> Any:
@@ -82,12 +69,10 @@ def _absolute(ref: Any, base: Path) -> Any:
 
 
 def arm_job(template: Path, seed: int, overrides: dict[str, Any]) -> dict[str, Any]:
-    """The job file's data with the seed and the arm's overrides set and its relative paths
-    made absolute (so the filled job can live anywhere)."""
-    data = yaml.safe_load(template.read_text())
-    data["seed"] = seed
-    for key, value in overrides.items():
-        set_dotted(data, key, value)
+    """The job file's data (its ``extends`` followed) with the seed and the arm's overrides
+    set (dotted paths, as ``gaitforge train --set``) and its relative paths made absolute (so
+    the filled job can live anywhere)."""
+    data = read_job_fields(template, {**overrides, "seed": seed})
     base = template.parent
     data["init_from"] = _absolute(data.get("init_from"), base)
     for stage in data.get("stages", []):
