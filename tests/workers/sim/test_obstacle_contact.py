@@ -5,7 +5,7 @@ one of them from the first step.
 The spheres are world geoms moved at every reset; MuJoCo's midphase walked the world body's
 bounding volume tree from compile time, built with the spheres parked 100 m behind the start,
 in which the branch holding the six farthest spheres lay there: their pairs with the feet
-were dropped, and the feet went through them (session 27)."""
+were dropped, and the feet went through them."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""MuJoCo's forces on OpenSim's laws (session 35): ``contact_model: hunt-crossley``
+"""MuJoCo's forces on OpenSim's laws: ``contact_model: hunt-crossley``
 (``workers.sim.hunt_crossley``), ``joint_limits: opensim`` (``workers.sim.limit_springs``),
 ``muscle_curves`` and ``muscle_passive: opensim`` (``workers.sim.opensim_muscles``).
 

@@ -1,4 +1,4 @@
-"""Two MuJoCo options that make the relaxed body behave as OpenSim's (session 34), checked on
+"""Two MuJoCo options that make the relaxed body behave as OpenSim's, checked on
 the body let go from its reset pose with every muscle's excitation at 0 (real MuJoCo and
 OpenSim, 0.2 s):
 
