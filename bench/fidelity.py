@@ -27,16 +27,32 @@ from pathlib import Path
 def runs(out: Path) -> dict[str, list[str]]:
     """Each run's name (its output file's stem) and its ``gaitforge`` arguments."""
     sweeps = [("walk-2d", "mujoco"), ("walk-3d", "mujoco"), ("walk-2d", "opensim")]
-    stresses = [("walk-3d", "mujoco", []), ("walk-2d", "mujoco", []),
-                ("walk-2d", "opensim", ["--seconds", "0.5"])]  # fmt: skip
+    stresses = [
+        ("walk-3d", "mujoco", []),
+        ("walk-2d", "mujoco", []),
+        ("walk-2d", "opensim", ["--seconds", "0.5"]),
+    ]
     todo = {
-        f"sweep-{scene}-{backend}": ["fidelity", "sweep", scene, "--backend", backend,
-                                     "--out", str(out)]
+        f"sweep-{scene}-{backend}": [
+            "fidelity",
+            "sweep",
+            scene,
+            "--backend",
+            backend,
+            "--out",
+            str(out),
+        ]
         for scene, backend in sweeps
-    }  # fmt: skip
+    }
     for scene, backend, more in stresses:
-        todo[f"stress-{scene}-{backend}"] = ["fidelity", "stress", scene, "--backend", backend,
-                                             *more]  # fmt: skip
+        todo[f"stress-{scene}-{backend}"] = [
+            "fidelity",
+            "stress",
+            scene,
+            "--backend",
+            backend,
+            *more,
+        ]
     return todo
 
 
@@ -59,17 +75,24 @@ def main() -> None:
     if unknown:
         raise SystemExit(f"--only: unknown {unknown}; known: {list(todo)}")
     args.out.mkdir(parents=True, exist_ok=True)
-    env = {**os.environ, "GAITFORGE_PROFILES_DIR": str(args.out / "profiles"),
-           "COLUMNS": "200", "OMP_NUM_THREADS": "1"}  # fmt: skip
+    env = {
+        **os.environ,
+        "GAITFORGE_PROFILES_DIR": str(args.out / "profiles"),
+        "COLUMNS": "200",
+        "OMP_NUM_THREADS": "1",
+    }
     command, failed = gaitforge(), []
     for name, arguments in todo.items():
         if args.only and name not in args.only:
             continue
         start = time.perf_counter()
         done = subprocess.run(
-            [command, *arguments], env=env, text=True,
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-        )  # fmt: skip
+            [command, *arguments],
+            env=env,
+            text=True,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+        )
         wall = time.perf_counter() - start
         text = f"$ gaitforge {' '.join(arguments)}\n{done.stdout}wall {wall:.2f} s\n"
         (args.out / f"{name}.txt").write_text(text)

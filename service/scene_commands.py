@@ -42,9 +42,13 @@ def list_scenes(json: bool = JSON_OPTION) -> None:
     for s in scenes:
         speed = f" {s.target_speed_m_s} m/s" if s.target_speed_m_s else ""
         row = [
-            s.name, s.body, ", ".join(s.backends), s.task + speed, f"{s.control_hz:g}",
+            s.name,
+            s.body,
+            ", ".join(s.backends),
+            s.task + speed,
+            f"{s.control_hz:g}",
             f"{s.episode_s:g}",
-        ]  # fmt: skip
+        ]
         listing.add_row(*row, *([s.description] if wide else []))
     out.print(listing)
     if not wide:

@@ -348,8 +348,11 @@ def check_num_workers(num_workers: int) -> None:
         )
     logger.warning(
         "%d rollout actors need %d CPUs; the Ray cluster has %d now: the others wait for "
-        "nodes (an autoscaler's)", num_workers, num_workers, cpus,
-    )  # fmt: skip
+        "nodes (an autoscaler's)",
+        num_workers,
+        num_workers,
+        cpus,
+    )
 
 
 def _started_here() -> bool:

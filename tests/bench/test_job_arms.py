@@ -41,8 +41,9 @@ stages:
 
 def test_parse_arm_reads_values_as_yaml_and_names_a_bad_pair():
     assert job_arms.parse_arm(["g", "ppo.gamma=0.99", "init_from_action_std=null"]) == (
-        "g", {"ppo.gamma": 0.99, "init_from_action_std": None},
-    )  # fmt: skip
+        "g",
+        {"ppo.gamma": 0.99, "init_from_action_std": None},
+    )
     with pytest.raises(SystemExit, match=r"--arm g: 'gamma': expected PATH=VALUE"):
         job_arms.parse_arm(["g", "gamma"])
 
@@ -54,9 +55,15 @@ def test_arm_job_sets_seed_and_overrides_and_loads_from_elsewhere(tmp_path):
     template = tmp_path / "job.yaml"
     template.write_text(JOB)
     (tmp_path / "short.yaml").write_text(
-        yaml.safe_dump({"name": "walk-2d-clock-2s", "base": "walk-2d", "options": ["clock"],
-                        "set": {"episode_s": 2}})
-    )  # fmt: skip
+        yaml.safe_dump(
+            {
+                "name": "walk-2d-clock-2s",
+                "base": "walk-2d",
+                "options": ["clock"],
+                "set": {"episode_s": 2},
+            }
+        )
+    )
     job = job_arms.arm_job(template, 3, {"ppo.gamma": 0.99, "stages.0.scene": "short.yaml"})
     assert job["seed"] == 3 and job["ppo"]["gamma"] == 0.99
     assert job["init_from"] == str(walker.resolve())

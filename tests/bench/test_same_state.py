@@ -33,9 +33,11 @@ def test_under_the_walker_mujoco_on_opensims_laws_pushes_and_pulls_as_opensim(
     muscles on OpenSim's laws, given that state: both tables, each body's contact force and
     each joint's muscle moment the same."""
     scene = tmp_path / "laws.yaml"
-    scene.write_text("name: laws\nbase: walk-2d\noptions: [clock]\nset:\n"
-                     "  contact_model: hunt-crossley\n  joint_limits: opensim\n"
-                     "  muscle_curves: opensim\n  muscle_passive: opensim\n")  # fmt: skip
+    scene.write_text(
+        "name: laws\nbase: walk-2d\noptions: [clock]\nset:\n"
+        "  mujoco.contact_model: hunt-crossley\n  mujoco.joint_limits: opensim\n"
+        "  mujoco.muscle_curves: opensim\n  mujoco.muscle_passive: opensim\n"
+    )
     done = run_bench(
         "same_state.py", "--policy", str(REPO / "examples/policies/walk-2d"), "--at-s", "0.2",
         "--mujoco-scene", str(scene), columns=250,

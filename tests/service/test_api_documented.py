@@ -23,8 +23,11 @@ from jsonschema import Draft202012Validator
 from tests.service.api_support import CHECKPOINT, TOKENS, auth, seed_job, serve
 
 PROBLEM = "application/problem+json"
-NAMES = {"checkpoints": CHECKPOINT, "recordings": "iter-000002.mcap",
-         "reports": f"evaluate-{CHECKPOINT}.json"}  # fmt: skip
+NAMES = {
+    "checkpoints": CHECKPOINT,
+    "recordings": "iter-000002.mcap",
+    "reports": f"evaluate-{CHECKPOINT}.json",
+}
 
 
 @dataclass
@@ -84,9 +87,11 @@ def test_every_documented_request_example_is_accepted(live: Live) -> None:
                     errors = list(_validator(live.doc, media["schema"]).iter_errors(example))
                     assert not errors, (method, path, media_type, errors[0].message)
                     r = live.client.request(
-                        method.upper(), path, content=_serialized(example, media_type),
+                        method.upper(),
+                        path,
+                        content=_serialized(example, media_type),
                         headers={"Content-Type": media_type},
-                    )  # fmt: skip
+                    )
                     assert r.status_code in (200, 201, 202), (media_type, example, r.text)
                     posted += 1
     assert posted >= 3  # JSON and two YAML media types
