@@ -299,14 +299,10 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
     for i, stage in enumerate(job.stages):
         ref = _scene_ref(stage.scene, base)
         try:
-            scene = load_scene(ref)
+            scene = load_scene(ref, stage.scene_set)
         except SpecError as exc:
-            raise SpecError(f"{source}: stages.{i}.scene: {exc}") from None
-        if stage.scene_set:
-            try:
-                scene = load_scene(ref, stage.scene_set)
-            except SpecError as exc:
-                raise SpecError(f"{source}: stages.{i}.scene_set: {exc}") from None
+            field = "scene_set" if stage.scene_set and _loads(ref) else "scene"
+            raise SpecError(f"{source}: stages.{i}.{field}: {exc}") from None
         backend = job.stage_backend(i)
         if backend not in scene.backends:
             whose = f"stages.{i}.backend" if stage.backend else "the job's backend"
@@ -333,6 +329,15 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
             ref = _scene_ref(stage.evaluate.scene, base)
             evaluation_scene(ref, backend, where, stage.scene_set)
     return scenes
+
+
+def _loads(ref: str) -> bool:
+    """Whether scene ``ref`` loads as it is (so a failure with overrides is theirs)."""
+    try:
+        load_scene(ref)
+    except SpecError:
+        return False
+    return True
 
 
 def evaluation_scene(

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
-from gaitforge.service.cli_options import SetFields, assignments
+from gaitforge.service.cli_options import AsJson, SetFields, assignments
 from gaitforge.service.console import err, fail, out, print_json
 from gaitforge.service.evaluate_view import render, render_episodes
 from gaitforge.service.ops import InputError, validate_request
@@ -62,9 +62,7 @@ def evaluate(
     per_episode: Annotated[
         bool, typer.Option("--per-episode", help="Also a table of every episode.")
     ] = False,
-    json_stdout: Annotated[
-        bool, typer.Option("--json", help="Print the results as JSON instead of tables.")
-    ] = False,
+    json_stdout: AsJson = False,
     json_out: Annotated[
         Path | None, typer.Option("--json-out", help="Also write the results as JSON here.")
     ] = None,

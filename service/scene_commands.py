@@ -6,7 +6,7 @@ from __future__ import annotations
 from enum import StrEnum
 
 import typer
-from gaitforge.service.cli_options import SetFields, assignments
+from gaitforge.service.cli_options import AsJson, SetFields, assignments
 from gaitforge.service.console import err, fail, out, print_json, table
 from gaitforge.service.ops import SpecError
 from gaitforge.service.ops import scenes as ops
@@ -26,11 +26,10 @@ class BackendChoice(StrEnum):
 
 
 BACKEND_OPTION = typer.Option(BackendChoice.mujoco, help="Simulator backend.")
-JSON_OPTION = typer.Option(False, "--json", help="Print JSON (for programs) instead of tables.")
 
 
 @scenes_app.command("list")
-def list_scenes(json: bool = JSON_OPTION) -> None:
+def list_scenes(json: AsJson = False) -> None:
     """The base scenes and the options that compose onto them (base+option+...)."""
     scenes, options = ops.list_scenes(), ops.list_options()
     if json:
@@ -70,7 +69,7 @@ def show(
     name: str = typer.Argument(help="Catalogue scene (base+option+...) or a scene YAML."),
     backend: BackendChoice = BACKEND_OPTION,
     set_fields: SetFields = None,
-    json: bool = JSON_OPTION,
+    json: AsJson = False,
 ) -> None:
     """Compile a scene and print what it kept, what it dropped and what that saved."""
     from gaitforge.service.report_view import render_report
@@ -97,7 +96,7 @@ def check(
     all_scenes: bool = typer.Option(False, "--all", help="Every catalogue scene on --backend."),
     seed: int = typer.Option(0, min=0, max=SEED_LIMIT - 1, help="Seed of the random excitations."),
     set_fields: SetFields = None,
-    json: bool = JSON_OPTION,
+    json: AsJson = False,
 ) -> None:
     """Step with random excitations: env steps/s, real-time factor and health counts."""
     if all_scenes == (name is not None):

@@ -23,7 +23,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from gaitforge.learner.checkpoint import checkpoints, load_policy, select_checkpoint
 from gaitforge.learner.checkpoint_meta import META_FILE, CheckpointMeta
@@ -58,8 +58,9 @@ from gaitforge.learner.evaluation.results import (
 from gaitforge.learner.policy import ActorCritic, widen_inputs
 from gaitforge.learner.transitions import collapsed
 from gaitforge.workers.episode import EpisodeObserver
+from gaitforge.workers.overrides import set_fields
 from gaitforge.workers.scenes import Scene, load_scene
-from gaitforge.workers.spec_io import SpecError
+from gaitforge.workers.spec_io import SpecError, validate_model
 
 logger = logging.getLogger(__name__)
 
@@ -110,8 +111,14 @@ def resolve_checkpoint(
     return chosen
 
 
-def _scene_of(meta: CheckpointMeta, path: Path, override: str | Path | Scene | None) -> Scene:
-    """The scene to evaluate on, resolved here (``Scene.resolved``), where it is loaded."""
+def _scene_of(
+    meta: CheckpointMeta,
+    path: Path,
+    override: str | Path | Scene | None,
+    scene_set: dict[str, Any] | None = None,
+) -> Scene:
+    """The scene to evaluate on (``override``, else the checkpoint's own) with ``scene_set``
+    (dotted path -> value) set, resolved here (``Scene.resolved``), where it is loaded."""
     if isinstance(override, Scene):
         scene = override
     elif override is not None:
@@ -121,6 +128,13 @@ def _scene_of(meta: CheckpointMeta, path: Path, override: str | Path | Scene | N
             raise EvaluationError(str(exc)) from None
     else:
         scene = meta.scene_spec(path / META_FILE)
+    if scene_set:
+        where = f"--set: scene {scene.name!r}"
+        try:
+            raw = set_fields(scene.model_dump(mode="json"), scene_set, where=where)
+            scene = validate_model(raw, Scene, where)
+        except SpecError as exc:
+            raise EvaluationError(str(exc)) from None
     try:
         return scene.resolved()
     except ValueError as exc:
@@ -153,6 +167,7 @@ def evaluate_checkpoint(
     path: Path,
     *,
     scene: str | Path | Scene | None = None,
+    scene_set: dict[str, Any] | None = None,
     backend: str | None = None,
     episodes: int = 10,
     modes: Sequence[Mode] = ("deterministic",),
@@ -171,6 +186,8 @@ def evaluate_checkpoint(
         scene: a catalogue name, scene YAML or Scene to evaluate on instead of the
             checkpoint's own (its observation and action sizes must match the policy's, or
             its observation add inputs: see :func:`fitted_to_scene`).
+        scene_set: fields of that scene (or of the checkpoint's own) set by dotted path
+            (``{"task.target_speed": 1.0}``).
         backend: simulator; default the checkpoint's ``config.backend``, else "mujoco".
         episodes: per mode and per sweep point.
         modes: action modes at the scene's own target speed.
@@ -196,7 +213,7 @@ def evaluate_checkpoint(
         check_recording_available(record is not None, video is not None)
     ckpt = resolve_checkpoint(Path(path), pick)
     policy, meta = load_policy(ckpt)
-    chosen = _scene_of(meta, ckpt, scene)
+    chosen = _scene_of(meta, ckpt, scene, scene_set)
     backend = backend or meta.backend
     obs_names = meta.obs_names
     if scene is not None:

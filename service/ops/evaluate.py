@@ -9,14 +9,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from gaitforge.service.ops.errors import InputError
-from gaitforge.workers.overrides import set_fields
-from gaitforge.workers.spec_io import SpecError, validate_model
 from gaitforge.workers.spec_types import Seed
 from pydantic import BaseModel, ConfigDict, Field
 
 if TYPE_CHECKING:
     from gaitforge.learner.evaluation.evaluate import EvaluationReport
-    from gaitforge.workers.scenes import Scene
 
 Mode = Literal["deterministic", "stochastic"]
 ProgressFn = Callable[[str, int, int], None]
@@ -81,36 +78,20 @@ def evaluate(request: EvaluateRequest, progress: ProgressFn | None = None) -> Ev
     from gaitforge.learner.evaluation.evaluate import evaluate_checkpoint  # lazy: torch, MuJoCo
 
     return evaluate_checkpoint(
-        request.checkpoint, scene=scene_to_evaluate(request), backend=request.backend,
-        episodes=request.episodes, modes=request.modes, seed=request.seed, sweep=request.sweep,
+        request.checkpoint,
+        scene=request.scene,
+        scene_set=request.scene_set,
+        backend=request.backend,
+        episodes=request.episodes,
+        modes=request.modes,
+        seed=request.seed,
+        sweep=request.sweep,
         sweep_mode=request.modes[0] if request.modes else "deterministic",
-        record=request.record, video=request.video, pick=request.pick, progress=progress,
-    )  # fmt: skip
-
-
-def scene_to_evaluate(request: EvaluateRequest) -> str | Scene | None:
-    """``request.scene``, or with ``scene_set`` that scene (else the checkpoint's own) with
-    its fields set.
-
-    Raises:
-        InputError: a ``scene_set`` path or value the scene does not take (naming ``set``).
-        EvaluationError, CheckpointError: no checkpoint there, or a damaged one.
-    """
-    if not request.scene_set:
-        return request.scene
-    from gaitforge.learner.checkpoint_meta import read_meta
-    from gaitforge.learner.evaluation.evaluate import resolve_checkpoint
-    from gaitforge.workers.scenes import Scene, load_scene
-
-    try:
-        if request.scene is not None:
-            return load_scene(request.scene, request.scene_set)
-        checkpoint = resolve_checkpoint(request.checkpoint, request.pick)
-        stored = read_meta(checkpoint).scene_spec().model_dump(mode="json")
-        raw = set_fields(stored, request.scene_set, where="the checkpoint's scene")
-        return validate_model(raw, Scene, "the checkpoint's scene")
-    except SpecError as exc:
-        raise InputError("set", str(exc)) from None
+        record=request.record,
+        video=request.video,
+        pick=request.pick,
+        progress=progress,
+    )
 
 
 def report_json(report: EvaluationReport) -> dict[str, Any]:

@@ -17,6 +17,7 @@ unknown path fails there with the field named.
 
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass
 from importlib import resources
@@ -24,10 +25,11 @@ from pathlib import Path
 from typing import Any
 
 from gaitforge.workers.overrides import set_fields
+from gaitforge.workers.scenes.spec import SCENE_NAME_PATTERN
 from gaitforge.workers.spec_io import SpecError, read_yaml_mapping
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-REF_PATTERN = re.compile(r"^[a-z0-9][a-z0-9-]*(\+[a-z0-9][a-z0-9-]*)*$")
+REF_PATTERN = re.compile(SCENE_NAME_PATTERN)
 """``base`` or ``base+option+option``"""
 FORMER_NAMES = {
     "imitate-run-2d-start": "imitate-run-2d+standing-starts",
@@ -112,8 +114,9 @@ def option_names() -> list[str]:
     return sorted(p.stem for p in options_dir().glob("*.yaml"))
 
 
+@functools.cache
 def load_option(name: str) -> SceneOption:
-    """The shipped option ``name``.
+    """The shipped option ``name`` (read once: options ship with the code).
 
     Raises:
         SpecError: unknown, or its file is invalid.

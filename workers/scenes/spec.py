@@ -24,6 +24,8 @@ from gaitforge.workers.spec_types import MAX_NAME_LENGTH, MAX_TEXT_LENGTH, SPEC_
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 NonNegative = Annotated[float, Field(ge=0)]
+SCENE_NAME_PATTERN = r"^[a-z0-9][a-z0-9-]*(\+[a-z0-9][a-z0-9-]*)*$"
+"""a scene's name: a catalogue base, or ``base+option+...`` for a composed scene"""
 Range = Annotated[tuple[float, float], Field(strict=False)]
 """(low, high), written as a list ``[low, high]``; each a finite number"""
 
@@ -163,7 +165,7 @@ class Scene(_Strict):
     """A scene: a body, what of it to keep, the world around it and the task."""
 
     name: str = Field(
-        pattern=r"^[a-z0-9][a-z0-9-]*(\+[a-z0-9][a-z0-9-]*)*$",
+        pattern=SCENE_NAME_PATTERN,
         max_length=MAX_NAME_LENGTH,
         description="a catalogue name, base+option+... for a composed scene",
     )
