@@ -1,6 +1,6 @@
 """Warm start from recorded excitations: the actor's mean excitation fitted, before PPO, to
 the excitations that computed muscle control (CMC) found for a recorded gait, as a function
-of the gait phase the imitation scene puts in the observation (``phase_sin``, ``phase_cos``).
+of the gait phase the scene's clock puts in the observation (``phase_sin``, ``phase_cos``).
 
 Behavioural cloning on the states the policy visits: roll out in the stage's imitation scene
 (every episode starts inside the motion, at a random phase: reference state initialisation),
@@ -122,11 +122,11 @@ def phases_of(obs: np.ndarray, obs_names: list[str]) -> np.ndarray:
     """[N, obs_dim] observations -> [N] gait phases in [0, 1) from their sin and cos.
 
     Raises:
-        ExcitationError: the observation has no phase (not an imitation scene).
+        ExcitationError: the observation has no phase (the scene has no gait clock).
     """
     missing = [n for n in PHASE_NAMES if n not in obs_names]
     if missing:
-        raise ExcitationError(f"the observation has no {missing} (not an imitation scene)")
+        raise ExcitationError(f"the observation has no {missing} (the scene has no gait clock)")
     s = obs[:, obs_names.index(PHASE_NAMES[0])].astype(np.float64)
     c = obs[:, obs_names.index(PHASE_NAMES[1])].astype(np.float64)
     return np.mod(np.arctan2(s, c) / (2 * math.pi), 1.0)

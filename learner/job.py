@@ -363,29 +363,30 @@ def evaluation_scene(
 
 
 def check_warm_start(scene: Scene, spec: WarmStartSpec, where: str) -> None:
-    """The stage's scene imitates a motion (it observes the phase) and the body has recorded
-    excitations for ``spec.excitations``.
+    """The stage's scene imitates its clock's motion (it observes the phase and starts in
+    the motion) and the body has recorded excitations for ``spec.excitations``.
 
     Raises:
         SpecError: ``where`` (file and field), what is wrong and what is allowed.
     """
     from gaitforge.learner.clone_excitations import ExcitationError, excitation_table
 
-    imitate = getattr(scene.task, "imitate", None)
-    if imitate is None:
+    clock = getattr(scene.task, "clock", None)
+    if clock is None or getattr(scene.task, "imitate", None) is None:
         raise SpecError(
-            f"{where}: scene {scene.name!r} imitates no motion (task.imitate); a warm start "
-            "from recorded excitations needs an imitation scene (e.g. imitate-walk-2d)"
+            f"{where}: scene {scene.name!r} imitates no motion (task.clock and task.imitate); "
+            "a warm start from recorded excitations needs an imitation scene (e.g. "
+            "imitate-walk-2d)"
         )
     if scene.action.targets:
         raise SpecError(
             f"{where}: scene {scene.name!r} acts by joint targets (action.kind joint_targets); "
             "a warm start from recorded excitations needs action.kind excitations"
         )
-    if spec.excitations != imitate.motion:
+    if spec.excitations != clock.motion:
         raise SpecError(
             f"{where}.excitations: {spec.excitations!r}: the excitations must be those of the "
-            f"motion the scene imitates ({imitate.motion!r}), whose phase it observes"
+            f"motion the scene imitates ({clock.motion!r}), whose phase it observes"
         )
     try:
         excitation_table(scene.body, spec.excitations)

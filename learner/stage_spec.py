@@ -180,7 +180,7 @@ class WarmStartSpec(StrictSpec):
 
     excitations: Annotated[str, Field(max_length=MAX_NAME_LENGTH)]
     """the motion whose recorded excitations are cloned (e.g. ``walk``): the motion the
-    stage's scene imitates (``task.imitate.motion``), whose phase it observes"""
+    stage's scene imitates (``task.clock.motion``), whose phase it observes"""
     env_steps: Annotated[int, Field(ge=1)] = 8192
     """env steps of rollouts per round (they count in the stage's env steps)"""
     rounds: Annotated[int, Field(ge=1, le=10)] = 2
@@ -267,6 +267,10 @@ class Stage(StrictSpec):
     """the stage's budget; it ends at the budget even if the rule never passed"""
     promote: list[PromotionRule] = Field(default_factory=list, max_length=MAX_PROMOTION_RULES)
     """rules that must all pass to promote early; one rule may be given alone"""
+    if_not_promoted: Literal["next", "fail"] = "next"
+    """when the budget is spent before the rules pass: go on to the next stage, or end the
+    job (``fail``), naming each rule that fell short and by how much (the checkpoint of the
+    stage's end is written first)"""
     network: NetworkSpec | None = None
     """a new network for this stage (needs a building transition); None keeps the current"""
     transition: Literal["continue", "blend", "distil", "scratch"] = "continue"
@@ -289,6 +293,14 @@ class Stage(StrictSpec):
     def _parse_rules(cls, raw: object) -> object:
         rules = raw if isinstance(raw, list) else [] if raw is None else [raw]
         return [_parse_rule(rule) for rule in rules]
+
+    @model_validator(mode="after")
+    def _failing_needs_rules(self) -> Stage:
+        if self.if_not_promoted == "fail" and not self.promote:
+            raise ValueError(
+                "if_not_promoted: fail needs promote: rules, the target the stage must reach"
+            )
+        return self
 
     @model_validator(mode="after")
     def _evaluation_rules_evaluated(self) -> Stage:

@@ -6,9 +6,9 @@ Mirroring is in the sagittal plane: names ending ``_r``/``_l`` (or ``_right``/``
 swap; of the pelvis vectors, the lateral component of ``pelvis_up_*`` and ``pelvis_vel_*``
 changes sign, and of the angular velocity (a pseudovector) the other two components do.
 Joint angles swap without a sign change: both backends define left and right joint axes so
-that the same angle is the same anatomical motion. In imitation scenes ``phase_mirror`` (+1 in
-an episode that tracks the motion mirrored) changes sign: the mirror image of a state that
-tracks the motion at a phase is one that tracks the mirrored motion at the same phase.
+that the same angle is the same anatomical motion. With the gait clock ``phase_mirror`` (+1
+in an episode whose clock plays the motion mirrored) changes sign: the mirror image of a
+state at a phase of the motion is one at the same phase of the mirrored motion.
 """
 
 from __future__ import annotations

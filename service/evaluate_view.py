@@ -146,4 +146,5 @@ def render(report: Any, console: Console) -> Group:
             ])  # fmt: skip
         title = f"Speed against safety ({report.sweep_mode})"
         parts.append(_oriented(title, headers, rows, console))
+    parts += [f"[yellow]note[/yellow]: {note}" for note in getattr(report, "notes", [])]
     return Group(*parts)

@@ -75,6 +75,7 @@ TOP_LEVEL_RANKS = {
     "overrides": 0,
     "policy_api": 0,
     "rewards": 4,
+    "gait_clock": 4,
     "imitation": 4,
     "reflex": 4,
     "env": 4,

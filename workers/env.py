@@ -8,19 +8,19 @@ Observation (float32, names in ``env.obs_names``), in this order:
     task: target speed (m/s; the episode's draw with ``task.target_speed_range``) or reach
     target (rad); with obstacles, the scene's ``obstacles.observe_ahead`` nearest spheres
     ahead of the pelvis (one whose far edge it has not passed): forward distance from the
-    pelvis, centre height, radius (m; 0, 0, 0 for each that does not exist); imitating a
-    motion (``task.imitate``): the gait phase
-    as ``phase_sin``, ``phase_cos``, and ``phase_mirror`` (+1 in a mirrored episode, -1
-    otherwise).
+    pelvis, centre height, radius (m; 0, 0, 0 for each that does not exist); with the gait
+    clock (``task.clock``): its phase as ``phase_sin``, ``phase_cos``, and ``phase_mirror``
+    (+1 in a mirrored episode, -1 otherwise).
 Action (``env.act_names``): excitations [n_muscles] in [0, 1]; or, with ``action.kind:
 joint_targets``, targets [n_dofs] in [0, 1] around a base pose that the reflex layer
 (``workers.reflex``) turns into excitations (``prev_exc`` then holds the step's mean
 excitations, and the effort terms use them).
 
-Imitation scenes (``workers.imitation``) start each episode in the motion, add the tracking
-terms to the reward, end the episode when the pose error passes the scene's bound, and
-report ``info["imitation"] = {"phase", "pose_error_rad", "kept", "mirrored"}`` on reset and
-every step; ``reference_state()`` is the reference at the current phase.
+Scenes with the gait clock (``workers.gait_clock``) report ``info["clock"] = {"phase",
+"mirrored"}`` on reset and every step; ``reference_state()`` is the clock's reference state
+now. Imitation scenes (``workers.imitation``) also start episodes in the motion, add the
+tracking terms to the reward, end the episode when the pose error passes the scene's bound,
+and report ``info["imitation"] = {"phase", "pose_error_rad", "kept", "mirrored"}``.
 
 On scenes with obstacles ``touching_obstacle()`` says whether a foot touches one now (the
 evaluation asks after every step, so that it can tell the falls that came after a touch
@@ -36,6 +36,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 from gaitforge.workers.bodies.topology import topology_for
+from gaitforge.workers.gait_clock import GaitClock
 from gaitforge.workers.imitation import Imitation
 from gaitforge.workers.motions import MotionState
 from gaitforge.workers.reflex import ReflexLayer
@@ -72,7 +73,12 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         """m/s this episode: the scene's, or drawn from its ``target_speed_range``"""
         self._weight = GRAVITY * self.sim.report.mass
         self.reward_term_names = term_names(task)
-        self.imitation = Imitation(self.scene, self.sim, self.dt) if task.imitate else None
+        self.clock = GaitClock(self.scene, self.dt) if task.clock else None
+        self.imitation = (
+            Imitation(self.scene, self.sim, self.clock)
+            if task.imitate is not None and self.clock is not None
+            else None
+        )
         self._imitation_info: dict = {}
         self.obs_names = self._observation_names()
         n_mus = len(self.sim.muscle_names)
@@ -102,8 +108,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             self._reach_target = float(self.np_random.uniform(*self.scene.task.reach_range))
         if self.scene.task.target_speed_range is not None:
             self._target_speed = float(self.np_random.uniform(*self.scene.task.target_speed_range))
-            if self.imitation is not None:
-                self.imitation.follow_target_speed(self._target_speed)
+            if self.clock is not None:
+                self.clock.follow_target_speed(self._target_speed)
         self._prev_excitation = np.zeros(len(self.sim.muscle_names))
         self._steps = 0
         info: dict = {"health": HEALTHY}
@@ -111,15 +117,19 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             pose = self.imitation.start(self.np_random)
             if pose is not None:  # else the reset's standing pose
                 self.sim.set_pose(pose)
+        elif self.clock is not None:
+            self.clock.start(self.np_random)
         self._state = self.sim.state()
+        if self.clock is not None:
+            info["clock"] = self._clock_info()
         if self.imitation is not None:
-            ref = self.imitation.reference(0)
-            error = self.imitation.pose_error(self._state, ref, self.imitation.ramp(0))
+            assert self.clock is not None
+            ref = self.clock.reference(0)
+            error = self.imitation.pose_error(self._state, ref, self.clock.ramp(0))
             info["imitation"] = self._imitation_info = {
-                "phase": self.imitation.phase(0),
+                **info["clock"],
                 "pose_error_rad": float(np.sqrt(np.mean(error**2))),
                 "kept": True,
-                "mirrored": self.imitation.mirrored,
             }
         self._start_forward = float(self._state.pelvis_pos[self.sim.forward_axis])
         self._obs = self._observe(self._state)
@@ -144,6 +154,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
                 "reward_terms": dict.fromkeys(self.reward_term_names, 0.0),
             }
             info.update(self._episode_info(self._state))
+            if self.clock is not None:
+                info["clock"] = self._clock_info()
             if self.imitation is not None:
                 info["imitation"] = {**self._imitation_info, "kept": False}
             return self._obs.copy(), 0.0, True, truncated, info
@@ -165,10 +177,9 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             terms.update(self.imitation.weighted(tracking.kernels))
             kept = self._imitation_info["kept"] and self.imitation.kept(tracking.pose_error_rad)
             self._imitation_info = {
-                "phase": self.imitation.phase(self._steps),
+                **self._clock_info(),
                 "pose_error_rad": tracking.pose_error_rad,
                 "kept": kept,
-                "mirrored": self.imitation.mirrored,
             }
         self._prev_excitation = excitation
         self._state = state
@@ -177,6 +188,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         info = {"health": HEALTHY, "reward_terms": terms, "fell": fell}
         info.update(self._episode_info(state))
         ended = fell
+        if self.clock is not None:
+            info["clock"] = self._clock_info()
         if self.imitation is not None:
             info["imitation"] = dict(self._imitation_info)
             info["lost_track"] = not kept
@@ -185,28 +198,33 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def _step_reflex(self, action: np.ndarray) -> tuple[np.ndarray, Health]:
         """One control step through the reflex layer: the targets' base is the motion's pose
-        at the step's end (imitation; blended from the default pose while a standing start
-        ramps into the motion) or the default pose; returns the step's mean excitations
+        at the step's end (with the gait clock; blended from the default pose while a standing
+        start ramps into the motion) or the default pose; returns the step's mean excitations
         [n_muscles] and its health."""
         assert self.reflex is not None
         base, speeds = self._default_pose, np.zeros_like(self._default_pose)
-        if self.imitation is not None:
-            base, speeds = self.imitation.target_base(self._steps, self.sim.dof_names, base)
+        if self.clock is not None:
+            base, speeds = self.clock.target_base(self._steps, self.sim.dof_names, base)
         self.reflex.set_targets(action, base, speeds)
         return self.sim.step_reflex(self.reflex, self.dt, self.scene.reflex_chunks)
 
     def target_speed(self) -> float | None:
         """The target_speed term's target (m/s) for the step just taken (the scene's, or with
-        ``speed_target_from_clock`` the imitation clock's; None without one)."""
+        ``speed_target_from_clock`` the gait clock's; None without one)."""
         target = self._target_speed
-        if self.imitation is None:
+        if self.clock is None:
             return target
-        return self.imitation.target_speed(self._steps, target)
+        return self.clock.target_speed(self._steps, target)
 
     def reference_state(self) -> MotionState | None:
-        """The motion's reference at the current phase (mirrored if this episode is), for
-        drawing; None if the scene imitates nothing."""
-        return self.imitation.reference(self._steps) if self.imitation is not None else None
+        """The clock's reference state now (mirrored if this episode is), for drawing; None
+        if the scene has no gait clock."""
+        return self.clock.reference(self._steps) if self.clock is not None else None
+
+    def _clock_info(self) -> dict:
+        """``info["clock"]`` now: the phase [0, 1) and whether the episode is mirrored."""
+        assert self.clock is not None
+        return {"phase": self.clock.phase(self._steps), "mirrored": self.clock.mirrored}
 
     # ---- observation --------------------------------------------------------------------
 
@@ -228,8 +246,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         parts.append([self._target_speed or 0.0] if self._locomotion else [self._reach_target])
         if self.scene.obstacles is not None:
             parts.append(self._observed_obstacles(s))
-        if self.imitation is not None:
-            parts.append(self.imitation.observe(self._steps))
+        if self.clock is not None:
+            parts.append(self.clock.observe(self._steps))
         return np.concatenate([np.ravel(p) for p in parts]).astype(np.float32)
 
     def _observed_obstacles(self, s: SimState) -> np.ndarray:

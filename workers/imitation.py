@@ -1,24 +1,12 @@
 """Imitation of a recorded gait in an env (a scene's ``task.imitate``), DeepMimic-style.
 
-The gait phase runs with the env's time: ``phase = phase0 + t * tempo / period (mod 1)``,
-``t`` the control steps taken times the control period; ``imitate.tempo`` plays the motion
-faster or slower (its speeds scale with it), times the episode's target speed over the
-scene's ``task.target_speed`` in a scene that draws one (``task.target_speed_range``). Each
-reset draws ``phase0`` (uniform, or 0) and whether the episode is mirrored (left and right
-legs swapped, p = 0.5), and starts the body in the reference state there (joint angles plus
-uniform noise, their speeds, pelvis height, pitch, list, rotation and their rates, forward
-and vertical speed; ``Simulator.set_pose``); or, with ``init.start: standing`` or in a
-fraction ``init.standing_fraction`` of episodes, in the body's standing reset pose, and then
-:meth:`Imitation.ramp` says how far (0..1) the joint-target base, and the pose the pose term
-and ``max_pose_error_rad`` compare with, have blended from standing into the motion (over
-``init.ramp_s``). With ``imitate.lead_in``, an
-episode that starts standing plays the lead-in motion first and cross-fades into the scene's
-(``workers.motions.playback``: a run that starts as a walk); the phase, the reference and
-(with ``speed_target_from_clock``) the target speed of the ``target_speed`` term follow it.
-In a fraction ``init.lead_in_fraction`` of episodes the body starts part way along that way
-in, in the faded reference state at a random time ``start_s`` past the ramp, and the
-episode's clock reads ``start_s`` plus the time since (reference state initialisation along
-the fade).
+The gait clock (``workers.gait_clock``) says where in the motion the episode is; imitation
+tracks it. Each reset starts the body in the reference state at the clock's phase (joint
+angles plus uniform noise, their speeds, pelvis height, pitch, list, rotation and their
+rates, forward and vertical speed; ``Simulator.set_pose``); or, in a fraction
+``starts.standing`` of episodes, in the body's standing reset pose at phase 0 (at the
+clock's phase when every episode starts standing); or, in a fraction ``starts.lead_in``,
+part way along the clock's lead-in, in the faded reference state there.
 
 Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imitate.weights``:
 
@@ -38,21 +26,17 @@ The tracked joints are the motion's joints that the scene keeps. The episode end
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from gaitforge.workers.bodies.topology import topology_for
-from gaitforge.workers.motions import Motion, MotionState, load_motion
-from gaitforge.workers.motions.playback import CrossFade, faster
+from gaitforge.workers.gait_clock import GaitClock
+from gaitforge.workers.motions import MotionState
 from gaitforge.workers.scenes import Scene
-from gaitforge.workers.scenes.imitate import IMITATION_TERMS, Imitate, tracked_joints
+from gaitforge.workers.scenes.clock import clock_joints
+from gaitforge.workers.scenes.imitate import IMITATION_TERMS, Imitate
 from gaitforge.workers.sim.base import Pose, SimState, Simulator
 from gaitforge.workers.sim.pose import opensim_to_world, pelvis_pitch_list, pelvis_rotation
-
-PHASE_OBS = ("phase_sin", "phase_cos", "phase_mirror")
-"""The observation's imitation entries: sin and cos of 2 pi phase, and +1 in a mirrored
-episode (left and right swapped), -1 otherwise (a mirror image flips its sign)."""
 
 
 @dataclass(frozen=True)
@@ -64,170 +48,46 @@ class Tracking:
 
 
 class Imitation:
-    """The imitation side of one env: phase, reference, reset pose and tracking terms."""
+    """The tracking side of one env: its starts, the tracking terms and the early end."""
 
-    def __init__(self, scene: Scene, sim: Simulator, dt: float) -> None:
+    def __init__(self, scene: Scene, sim: Simulator, clock: GaitClock) -> None:
         imitate = scene.task.imitate
         if imitate is None:
             raise ValueError(f"scene {scene.name!r}: task.imitate is not set")
+        assert scene.task.clock is not None  # the scene's validation ties imitation to it
         self.spec: Imitate = imitate
-        self.motion: Motion = load_motion(scene.body, imitate.motion)
-        self.tempo = imitate.tempo
-        """the main motion's tempo this episode (:meth:`follow_target_speed`)"""
-        self.nominal_speed = scene.task.target_speed
-        """m/s: the target speed the scene's ``tempo`` is set for"""
-        lead_in = imitate.lead_in
-        self.crossfade = (
-            None
-            if lead_in is None
-            else CrossFade(
-                lead=load_motion(scene.body, lead_in.motion),
-                lead_tempo=lead_in.tempo,
-                main=self.motion,
-                main_tempo=imitate.tempo,
-                hold_s=lead_in.hold_s,
-                crossfade_s=lead_in.crossfade_s,
-            )
-        )
-        """The lead-in's cross-fade, played after a standing start (None: no lead-in)."""
+        self.clock = clock
         topology = topology_for(scene.body)
-        self.joints = tracked_joints(imitate, scene.body, scene.keep.joints, topology)
+        self.joints = clock_joints(scene.task.clock, scene.body, scene.keep.joints, topology)
         self._index = np.array([sim.dof_names.index(j) for j in self.joints], dtype=int)
         self._standing = np.array([topology.dof_defaults[j] for j in self.joints])
-        self._feet = [f for f in sim.foot_names if f in self.motion.feet]
-        self.dt = dt
+        self._feet = [f for f in sim.foot_names if f in clock.motion.feet]
+        self.dt = clock.dt
         self.up, self.forward = sim.up_axis, sim.forward_axis
         self._to_os = opensim_to_world(self.up, self.forward).T
-        self._turns = self.motion.body != "gait2d"  # 3-D: heading may differ
-        self.phase0 = 0.0
-        self.mirrored = False
-        self.standing_start = False
-        self.start_s = 0.0
-        """s along the lead-in at which this episode started (0 unless it started inside it)"""
-        self._last_reference: tuple[tuple, MotionState] | None = None
-
-    # ---- phase and reference ----------------------------------------------------------
-
-    def _fading(self) -> CrossFade | None:
-        """The lead-in's cross-fade if this episode plays it (it started standing, or
-        inside the lead-in)."""
-        return self.crossfade if self.standing_start or self.start_s > 0.0 else None
-
-    def _clock_s(self, steps: int) -> float:
-        """s on the episode's clock after ``steps`` control steps (from ``start_s``)."""
-        return self.start_s + steps * self.dt
-
-    def _phase_at(self, clock_s: float) -> float:
-        """Phase in [0, 1) at ``clock_s`` s on the episode's clock."""
-        if fade := self._fading():
-            return (self.phase0 + fade.cycles(clock_s)) % 1.0
-        # start_s is 0 unless the lead-in fades: the clock reads the time played
-        return (self.phase0 + clock_s * self.tempo / self.motion.period_s) % 1.0
-
-    def _motion_at(self, clock_s: float) -> MotionState:
-        """The motion (faded from the lead-in, at ``tempo``, not mirrored) at ``clock_s``."""
-        if fade := self._fading():
-            return fade.at(clock_s, self.phase0)
-        return faster(self.motion.at(self._phase_at(clock_s)), self.tempo)
-
-    def _ramp_at(self, clock_s: float) -> float:
-        """:meth:`ramp` at ``clock_s`` s on the episode's clock."""
-        ramp_s = self.spec.init.ramp_s
-        if not self.standing_start or ramp_s <= 0.0:
-            return 1.0
-        return min(1.0, clock_s / ramp_s)
-
-    def phase(self, steps: int) -> float:
-        """Phase in [0, 1) after ``steps`` control steps of this episode."""
-        return self._phase_at(self._clock_s(steps))
-
-    def reference(self, steps: int) -> MotionState:
-        """The reference after ``steps`` control steps (mirrored if the episode is; speeds
-        times ``tempo``; cross-faded from the lead-in after a standing start or a start
-        inside the lead-in). A step asks for it twice (the targets' base, then tracking): the
-        last one is kept."""
-        key = (steps, self.phase0, self.mirrored, self.standing_start, self.start_s, self.tempo)
-        if self._last_reference is not None and self._last_reference[0] == key:
-            return self._last_reference[1]
-        state = self._motion_at(self._clock_s(steps))
-        if self.mirrored:
-            state = self.motion.mirrored_state(state)
-        self._last_reference = (key, state)
-        return state
-
-    def ramp(self, steps: int) -> float:
-        """How far (0..1) the joint targets' base has blended from the standing pose into the
-        motion's after ``steps`` control steps: 1 unless this episode started standing and
-        ``init.ramp_s`` has not yet passed (a start inside the lead-in is past it)."""
-        return self._ramp_at(self._clock_s(steps))
-
-    def target_speed(self, steps: int, task_target: float | None) -> float | None:
-        """The ``target_speed`` term's target (m/s) after ``steps`` steps: ``task_target``, or
-        with ``speed_target_from_clock`` the smaller of it and the reference's forward speed
-        times :meth:`ramp` (from standing into the motion, faded from the lead-in)."""
-        if task_target is None or not self.spec.speed_target_from_clock:
-            return task_target
-        clock_s = self._clock_s(steps)
-        speed = self._motion_at(clock_s).forward_speed * self._ramp_at(clock_s)
-        return min(task_target, speed)
-
-    def target_base(
-        self, steps: int, dofs: Sequence[str], standing: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Joint-target actions' base after ``steps`` control steps, for ``dofs`` [n_dofs]:
-        the reference's angles (rad) and speeds (rad/s) where it has them, else ``standing``
-        [n_dofs] and 0, blended from ``standing`` (speeds from 0) by :meth:`ramp`."""
-        ref = self.reference(steps)
-        angles = np.array([ref.joints.get(d, q) for d, q in zip(dofs, standing, strict=True)])
-        speeds = np.array([ref.joint_speeds.get(d, 0.0) for d in dofs])
-        blend = self.ramp(steps)
-        return standing + blend * (angles - standing), blend * speeds
-
-    def observe(self, steps: int) -> list[float]:
-        """``PHASE_OBS`` after ``steps`` steps."""
-        angle = 2.0 * np.pi * self.phase(steps)
-        return [float(np.sin(angle)), float(np.cos(angle)), 1.0 if self.mirrored else -1.0]
+        self._turns = clock.motion.body != "gait2d"  # 3-D: heading may differ
 
     # ---- reference state initialisation ----------------------------------------------
 
-    def follow_target_speed(self, target_speed: float) -> None:
-        """Play the scene's main motion at ``imitate.tempo`` times ``target_speed`` (m/s)
-        over the scene's ``task.target_speed`` (the lead-in keeps its own tempo): the env
-        calls it at each reset of a scene that draws its target speed, before
-        :meth:`start`."""
-        self.tempo = self.spec.tempo * target_speed / self.nominal_speed
-        if self.crossfade is not None:
-            self.crossfade = replace(self.crossfade, main_tempo=self.tempo)
-
     def start(self, rng: np.random.Generator) -> Pose | None:
-        """Draw this episode's phase, mirroring and start; the pose to start it from (None
-        for a standing start: the simulator's reset pose)."""
-        init = self.spec.init
-        self.phase0 = float(rng.uniform()) if init.random_phase else 0.0
-        self.mirrored = bool(rng.uniform() < 0.5) if init.mirror else False
-        fraction = init.standing_fraction
-        mixed_standing = fraction > 0.0 and bool(rng.uniform() < fraction)
-        self.standing_start = init.start == "standing" or mixed_standing
-        self.start_s = 0.0
-        # of the episodes not standing, a share lead_in_fraction / (1 - fraction) starts
-        # inside the lead-in: lead_in_fraction of all
-        inside_lead_in = not self.standing_start and init.lead_in_fraction > 0.0
-        if inside_lead_in and rng.uniform() * (1.0 - fraction) < init.lead_in_fraction:
-            self.start_s = self._lead_in_start_s(rng)
-        if mixed_standing or self.start_s > 0.0:
-            self.phase0 = 0.0
-        if self.standing_start:
+        """Start the clock and draw where this episode starts; the pose to start it from
+        (None for a standing start: the simulator's reset pose)."""
+        starts, clock = self.spec.starts, self.clock
+        fraction = starts.standing
+        clock.start(rng, standing=starts.all_standing)
+        mixed_standing = 0.0 < fraction < 1.0 and bool(rng.uniform() < fraction)
+        if mixed_standing:
+            clock.standing_start = True
+            clock.start_at_phase_zero()
+        # of the episodes not standing, a share lead_in / (1 - standing) starts inside the
+        # lead-in: lead_in of all
+        inside_lead_in = not clock.standing_start and starts.lead_in > 0.0
+        if inside_lead_in and rng.uniform() * (1.0 - fraction) < starts.lead_in:
+            clock.start_along_lead_in(rng)
+        if clock.standing_start:
             return None
-        noise = rng.uniform(-init.noise, init.noise, len(self.joints))
-        return self.pose_of(self.reference(0), noise)
-
-    def _lead_in_start_s(self, rng: np.random.Generator) -> float:
-        """A uniform random time (s, > 0) along the lead-in from the end of the standing ramp
-        to the end of the cross-fade."""
-        assert self.crossfade is not None  # the scene's validation ties the fraction to it
-        first = max(self.spec.init.ramp_s, self.dt)
-        last = max(first, self.crossfade.hold_s + self.crossfade.crossfade_s)
-        return float(rng.uniform(first, last))
+        noise = rng.uniform(-starts.noise, starts.noise, len(self.joints))
+        return self.pose_of(clock.reference(0), noise)
 
     def pose_of(self, ref: MotionState, noise: np.ndarray | None = None) -> Pose:
         """The simulator pose of reference state ``ref``: its tracked joints (plus ``noise``,
@@ -251,15 +111,15 @@ class Imitation:
 
     def pose_error(self, state: SimState, ref: MotionState, ramp: float = 1.0) -> np.ndarray:
         """[n_tracked] angle minus reference, rad; the reference blended from the standing
-        pose by ``ramp`` (0..1, :meth:`ramp`)."""
+        pose by ``ramp`` (0..1, ``GaitClock.ramp``)."""
         angles = np.array([ref.joints[j] for j in self.joints])
         return state.dof_pos[self._index] - (self._standing + ramp * (angles - self._standing))
 
     def track(self, state: SimState, previous: SimState, sim: Simulator, steps: int) -> Tracking:
         """The tracking kernels of the state after step ``steps`` (see the module table)."""
-        ref = self.reference(steps)
+        ref = self.clock.reference(steps)
         scales = self.spec.scales
-        pose = self.pose_error(state, ref, self.ramp(steps))
+        pose = self.pose_error(state, ref, self.clock.ramp(steps))
         speed = state.dof_vel[self._index] - np.array([ref.joint_speeds[j] for j in self.joints])
         pitch, list_ = pelvis_pitch_list(state.pelvis_up, self.up, self.forward)
         height = float(state.pelvis_pos[self.up]) - ref.pelvis_height

@@ -196,6 +196,25 @@ def check_sweep(scene: Scene, reductions: list[float]) -> float:
     return nominal
 
 
+def one_pace_note(trained: Scene, chosen: Scene, sweep: bool) -> str | None:
+    """Why figures at another target speed say little about following it, or None: the
+    policy was trained at one target speed (``trained``, the checkpoint's scene, draws no
+    ``task.target_speed_range``) and ``chosen`` asks for another (a different target speed or
+    a drawn one), or a ``sweep`` lowers it."""
+    task = trained.task
+    if task.kind != "locomotion" or not task.target_speed or task.target_speed_range:
+        return None
+    asked = chosen.task
+    other = asked.target_speed_range is not None or asked.target_speed != task.target_speed
+    if not (other or sweep):
+        return None
+    return (
+        f"the policy was trained at one target speed ({task.target_speed:g} m/s: scene "
+        f"{trained.name!r} draws no task.target_speed_range), so it keeps its pace whatever "
+        "target it is given; a policy trained with the speed-range option follows the target"
+    )
+
+
 def speed_sweep(
     policy: ActorCritic,
     scene: Scene,

@@ -35,6 +35,7 @@ from gaitforge.learner.evaluation.episodes import (
     evaluate_episode,
     evaluate_policy,
     make_runner,
+    one_pace_note,
     policy_act,
     speed_sweep,
     with_target_speed,
@@ -260,6 +261,8 @@ def evaluate_checkpoint(
             seed=seed,
             progress=progress,
         )
+    trained_on = meta.scene_spec(ckpt / META_FILE)
+    pace_note = one_pace_note(trained_on, chosen, sweep=sweep_list is not None)
     return EvaluationReport(
         checkpoint=str(ckpt),
         env_steps=meta.env_steps,
@@ -270,6 +273,7 @@ def evaluate_checkpoint(
         sweep=points,
         sweep_mode=sweep_mode if sweep_list is not None else None,
         stage=None if meta.stage is None else meta.stage.model_dump(),
+        notes=[pace_note] if pace_note else [],
         recording=None if record is None else str(record),
         video=None if video is None else str(video),
     )

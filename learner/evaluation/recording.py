@@ -25,7 +25,8 @@ topic              schema (encoding)           content
 ``/health``        gaitforge.Health (json)     ``ok`` (1/0), ``cause``, ``fell`` (1/0), ``step``
 =================  ==========================  ===================================================
 
-Imitation scenes (``task.imitate``) add two channels, one message each per step:
+Scenes with the gait clock (``task.clock``) add ``/reference``, and imitation scenes
+(``task.imitate``) ``/imitation``, one message each per step:
 
 =================  ==========================  ===================================================
 ``/reference``     foxglove.SceneUpdate        entity ``reference`` in frame ``world``: the
@@ -67,7 +68,7 @@ from foxglove.channels import FrameTransformsChannel, JointStatesChannel, SceneU
 from foxglove.messages import Timestamp
 from gaitforge.learner.checkpoint_meta import META_FILE, read_meta
 from gaitforge.learner.evaluation.recording_messages import EpisodeMessages
-from gaitforge.learner.evaluation.reference_pose import ReferenceBody, imitating
+from gaitforge.learner.evaluation.reference_pose import ReferenceBody, has_clock
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.episode import (
     Act,
@@ -88,7 +89,8 @@ TOPICS = (TOPIC_TF, TOPIC_SCENE, TOPIC_JOINTS, *SCALAR_TOPICS)
 TOPIC_REFERENCE = "/reference"
 TOPIC_IMITATION = "/imitation"
 IMITATION_TOPICS = (TOPIC_REFERENCE, TOPIC_IMITATION)
-"""The channels imitation scenes add, one message each per step."""
+"""The channels imitation scenes add, one message each per step (a clock alone adds the
+first)."""
 
 
 def checkpoint_metadata(path: str | os.PathLike[str]) -> dict[str, str]:
@@ -152,17 +154,17 @@ class EpisodeRecorder(ClosingObserver):
             for topic, schema in self._messages.scalar_schemas().items()
         }
         self._reference: ReferenceBody | None = None
-        self._imitation: list[Any] = []  # the /reference and /imitation channels
-        if imitating(env):
+        self._reference_channel: SceneUpdateChannel | None = None
+        self._imitation_channel: foxglove.Channel | None = None
+        if has_clock(env):
             try:
                 self._reference = ReferenceBody(env)
             except ValueError as exc:
                 logger.warning("recording %s: no reference skeleton: %s", self.path, exc)
+            self._reference_channel = SceneUpdateChannel(TOPIC_REFERENCE, context=ctx)
+        if env.imitation is not None:
             schema = self._messages.imitation_schema()
-            self._imitation = [
-                SceneUpdateChannel(TOPIC_REFERENCE, context=ctx),
-                foxglove.Channel(TOPIC_IMITATION, schema=schema, context=ctx),
-            ]
+            self._imitation_channel = foxglove.Channel(TOPIC_IMITATION, schema=schema, context=ctx)
         self._writer.write_metadata(METADATA_NAME, self._metadata(env, metadata or {}))
 
     # ---- public -----------------------------------------------------------------------------
@@ -202,12 +204,13 @@ class EpisodeRecorder(ClosingObserver):
         )
         for topic, message in scalars.items():
             self._scalars[topic].log(message, log_time=log_time)
-        if self._imitation:
-            reference, imitation = self._imitation
+        if self._reference_channel is not None:
             frames = None if self._reference is None else self._reference.frames(env)
             stamp = Timestamp(log_time // 10**9, log_time % 10**9)
-            reference.log(self._messages.reference(frames or {}, stamp), log_time=log_time)
-            imitation.log(self._messages.imitation(info), log_time=log_time)
+            message = self._messages.reference(frames or {}, stamp)
+            self._reference_channel.log(message, log_time=log_time)
+        if self._imitation_channel is not None:
+            self._imitation_channel.log(self._messages.imitation(info), log_time=log_time)
         self.steps += 1
 
     def on_step(
@@ -233,10 +236,12 @@ class EpisodeRecorder(ClosingObserver):
                 self._scene,
                 self._joints,
                 *self._scalars.values(),
-                *self._imitation,
+                self._reference_channel,
+                self._imitation_channel,
             )
             for channel in channels:
-                channel.close()
+                if channel is not None:
+                    channel.close()
             logger.info("recording: %d steps to %s", self.steps, self.path)
 
     # ---- helpers ----------------------------------------------------------------------------

@@ -1,5 +1,5 @@
-"""The reference pose of an imitation episode, for drawing beside the body (MCAP recordings,
-videos): the motion's state at the episode's current phase (``env.reference_state()``,
+"""The reference pose of an episode with the gait clock, for drawing beside the body (MCAP
+recordings, videos): the motion's state at the episode's current phase (``env.reference_state()``,
 mirrored when the episode is) put on a second copy of the body's kinematics, the scene's own
 MuJoCo model with its own data (``MujocoSimulator.set_pose``), so that the reference
 skeleton has exactly the body's bones.
@@ -26,9 +26,10 @@ if TYPE_CHECKING:
 logger = logging.getLogger(__name__)
 
 
-def imitating(env: MuscleEnv) -> bool:
-    """Whether ``env``'s scene imitates a motion (``task.imitate``)."""
-    return getattr(env.scene.task, "imitate", None) is not None
+def has_clock(env: MuscleEnv) -> bool:
+    """Whether ``env``'s scene has a gait clock (``task.clock``), whose reference state can
+    be drawn."""
+    return getattr(env.scene.task, "clock", None) is not None
 
 
 def pose_of(state: MotionState) -> Pose:
@@ -71,7 +72,7 @@ class ReferenceBody:
     def frames(self, env: MuscleEnv) -> dict[str, BodyPose] | None:
         """World pose of every body of the reference (the simulator's world frame, as
         ``Simulator.body_frames``), translated with ``env``'s pelvis along the ground; None
-        when the env has no reference now (not an imitation scene, or before a reset)."""
+        when the env has no reference now (no gait clock, or before a reset)."""
         state = env.reference_state() if hasattr(env, "reference_state") else None
         if state is None:
             return None

@@ -236,6 +236,8 @@ class EvaluationReport:
     sweep: list[SweepPoint] = field(default_factory=list)
     sweep_mode: Mode | None = None
     stage: dict | None = None
+    notes: list[str] = field(default_factory=list)
+    """what the figures do not say (e.g. a policy trained at one pace asked for another)"""
     recording: str | None = None
     """MCAP file of the first episode, if one was written"""
     video: str | None = None

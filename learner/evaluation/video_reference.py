@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
-from gaitforge.learner.evaluation.reference_pose import ReferenceBody, imitating
+from gaitforge.learner.evaluation.reference_pose import ReferenceBody, has_clock
 
 if TYPE_CHECKING:
     from gaitforge.workers.env import MuscleEnv
@@ -66,13 +66,13 @@ def add_model_skeleton(scene: mujoco.MjvScene, m: mujoco.MjModel, d: mujoco.MjDa
 
 
 class ReferenceSkeleton:
-    """The reference pose of an imitation env, drawn as a translucent skeleton while
+    """The reference pose of an env with the gait clock, drawn as a translucent skeleton while
     :attr:`visible`; does nothing for other scenes (:attr:`active` False)."""
 
     def __init__(self, env: MuscleEnv) -> None:
         self.visible = True
         self._body: ReferenceBody | None = None
-        if imitating(env):
+        if has_clock(env):
             try:
                 self._body = ReferenceBody(env)
             except ValueError as exc:

@@ -3,7 +3,7 @@ as data only, then written into a job's folder for its trainer.
 
 Data only: a stage's ``scene`` is a catalogue name or an inline scene (a mapping validated as a
 ``Scene``); names that reach the file system (the scene, an inline scene's ``body`` and
-``task.imitate.motion``, ``warm_start.excitations``, ``evaluate.scene``) must be plain names,
+``task.clock.motion``, ``warm_start.excitations``, ``evaluate.scene``) must be plain names,
 never paths; ``workers.ray_address`` is refused (the service decides where jobs run);
 anything not in the schema is refused, as are more rollout actors than the cluster has CPUs
 (where the caller knows them: ``max_num_workers``). Then the job is written into a scratch
@@ -137,9 +137,12 @@ def _scene_problems(scene: Scene, field: str) -> list[tuple[str, str]]:
     """Why ``scene`` (inline, or a catalogue scene with a stage's ``scene_set``) is not data
     only: a body or motion named by a path."""
     names = [("body", scene.body, "a shipped body name")]
-    imitate = getattr(scene.task, "imitate", None)
-    if imitate is not None:
-        names.append(("task.imitate.motion", imitate.motion, "a motion shipped for the body"))
+    clock = getattr(scene.task, "clock", None)
+    if clock is not None:
+        names.append(("task.clock.motion", clock.motion, "a motion shipped for the body"))
+        if clock.lead_in is not None:
+            lead_in = ("task.clock.lead_in.motion", clock.lead_in.motion, "a shipped motion")
+            names.append(lead_in)
     bad = [(f"{field}.{f}", p) for f, v, what in names if (p := _name_problem(v, what))]
     return bad
 

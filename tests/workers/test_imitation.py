@@ -12,29 +12,17 @@ from gaitforge.workers.scenes import Scene, catalogue, load_scene
 from gaitforge.workers.scenes.imitate import IMITATION_TERMS
 from gaitforge.workers.sim.pose import pelvis_pitch_list
 
-
-def _scene(name: str, motion: str | None = None, **init: object) -> Scene:
-    """A catalogue imitation scene, its motion and ``init`` fields replaced."""
-    scene = load_scene(name)
-    imitate = scene.task.imitate
-    assert imitate is not None
-    imitate = imitate.model_copy(
-        update={
-            "init": imitate.init.model_copy(update=init),
-            **({"motion": motion} if motion else {}),
-        }
-    )
-    return scene.model_copy(update={"task": scene.task.model_copy(update={"imitate": imitate})})
+from tests.workers.scene_fields import scene_with
 
 
-def _scene_3d(**init: object) -> Scene:
-    """MyoLeg imitation (the walk once it is shipped, else the run)."""
-    if "imitate-walk-3d" in catalogue():
-        return _scene("imitate-walk-3d", **init)
-    raw = load_scene("walk-3d").model_dump(exclude_defaults=True)
-    raw["name"] = "imitate-3d-test"
-    raw["task"]["imitate"] = {"motion": "run", "init": init}
-    return Scene.model_validate(raw)
+def _scene(name: str, **fields: object) -> Scene:
+    """A catalogue imitation scene with clock and start fields replaced (``scene_with``)."""
+    return scene_with(name, **fields)
+
+
+def _scene_3d(**fields: object) -> Scene:
+    """MyoLeg imitating the recorded 3-D walk."""
+    return _scene("imitate-walk-3d", **fields)
 
 
 CASES = [
@@ -114,7 +102,7 @@ def test_the_phase_in_the_observation_advances_with_time() -> None:
     obs, info = env.reset(seed=5)
     phase0 = info["imitation"]["phase"]
     assert obs[-1] == (1.0 if info["imitation"]["mirrored"] else -1.0)
-    step = env.dt / env.imitation.motion.period_s
+    step = env.dt / env.clock.motion.period_s
     for k in range(1, 6):
         obs, *_, info = env.step(np.full(env.action_space.shape, 0.3, np.float32))
         expected = (phase0 + k * step) % 1.0
@@ -161,7 +149,7 @@ def test_a_body_held_in_the_reference_earns_the_full_tracking_reward(make, backe
     imitation = env.imitation
     previous = env.sim.state()
     for steps in range(1, 8):
-        ref = imitation.reference(steps)
+        ref = env.clock.reference(steps)
         env.sim.set_pose(imitation.pose_of(ref))
         state = env.sim.state()
         kernels = imitation.track(state, previous, env.sim, steps).kernels
@@ -199,10 +187,10 @@ def test_mujoco_and_opensim_start_from_the_same_pose() -> None:
 
 def test_catalogue_imitation_scenes_target_their_motions_speed() -> None:
     """Scenes that reward imitation target their motion's speed at its tempo, within 2 % (a
-    scene that uses a motion only as a clock, with every weight 0, keeps its own task's
-    target; imitate-walk-2d+standing-starts observes walk-2d's 1.25 m/s for its 1.27), except
-    imitate-run-2d+standing-starts, which observes run-2d's 3 m/s (the target its next stage,
-    run-2d+clock, observes) while it imitates the run at 3.63."""
+    scene with a clock alone keeps its own task's target; imitate-walk-2d+standing-starts
+    observes walk-2d's 1.25 m/s for its 1.27), except imitate-run-2d+standing-starts, which
+    observes run-2d's 3 m/s (the target its next stage, run-2d+clock, observes) while it
+    imitates the run at 3.63."""
     from gaitforge.workers.motions import load_motion
 
     def rewards_imitation(name: str) -> bool:
@@ -217,8 +205,8 @@ def test_catalogue_imitation_scenes_target_their_motions_speed() -> None:
         if name in observes_next_stages_target:
             assert scene.task.target_speed == observes_next_stages_target[name].task.target_speed
             continue
-        motion = load_motion(scene.body, scene.task.imitate.motion)
-        pace = motion.speed_m_s * scene.task.imitate.tempo
+        motion = load_motion(scene.body, scene.task.clock.motion)
+        pace = motion.speed_m_s * scene.task.clock.tempo
         assert scene.task.target_speed == pytest.approx(pace, rel=0.02), name
 
 
@@ -250,7 +238,7 @@ def test_the_feet_term_compares_in_the_bodys_heading() -> None:
     env = MuscleEnv(_scene_3d(noise=0.0))
     env.reset(seed=3)
     imitation = env.imitation
-    ref = imitation.reference(1)
+    ref = env.clock.reference(1)
     turned = dataclasses.replace(imitation.pose_of(ref), pelvis_rotation=ref.pelvis_rotation + 0.5)
     env.sim.set_pose(turned)
     state = env.sim.state()

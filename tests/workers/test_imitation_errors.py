@@ -1,5 +1,5 @@
-"""Bad imitation settings in a scene file fail at load with one line naming the file, the field
-and what is allowed."""
+"""Bad clock and imitation settings in a scene file fail at load with one line naming the
+file, the field and what is allowed."""
 
 from __future__ import annotations
 
@@ -38,50 +38,50 @@ def _bad_motion_file(tmp_path: Path) -> Path:
 
 
 def test_an_unknown_motion_lists_the_available_ones(tmp_path: Path) -> None:
-    path = _write(tmp_path, "imitate-walk-2d", lambda r: r["task"]["imitate"].update(motion="hop"))
-    _fails(path, "task.imitate.motion", "'hop'", "run", "walk")
+    path = _write(tmp_path, "imitate-walk-2d", lambda r: r["task"]["clock"].update(motion="hop"))
+    _fails(path, "task.clock.motion", "'hop'", "run", "walk")
 
 
 def test_a_motion_with_joints_the_body_lacks(tmp_path: Path) -> None:
     motion = _bad_motion_file(tmp_path)
     path = _write(
-        tmp_path, "imitate-walk-2d", lambda r: r["task"]["imitate"].update(motion=str(motion))
+        tmp_path, "imitate-walk-2d", lambda r: r["task"]["clock"].update(motion=str(motion))
     )
-    _fails(path, "task.imitate.motion", "elbow_flex")
+    _fails(path, "task.clock.motion", "elbow_flex")
 
 
 def test_a_motion_of_another_body(tmp_path: Path) -> None:
     other = str(motion_file("myoleg", "run"))
-    path = _write(tmp_path, "imitate-walk-2d", lambda r: r["task"]["imitate"].update(motion=other))
-    _fails(path, "task.imitate.motion", "'myoleg'", "'gait2d'")
+    path = _write(tmp_path, "imitate-walk-2d", lambda r: r["task"]["clock"].update(motion=other))
+    _fails(path, "task.clock.motion", "'myoleg'", "'gait2d'")
 
 
 def test_a_scene_that_keeps_none_of_the_motions_joints(tmp_path: Path) -> None:
     path = _write(
         tmp_path, "imitate-walk-2d", lambda r: r["keep"].update(joints=["lumbar_extension"])
     )
-    _fails(path, "task.imitate.motion", "keeps none", "keep.joints")
+    _fails(path, "task.clock.motion", "keeps none", "keep.joints")
 
 
-def test_imitation_on_a_reach_task(tmp_path: Path) -> None:
-    path = _write(tmp_path, "elbow-reach", lambda r: r["task"].update(imitate={"motion": "walk"}))
-    _fails(path, "task", "imitate", "locomotion", "'reach'")
+def test_a_clock_on_a_reach_task(tmp_path: Path) -> None:
+    path = _write(tmp_path, "elbow-reach", lambda r: r["task"].update(clock={"motion": "walk"}))
+    _fails(path, "task", "clock", "locomotion", "'reach'")
 
 
-def test_imitation_on_a_body_without_a_pelvis(tmp_path: Path) -> None:
+def test_a_clock_on_a_body_without_a_pelvis(tmp_path: Path) -> None:
     def edit(raw: dict) -> None:
         raw["task"] = {
             "kind": "locomotion",
             "min_pelvis_height": 0.5,
-            "imitate": {"motion": "walk"},
+            "clock": {"motion": "walk"},
         }
 
-    _fails(_write(tmp_path, "elbow-reach", edit), "task.imitate", "no free pelvis", "myoelbow")
+    _fails(_write(tmp_path, "elbow-reach", edit), "task.clock", "no free pelvis", "myoelbow")
 
 
 def test_imitation_on_a_backend_the_body_cannot_run_on(tmp_path: Path) -> None:
     def edit(raw: dict) -> None:
-        raw["task"]["imitate"] = {"motion": "run"}
+        raw["task"]["clock"] = {"motion": "run"}
         raw["backends"] = ["mujoco", "opensim"]
 
     _fails(_write(tmp_path, "walk-3d", edit), "backends", "MuJoCo only")
@@ -93,7 +93,7 @@ def test_imitation_on_a_backend_the_body_cannot_run_on(tmp_path: Path) -> None:
         (lambda i: i.update(max_pose_error_rad=0), ["task.imitate.max_pose_error_rad", "0"]),
         (lambda i: i["weights"].update(pose=-1), ["task.imitate.weights.pose"]),
         (lambda i: i["scales"].update(feet=0), ["task.imitate.scales.feet"]),
-        (lambda i: i["init"].update(noise=-0.1), ["task.imitate.init.noise"]),
+        (lambda i: i["starts"].update(noise=-0.1), ["task.imitate.starts.noise"]),
         (lambda i: i.update(speed=2), ["task.imitate.speed", "Extra inputs"]),
     ],
 )

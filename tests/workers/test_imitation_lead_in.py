@@ -1,4 +1,4 @@
-"""A lead-in (``task.imitate.lead_in``): after a standing start the walk plays first and
+"""A lead-in (``task.clock.lead_in``): after a standing start the walk plays first and
 cross-fades into the run (``workers.motions.playback``), on real MuJoCo; and the
 ``target_speed`` term's target follows that clock (``speed_target_from_clock``)."""
 
@@ -60,9 +60,9 @@ def test_the_state_is_the_walk_then_a_blend_then_the_run() -> None:
 def test_run_2d_clock_starts_walking_and_its_targets_and_clock_follow_the_fade() -> None:
     env = MuscleEnv("run-2d+clock")
     obs, _ = env.reset(seed=0)
-    imitation = env.imitation
-    assert imitation.standing_start and imitation.crossfade is not None
-    fade = imitation.crossfade
+    clock = env.clock
+    assert clock.standing_start and clock.crossfade is not None
+    fade = clock.crossfade
     names = env.obs_names
     sin, cos = names.index("phase_sin"), names.index("phase_cos")
     standing = env._default_pose
@@ -73,8 +73,8 @@ def test_run_2d_clock_starts_walking_and_its_targets_and_clock_follow_the_fade()
         phase = fade.cycles(t) % 1.0
         assert obs[sin] == pytest.approx(np.sin(2 * np.pi * phase), abs=1e-6)
         assert obs[cos] == pytest.approx(np.cos(2 * np.pi * phase), abs=1e-6)
-        ref = imitation.reference(step)
-        if not imitation.mirrored:
+        ref = clock.reference(step)
+        if not clock.mirrored:
             assert ref == fade.at(t)
         angles = np.array(
             [ref.joints.get(d, q) for d, q in zip(env.sim.dof_names, standing, strict=True)]
@@ -89,40 +89,40 @@ def test_run_2d_clock_starts_walking_and_its_targets_and_clock_follow_the_fade()
         if terminated or truncated:
             break
     assert step > 10
-    assert imitation.target_speed(0, 3.0) == 0.0
-    assert imitation.target_speed(100, 3.0) == 3.0  # the run is faster than 3 m/s
+    assert clock.target_speed(0, 3.0) == 0.0
+    assert clock.target_speed(100, 3.0) == 3.0  # the run is faster than 3 m/s
 
 
 def test_each_start_plays_its_clock_standing_part_way_along_the_lead_in_or_in_the_run() -> None:
     env = MuscleEnv("imitate-run-2d+standing-starts")  # 35 % standing, 35 % along the lead-in
-    init = env.scene.task.imitate.init
+    ramp_s, noise = env.scene.task.clock.ramp_s, env.scene.task.imitate.starts.noise
     kinds = []
     for seed in range(40):
         _, info = env.reset(seed=seed)
-        imitation, fade = env.imitation, env.imitation.crossfade
-        run_phase = (imitation.phase0 + 10 * env.dt / imitation.motion.period_s) % 1.0
-        if imitation.standing_start:
+        clock, fade = env.clock, env.clock.crossfade
+        run_phase = (clock.phase0 + 10 * env.dt / clock.motion.period_s) % 1.0
+        if clock.standing_start:
             kinds.append("standing")
-            assert imitation.start_s == 0.0 and imitation.ramp(0) == 0.0
-            assert imitation.phase(10) == pytest.approx(fade.cycles(10 * env.dt))
-        elif imitation.start_s > 0.0:
+            assert clock.start_s == 0.0 and clock.ramp(0) == 0.0
+            assert clock.phase(10) == pytest.approx(fade.cycles(10 * env.dt))
+        elif clock.start_s > 0.0:
             kinds.append("lead-in")
-            start_s = imitation.start_s
-            assert init.ramp_s <= start_s <= fade.hold_s + fade.crossfade_s
-            assert imitation.phase0 == 0.0 and imitation.ramp(0) == 1.0
+            start_s = clock.start_s
+            assert ramp_s <= start_s <= fade.hold_s + fade.crossfade_s
+            assert clock.phase0 == 0.0 and clock.ramp(0) == 1.0
             # the body starts in the faded reference there, and the clock goes on from it
             expected = fade.at(start_s)
-            if imitation.mirrored:
-                expected = imitation.motion.mirrored_state(expected)
-            assert imitation.reference(0) == expected
-            assert 0.0 < info["imitation"]["pose_error_rad"] <= init.noise
+            if clock.mirrored:
+                expected = clock.motion.mirrored_state(expected)
+            assert clock.reference(0) == expected
+            assert 0.0 < info["imitation"]["pose_error_rad"] <= noise
             assert info["imitation"]["phase"] == pytest.approx(fade.cycles(start_s) % 1.0)
-            assert imitation.phase(10) == pytest.approx(fade.cycles(start_s + 10 * env.dt) % 1)
+            assert clock.phase(10) == pytest.approx(fade.cycles(start_s + 10 * env.dt) % 1)
         else:
             kinds.append("run")
-            assert imitation.phase(10) == pytest.approx(run_phase)
+            assert clock.phase(10) == pytest.approx(run_phase)
         # no speed_target_from_clock here: the task's target speed throughout
-        assert imitation.target_speed(0, 3.0) == 3.0
+        assert clock.target_speed(0, 3.0) == 3.0
     # p = 0.35, 0.35, 0.3 over 40 draws: each within [4, 24] with p > 0.999
     assert all(4 <= kinds.count(kind) <= 24 for kind in ("standing", "lead-in", "run")), kinds
 
@@ -132,40 +132,35 @@ def test_each_start_plays_its_clock_standing_part_way_along_the_lead_in_or_in_th
     [
         (
             "imitate-run-2d",
-            lambda i: i.update(lead_in={"motion": "walk", "hold_s": 1, "crossfade_s": 1}),
-            ["task.imitate", "lead_in: only with standing starts"],
+            lambda t: t["clock"].update(lead_in={"motion": "walk", "hold_s": 1, "crossfade_s": 1}),
+            ["task.clock.lead_in", "plays from a standing start", "starts.standing"],
         ),
         (
             "run-2d+clock",
-            lambda i: i["lead_in"].update(motion="skip"),
-            ["task.imitate.lead_in.motion", "no such motion", "available: run, walk"],
+            lambda t: t["clock"]["lead_in"].update(motion="skip"),
+            ["task.clock.lead_in.motion", "no such motion", "available: run, walk"],
         ),
         (
             "run-2d+clock",
-            lambda i: i["lead_in"].update(crossfade_s=0),
-            ["task.imitate.lead_in.crossfade_s", "greater than 0"],
+            lambda t: t["clock"]["lead_in"].update(crossfade_s=0),
+            ["task.clock.lead_in.crossfade_s", "greater than 0"],
         ),
         (
             "run-2d+clock",
-            lambda i: i["lead_in"].pop("hold_s"),
-            ["task.imitate.lead_in.hold_s", "required"],
+            lambda t: t["clock"]["lead_in"].pop("hold_s"),
+            ["task.clock.lead_in.hold_s", "required"],
         ),
         (
             "imitate-run-2d",
-            lambda i: i["init"].update(lead_in_fraction=0.3),
-            ["task.imitate.init.lead_in_fraction", "only with a task.imitate.lead_in"],
+            lambda t: t["imitate"]["starts"].update(lead_in=0.3),
+            ["task.imitate.starts.lead_in", "only with a task.clock.lead_in"],
         ),
         (
             "imitate-run-2d+standing-starts",
-            lambda i: i["init"].update(standing_fraction=0.5, lead_in_fraction=0.6),
-            ["task.imitate.init.lead_in_fraction", "1.1", "at most 1"],
-        ),
-        (
-            "run-2d+clock",
-            lambda i: i["init"].update(lead_in_fraction=0.2),
-            ["task.imitate.init.lead_in_fraction", "only with start: motion"],
+            lambda t: t["imitate"]["starts"].update(standing=0.5, lead_in=0.6),
+            ["task.imitate.starts.lead_in", "1.1", "at most 1"],
         ),
     ],
 )
 def test_bad_lead_ins_name_the_field(tmp_path: Path, base: str, edit, fragments) -> None:
-    _fails(_write(tmp_path, base, lambda raw: edit(raw["task"]["imitate"])), *fragments)
+    _fails(_write(tmp_path, base, lambda raw: edit(raw["task"])), *fragments)

@@ -1,5 +1,5 @@
 """A target speed drawn per episode (``task.target_speed_range``), on real MuJoCo: observed,
-rewarded, and with an imitation clock its main motion's tempo scaled to match; the
+rewarded, and with the gait clock its main motion's tempo scaled to match; the
 evaluation's speed sweep pins it."""
 
 from __future__ import annotations
@@ -32,19 +32,19 @@ def _drawn(env: MuscleEnv, seed: int) -> float:
 
 def test_each_episode_draws_its_target_and_the_clock_plays_at_its_pace() -> None:
     env = MuscleEnv(_ranged(2.0, 3.0))
-    imitation = env.imitation
+    clock = env.clock
     drawn = [_drawn(env, seed) for seed in range(8)]
     assert all(2.0 <= v <= 3.0 for v in drawn) and max(drawn) - min(drawn) > 0.3
     assert drawn == [_drawn(env, seed) for seed in range(8)]  # seeded
     v = _drawn(env, 3)
-    assert imitation.tempo == pytest.approx(imitation.spec.tempo * v / NOMINAL)
+    assert clock.tempo == pytest.approx(clock.spec.tempo * v / NOMINAL)
     # well past the lead-in's fade the phase advances at the scaled run's rate
     steps = int(4.0 * env.scene.control_hz)
-    played = (imitation.phase(steps + 1) - imitation.phase(steps)) % 1.0
-    run_rate = imitation.tempo / imitation.motion.period_s  # cycles/s
+    played = (clock.phase(steps + 1) - clock.phase(steps)) % 1.0
+    run_rate = clock.tempo / clock.motion.period_s  # cycles/s
     assert played == pytest.approx(run_rate * env.dt, rel=1e-6)
     # the target_speed term's target is the draw once the clock runs faster than it
-    assert imitation.target_speed(steps, v) == pytest.approx(v)
+    assert clock.target_speed(steps, v) == pytest.approx(v)
 
 
 def test_the_reward_aims_at_the_draw_once_the_clock_is_faster() -> None:
@@ -54,7 +54,7 @@ def test_the_reward_aims_at_the_draw_once_the_clock_is_faster() -> None:
     for _ in range(22):  # 0.88 s: past the 0.8-s ramp, before this body falls (1 s)
         obs, _, terminated, _, _ = env.step(hold)
         assert not terminated
-    assert env.imitation.reference(22).forward_speed > 1.1
+    assert env.clock.reference(22).forward_speed > 1.1
     assert env.target_speed() == pytest.approx(1.0)
     assert obs[env.obs_names.index("target_speed")] == pytest.approx(1.0)
 
@@ -63,7 +63,7 @@ def test_the_sweep_pins_a_drawn_target_and_scales_the_clock_from_the_nominal() -
     env = MuscleEnv(with_target_speed(_ranged(2.0, 3.0), 2.4))
     assert [_drawn(env, seed) for seed in range(3)] == pytest.approx([2.4] * 3)
     assert env.scene.task.target_speed == NOMINAL
-    assert env.imitation.tempo == pytest.approx(env.imitation.spec.tempo * 0.8)
+    assert env.clock.tempo == pytest.approx(env.clock.spec.tempo * 0.8)
     fixed = with_target_speed(load_scene("run-2d+clock+one-leg+forward"), 2.4)
     assert fixed.task.target_speed == 2.4 and fixed.task.target_speed_range is None
 

@@ -30,8 +30,8 @@ def observation_layout(
     ``pelvis_height``, ``pelvis_up_{x,y,z}``, ``pelvis_vel_{x,y,z}``,
     ``pelvis_angvel_{x,y,z}``, ``grf:<foot>``; ``act:<muscle>``, ``prev_exc:<muscle>``;
     ``target_speed`` (locomotion) or ``reach_target``; with obstacles the observed spheres
-    (``obstacle_names``); imitating a motion ``phase_sin``,
-    ``phase_cos``, ``phase_mirror``."""
+    (``obstacle_names``); with the gait clock ``phase_sin``, ``phase_cos``,
+    ``phase_mirror``."""
     locomotion = scene.task.kind == "locomotion"
     names = [f"q:{d}" for d in dofs] + [f"qd:{d}" for d in dofs]
     if locomotion:
@@ -43,7 +43,7 @@ def observation_layout(
     names += ["target_speed"] if locomotion else ["reach_target"]
     if scene.obstacles is not None:
         names += obstacle_names(scene.obstacles.observe_ahead)
-    if scene.task.imitate is not None:
+    if scene.task.clock is not None:
         names += ["phase_sin", "phase_cos", "phase_mirror"]
     return names
 

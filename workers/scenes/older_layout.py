@@ -7,7 +7,12 @@
 * a ``fault`` of null goes (fault injection is a test hook, ``workers.sim.faults``); any
   other value is refused;
 * a retired setting (:data:`RETIRED_SETTINGS`) at the value that meant "off" goes; at any
-  other value it is refused, naming the field and why it was retired.
+  other value it is refused, naming the field and why it was retired;
+* ``task.imitate`` with a ``motion`` (the clock and the tracking in one block) splits into
+  ``task.clock`` (motion, tempo, lead-in, speed from the clock, random phase, mirroring,
+  ramp) and ``task.imitate`` (weights, scales, the early end, the starts). An imitation that
+  tracked nothing (every weight 0, no early end, every episode standing) was a clock alone
+  and leaves no ``task.imitate``.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ from __future__ import annotations
 from typing import Any
 
 from gaitforge.workers.scenes.backend_options import MUJOCO_FIELDS, OPENSIM_FIELDS
+from gaitforge.workers.scenes.imitate import ImitationWeights
 
 RETIRED_SETTINGS: tuple[tuple[str, object, str], ...] = (
     ("task.imitate.clock_rate_span", None, "it made falls worse"),
@@ -41,6 +47,9 @@ def read_older_layout(raw: dict[str, Any]) -> dict[str, Any]:
         ValueError: one line naming a ``fault`` or a retired field that holds a value.
     """
     raw = _without_retired_settings(dict(raw))
+    task = raw.get("task")
+    if isinstance(task, dict) and _holds_the_clock(task.get("imitate")):
+        raw["task"] = _clock_apart_from_imitation(task)
     for block, names in (("mujoco", MUJOCO_FIELDS), ("opensim", OPENSIM_FIELDS)):
         flat = {name: raw.pop(name) for name in names if name in raw}
         if flat:
@@ -76,3 +85,43 @@ def _without_retired_settings(raw: dict[str, Any]) -> dict[str, Any]:
             if value != default or isinstance(value, bool):
                 raise ValueError(f"{dotted}: retired ({reason}); remove it")
     return raw
+
+
+CLOCK_FIELDS = ("motion", "tempo", "lead_in", "speed_target_from_clock")
+"""Fields of the former ``task.imitate`` that are the clock's under the same names."""
+CLOCK_START_FIELDS = ("random_phase", "mirror", "ramp_s")
+"""Fields of the former ``task.imitate.init`` that are the clock's under the same names."""
+
+
+def _holds_the_clock(imitate: object) -> bool:
+    """Whether ``imitate`` is the former block that held the clock too (it names a motion)."""
+    return isinstance(imitate, dict) and "motion" in imitate
+
+
+def _clock_apart_from_imitation(task: dict[str, Any]) -> dict[str, Any]:
+    """``task`` (not changed) with its former ``imitate`` block split into ``clock`` and
+    ``imitate`` (see the module's docstring)."""
+    former = dict(task["imitate"])
+    init = former.pop("init", None) or {}
+    clock = {name: former.pop(name) for name in CLOCK_FIELDS if name in former}
+    clock |= {name: init[name] for name in CLOCK_START_FIELDS if name in init}
+    all_standing = init.get("start", "motion") == "standing"
+    weights = former.get("weights")
+    tracks = (
+        not all_standing
+        or not isinstance(weights, dict)  # absent: the default weights, which track
+        or any(weights.get(name, 1.0) != 0 for name in ImitationWeights.model_fields)
+        or former.get("max_pose_error_rad", 0.5) is not None
+    )
+    task = {**task, "clock": clock}
+    task.pop("imitate")
+    if tracks:
+        starts = {"standing": 1.0} if all_standing else {}
+        if "standing_fraction" in init and not all_standing:
+            starts["standing"] = init["standing_fraction"]
+        if "lead_in_fraction" in init:
+            starts["lead_in"] = init["lead_in_fraction"]
+        if "noise" in init:
+            starts["noise"] = init["noise"]
+        task["imitate"] = {**former, "starts": starts}
+    return task

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from gaitforge.workers.bodies.topology import Topology
-from gaitforge.workers.scenes.imitate import check_imitation
+from gaitforge.workers.scenes.clock import check_clock
 from gaitforge.workers.scenes.spec import Scene
 
 
@@ -54,7 +54,7 @@ def check_names(scene: Scene, topology: Topology) -> None:
                 )
     if scene.task.reach_dof is not None and scene.task.reach_dof not in dofs:
         raise ValueError(f"task.reach_dof: unknown joint {scene.task.reach_dof!r}")
-    check_imitation(scene.task.imitate, scene.body, scene.keep.joints, topology)
+    check_clock(scene.task.clock, scene.body, scene.keep.joints, topology)
 
 
 def plan_pruning(

@@ -10,7 +10,8 @@ from gaitforge.workers.bodies.topology import MJCF_BODIES
 from gaitforge.workers.scenes import saved_profiles
 from gaitforge.workers.scenes.action import ActionSpec
 from gaitforge.workers.scenes.backend_options import MujocoOptions, OpenSimOptions
-from gaitforge.workers.scenes.imitate import Imitate
+from gaitforge.workers.scenes.clock import Clock
+from gaitforge.workers.scenes.imitate import Imitate, check_imitation
 from gaitforge.workers.scenes.older_layout import read_older_layout
 from gaitforge.workers.scenes.profiles import (
     BACKENDS,
@@ -120,7 +121,7 @@ class Task(_Strict):
     target_speed_range: Range | None = Field(
         default=None,
         description="m/s; drawn uniformly each episode in place of target_speed (observed and "
-        "rewarded; an imitation clock's main motion plays at tempo times drawn / target_speed)",
+        "rewarded; the gait clock's main motion plays at tempo times drawn / target_speed)",
     )
     min_pelvis_height: float | None = Field(
         default=None, description="m; the episode terminates below it (a fall)"
@@ -130,19 +131,25 @@ class Task(_Strict):
         default=None, description="rad; target sampled uniformly each episode"
     )
     reward: RewardWeights = RewardWeights()
+    clock: Clock | None = Field(
+        default=None,
+        description="the gait clock: the phase of a recorded gait, observed, and the base of "
+        "joint-target actions (locomotion only)",
+    )
     imitate: Imitate | None = Field(
-        default=None, description="track a recorded motion of the body (locomotion only)"
+        default=None, description="track the clock's motion (locomotion only; needs clock)"
     )
 
     @model_validator(mode="after")
     def _consistent(self) -> Task:
         if self.kind == "reach" and (self.reach_dof is None or self.reach_range is None):
             raise ValueError("a reach task needs reach_dof and reach_range")
-        if self.imitate is not None and self.kind != "locomotion":
+        if self.clock is not None and self.kind != "locomotion":
             raise ValueError(
-                f"imitate: imitation needs a locomotion task (a body with a pelvis), "
+                f"clock: a gait clock needs a locomotion task (a body with a pelvis), "
                 f"not kind {self.kind!r}"
             )
+        check_imitation(self.imitate, self.clock)
         if self.kind == "locomotion" and self.min_pelvis_height is None:
             raise ValueError("a locomotion task needs min_pelvis_height")
         if self.reward.overspeed and not self.target_speed:

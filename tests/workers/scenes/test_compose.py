@@ -124,7 +124,7 @@ def test_a_scene_file_may_compose_from_the_catalogue(tmp_path: Path) -> None:
     path.write_text(yaml.safe_dump(spec))
     scene = load_scene(path)
     assert scene.name == "slow-runner" and scene.task.target_speed == 2.5
-    assert scene.task.imitate is not None and scene.control_hz == 25
+    assert scene.task.clock is not None and scene.control_hz == 25
     path.write_text(yaml.safe_dump({**spec, "control_hz": 50}))
     with pytest.raises(SpecError, match="a composed scene file has base, options, set"):
         load_scene(path)

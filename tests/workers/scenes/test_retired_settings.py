@@ -4,17 +4,21 @@ with one line naming the field."""
 
 from __future__ import annotations
 
+import copy
 import json
 from pathlib import Path
 
 import pytest
 import yaml
-from gaitforge.workers.scenes import load_scene, scene_fields
+from gaitforge.workers.scenes import load_scene
 from gaitforge.workers.scenes.older_layout import RETIRED_SETTINGS
 from gaitforge.workers.scenes.spec import Scene
 from gaitforge.workers.spec_io import SpecError
 
 POLICIES = Path(__file__).parents[3] / "examples" / "policies"
+OLDER = json.loads((POLICIES / "obstacles-2d" / "meta.json").read_text())["scene"]
+"""The obstacle runner's scene as its checkpoint stores it: the older layout (the clock inside
+``task.imitate``), every retired setting it knew at its former default."""
 
 
 def with_setting(fields: dict, dotted: str, value: object) -> dict:
@@ -28,11 +32,24 @@ def with_setting(fields: dict, dotted: str, value: object) -> dict:
     return fields
 
 
+def without_setting(fields: dict, dotted: str) -> dict:
+    """A copy of ``fields`` without ``dotted`` (where it is)."""
+    fields = copy.deepcopy(fields)
+    *path, name = dotted.split(".")
+    parent = fields
+    for key in path:
+        parent = parent.get(key, {})
+    parent.pop(name, None)
+    return fields
+
+
 def test_each_retired_setting_at_its_former_default_is_dropped_on_load() -> None:
-    fields = scene_fields("obstacles-2d+clock")
-    expected = Scene.model_validate(fields).model_dump(mode="json")
+    fields = copy.deepcopy(OLDER)
+    without = copy.deepcopy(OLDER)
     for dotted, default, _ in RETIRED_SETTINGS:
         fields = with_setting(fields, dotted, default)
+        without = without_setting(without, dotted)
+    expected = Scene.model_validate(without).model_dump(mode="json")
     migrated = Scene.model_validate(fields)
     assert migrated.model_dump(mode="json") == expected
     assert fields["task"]["imitate"]["clock_rate_span"] is None  # the input left as it was
@@ -54,7 +71,7 @@ def test_a_retired_setting_at_another_value_is_refused_naming_it(
     tmp_path: Path, dotted: str, value: object
 ) -> None:
     path = tmp_path / "older.yaml"
-    path.write_text(yaml.safe_dump(with_setting(scene_fields("obstacles-2d+clock"), dotted, value)))
+    path.write_text(yaml.safe_dump(with_setting(copy.deepcopy(OLDER), dotted, value)))
     with pytest.raises(SpecError) as info:
         load_scene(path)
     message = str(info.value)
