@@ -33,6 +33,11 @@ PROMOTED = "promoted: "
 BUDGET_SPENT = "budget spent"
 
 
+class StageShortfallError(RuntimeError):
+    """A stage with ``if_not_promoted: fail`` spent its budget before its promotion rules
+    passed; the message names each rule, its figure and how far it fell short."""
+
+
 class StageIO:
     """Observation and muscle names of a stage's scene on ``backend``, and its lateral axis,
     asked of the scene (``workers.scenes.io_names``): no env is built. A ``keep.planar``
@@ -177,6 +182,30 @@ class CurriculumState:
             return BUDGET_SPENT
         return None
 
+    def shortfall(self, stage: Stage, name: str, evaluation: dict[str, float]) -> str:
+        """Why stage ``name`` ended unpromoted, in one line: each rule with its figure (a
+        training rule over its window, an evaluation rule on ``evaluation``, the ``eval_*``
+        metrics of the network the stage ends with) and, where it failed, by how much."""
+        parts = []
+        for rule in stage.promote:
+            if rule.on_evaluation:
+                figure = evaluation.get(_evaluated(rule.metric), float("nan"))
+            else:
+                figure = self.window_mean(rule.metric, rule.window)
+            if np.isnan(figure):
+                parts.append(f"{rule.metric}: not measured (no {_source(rule)})")
+            elif rule.passes(figure):
+                parts.append(f"{rule.metric} {figure:.3g} {rule.op} {rule.value:g}: passed")
+            else:
+                gap = abs(figure - rule.value)
+                parts.append(
+                    f"{rule.metric} {figure:.3g}, not {rule.op} {rule.value:g} (short by {gap:.3g})"
+                )
+        return (
+            f"stage {self.stage} ({name}) spent its {stage.env_steps:,} env steps without "
+            f"reaching its target: {'; '.join(parts)}"
+        )
+
     def _figures(
         self, rules: list[PromotionRule], evaluation: dict[str, float] | None
     ) -> list[float] | None:
@@ -218,6 +247,11 @@ class CurriculumState:
         state = cls(int(raw["stage"]), int(raw["stage_env_steps"]), bool(raw["entered"]))
         state.episodes.extend(EpisodeStats(*e) for e in raw["episodes"])
         return state
+
+
+def _source(rule: PromotionRule) -> str:
+    """What a rule's figure comes from, for a message that it has none."""
+    return "evaluation" if rule.on_evaluation else "finished training episode"
 
 
 def _evaluated(metric: str) -> str:

@@ -23,8 +23,10 @@ entered, its transition (``continue``, ``blend``, ``distil``, ``scratch``) build
 (``learner.transitions``; a job's ``init_from`` checkpoint is the first stage's pi_old); then
 a stage with ``warm_start`` clones a motion's recorded excitations into the actor's mean, the
 first stage included. Warm-up rollouts count as env steps of the stage, so transitions
-compare at equal env steps. ``Trainer`` resumes from the newest checkpoint in
-``run_dir/checkpoints``.
+compare at equal env steps. A stage with ``if_not_promoted: fail`` that spends its budget
+unpromoted ends the run (``StageShortfallError``, naming each rule and how far it fell short)
+once its end's checkpoint is written; resumed, such a run goes on with the next stage.
+``Trainer`` resumes from the newest checkpoint in ``run_dir/checkpoints``.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from gaitforge.learner.curriculum import BUDGET_SPENT, StageShortfallError
 from gaitforge.learner.evaluation.training_hooks import Recordings, StageJudging
 from gaitforge.learner.hooks import (
     BlendRamp,
@@ -194,6 +197,10 @@ class Trainer:
         metrics["verdict"] = run.curriculum.verdict(run.stage)
         for hook in self.hooks:
             hook.on_iteration_end(run, metrics)
+        if metrics["verdict"] == BUDGET_SPENT and run.stage.if_not_promoted == "fail":
+            name = run.stage.name or run.stage.scene
+            ended_with = evaluation_ended_with(metrics)
+            raise StageShortfallError(run.curriculum.shortfall(run.stage, name, ended_with))
         if metrics["verdict"] is not None:
             self._next_stage(metrics["verdict"])
         return metrics
@@ -232,3 +239,11 @@ class Trainer:
         run.curriculum.advance()
         if not run.done:
             run.rollouts.set_scene(run.scene, run.backend, run.policy)
+
+
+def evaluation_ended_with(metrics: dict) -> dict[str, float]:
+    """The ``eval_*`` metrics of the network a stage ends with, from its last iteration's
+    ``metrics``: the best evaluated network's (``kept_eval_*``) where the stage went back to
+    it, else the last evaluation's (empty without one)."""
+    kept = {k.removeprefix("kept_"): v for k, v in metrics.items() if k.startswith("kept_eval_")}
+    return kept or {k: v for k, v in metrics.items() if k.startswith("eval_")}

@@ -16,9 +16,10 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from gaitforge.learner.curriculum import StageShortfallError
 from gaitforge.learner.job import MAX_NUM_WORKERS, Job
 from gaitforge.service.cli_options import AsJson, JobSeed, SetFields, assignments
-from gaitforge.service.console import err, fail, out, print_json
+from gaitforge.service.console import err, fail, message, out, print_json
 from gaitforge.service.ops import SpecError, validate_request
 from gaitforge.service.ops import train as ops
 from gaitforge.service.signals import SignalStop
@@ -153,8 +154,9 @@ def train(
                 result = _run(training, max_iterations, max_minutes, log_every, json_out)
             except SpecError as exc:  # a check that needs the cluster: the actors' CPUs
                 raise fail(exc) from None
-            except _actor_failure() as exc:
-                fail(exc)
+            except (StageShortfallError, _actor_failure()) as exc:
+                newest = ops.newest_checkpoint(training.run_dir)
+                fail(f"{message(exc)}; newest checkpoint: {newest or 'none'}")
                 raise typer.Exit(1) from None
             finally:
                 training.close()

@@ -20,6 +20,7 @@ def test_the_recipes_are_stages_of_the_curriculum() -> None:
         ("learn-to-walk", ["imitate-walk", "walk"]),
         ("learn-to-run-2d", ["imitate-run", "run"]),
         ("obstacles-2d", ["obstacles"]),
+        ("obstacles-2d-speeds", ["speeds"]),
     ]:
         job, _ = load_job(EXAMPLES / f"{recipe}.yaml")
         by_name = {stage.name: i for i, stage in enumerate(curriculum.stages)}
@@ -31,6 +32,25 @@ def test_the_recipes_are_stages_of_the_curriculum() -> None:
         first_std = curriculum.stages[by_name[names[0]]].action_std
         assert job.init_from_action_std == first_std  # the picked first stage's noise
         assert job.network == curriculum.network and job.workers == curriculum.workers
+
+
+def test_the_curriculum_promotes_each_task_stage_on_its_evaluation_or_ends() -> None:
+    """Imitation stages run their budgets; every task stage is judged on 100 deterministic
+    episodes, promoted at its target and ends the job if it misses it; the walk, run and
+    obstacle targets are those its README names."""
+    curriculum, _ = load_job(EXAMPLES / "learn-to-run.yaml")
+    rules = {
+        stage.name: sorted(str(rule) for rule in stage.promote)
+        for stage in curriculum.stages
+        if stage.if_not_promoted == "fail"
+    }
+    assert list(rules) == ["walk", "run", "obstacles", "speeds"]
+    judged_stages = [s for s in curriculum.stages if s.if_not_promoted == "fail"]
+    assert all(s.evaluate and s.evaluate.episodes == 100 for s in judged_stages)
+    judged = "on the stage's evaluation"
+    assert rules["walk"] == [f"eval.fall_rate <= 0.1 {judged}", f"eval.speed >= 1 {judged}"]
+    assert rules["run"] == [f"eval.fall_rate <= 0.1 {judged}", f"eval.speed >= 3 {judged}"]
+    assert rules["obstacles"] == [f"eval.fall_rate <= 0.1 {judged}", f"eval.speed >= 2 {judged}"]
 
 
 def test_set_changes_one_field_of_the_job_it_extends() -> None:

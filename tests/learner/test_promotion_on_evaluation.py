@@ -1,6 +1,7 @@
 """Promotion on a stage's deterministic evaluation: ``eval.*`` rules, how they are written and
 checked, the verdict they give at an evaluation, and real short runs that promote on one, run
-to their budget when one cannot pass, and end with the network that passed."""
+to their budget when one cannot pass (or, with ``if_not_promoted: fail``, end the job saying
+which rule fell short and by how much), and end with the network that passed."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from pathlib import Path
 import pytest
 import torch
 from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint
-from gaitforge.learner.curriculum import CurriculumState, EpisodeStats
+from gaitforge.learner.curriculum import CurriculumState, EpisodeStats, StageShortfallError
 from gaitforge.learner.evaluation.stage_judge import score
 from gaitforge.learner.job import Job, PromotionRule, Stage, load_job
 from gaitforge.learner.trainer import Trainer
@@ -163,7 +164,27 @@ def test_the_best_network_counts_evaluation_rules_passed_on_its_evaluation() -> 
 # ---- real runs -----------------------------------------------------------------------------
 
 
-def _job(promote: object, env_steps: int = 4 * BATCH, every: int = EVERY) -> Job:
+def test_a_shortfall_names_each_rule_its_figure_and_the_gap() -> None:
+    stage = _stage(["eval.fall_rate <= 0.1", "eval.speed >= 2", "speed >= 0.5 over 2"])
+    state = CurriculumState(stage=3)
+    state.episodes.append(EpisodeStats(1.0, 2.0, 10.0, False, True))  # 0.2 m/s
+    text = state.shortfall(stage, "run", _evaluation(fall_rate=0.14, speed=2.5))
+    assert text == (
+        "stage 3 (run) spent its 10,000 env steps without reaching its target: "
+        "eval.fall_rate 0.14, not <= 0.1 (short by 0.04); eval.speed 2.5 >= 2: passed; "
+        "speed 0.2, not >= 0.5 (short by 0.3)"
+    )
+    none_yet = CurriculumState().shortfall(stage, "run", {})
+    assert "eval.fall_rate: not measured (no evaluation)" in none_yet
+    assert "speed: not measured (no finished training episode)" in none_yet
+
+
+def test_failing_needs_a_target() -> None:
+    with pytest.raises(ValueError, match=r"if_not_promoted: fail needs promote: rules"):
+        Stage.model_validate({"scene": "elbow-reach", "env_steps": 10, "if_not_promoted": "fail"})
+
+
+def _job(promote: object, env_steps: int = 4 * BATCH, every: int = EVERY, **stage: object) -> Job:
     """elbow-reach, in-process rollouts (4 envs of 64 steps an update; its episodes last 100
     steps, so the first 4 end in the second update's batch), evaluated after the first
     update, every ``every`` stage env steps and at the end, keeping the best network."""
@@ -179,6 +200,7 @@ def _job(promote: object, env_steps: int = 4 * BATCH, every: int = EVERY) -> Job
                     "env_steps": env_steps,
                     "promote": promote,
                     "evaluate": {"episodes": EPISODES, "every_env_steps": every},
+                    **stage,
                 }
             ],
         }
@@ -216,6 +238,21 @@ def test_a_stage_whose_evaluation_rule_cannot_pass_runs_to_its_budget(
     evaluated = [h["stage_env_steps"] for h in history if "eval_return" in h]
     assert evaluated == [BATCH, 2 * BATCH, 4 * BATCH], "first update, 512, and the end at 1024"
     assert history[-1]["stage_env_steps"] >= 4 * BATCH
+
+
+def test_a_stage_that_must_promote_ends_the_job_at_its_budget(tmp_path: Path) -> None:
+    """``if_not_promoted: fail``: the stage's end is checkpointed, then the run ends with an
+    error naming the rule, its figure on the last evaluation and the gap."""
+    job = _job("eval.return >= 1000", if_not_promoted="fail")
+    trainer = Trainer(job, tmp_path, tensorboard=False)
+    with pytest.raises(StageShortfallError) as raised:
+        trainer.run()
+    message = str(raised.value)
+    assert message.startswith("stage 0 (elbow-reach) spent its 1,024 env steps"), message
+    assert "eval.return " in message and ", not >= 1000 (short by " in message
+    _, meta = load_checkpoint(latest_checkpoint(tmp_path / "checkpoints"))
+    assert meta.metrics["verdict"] == "budget spent"
+    assert f"eval.return {meta.metrics['eval_return']:.3g}," in message
 
 
 def test_promotion_on_an_evaluation_keeps_the_network_evaluated(tmp_path: Path) -> None:
