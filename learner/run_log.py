@@ -47,11 +47,12 @@ def iteration_metrics(
     elapsed_s: float,
 ) -> dict:
     """An iteration's metrics: where ``run`` is (iteration, env steps, stage and its env
-    steps, names), the blend's ``alpha`` (None for one network), throughput (env steps per
-    second of the whole iteration, ``elapsed_s``, and of sampling, ``sampled_s``), the stage's
-    recent episodes (``CurriculumState.summary``), the learning rate and entropy weight of
-    ``cfg``, PPO's ``losses`` and the batch's ``stats`` (:func:`batch_stats`, taken before
-    the update, whose new weights would count every fragment one version further behind)."""
+    steps, names, ``train_s``: s of wall clock the run has trained), the blend's ``alpha``
+    (None for one network), throughput (env steps per second of the whole iteration,
+    ``elapsed_s``, and of sampling, ``sampled_s``), the stage's recent episodes
+    (``CurriculumState.summary``), the learning rate and entropy weight of ``cfg``, PPO's
+    ``losses`` and the batch's ``stats`` (:func:`batch_stats`, taken before the update,
+    whose new weights would count every fragment one version further behind)."""
     steps = stats.pop("batch_steps")
     curriculum, policy = run.curriculum, run.policy
     return {
@@ -61,6 +62,7 @@ def iteration_metrics(
         "stage_name": run.stage.name or run.scene.name,
         "scene": run.scene.name,
         "stage_env_steps": curriculum.stage_env_steps,
+        "train_s": run.train_s,
         "alpha": float(policy.alpha) if isinstance(policy, BlendedPolicy) else None,
         "steps_per_s": steps / max(elapsed_s, 1e-9),
         "sample_steps_per_s": steps / max(sampled_s, 1e-9),

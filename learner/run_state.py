@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from pathlib import Path
 
 import torch
@@ -60,6 +61,9 @@ class RunState:
         """PPO updates done"""
         self.env_steps = 0
         """env steps gathered (control steps summed over all envs)"""
+        self._trained_s_before = 0.0
+        """s of wall clock the processes before this one trained the run (a resume's)"""
+        self._started = time.monotonic()
         self.blend_start = 0
         """stage env steps at which the current stage's blend ramp started"""
         self.lineage: list[dict] = [self.lineage_entry(0, "initial")]
@@ -146,6 +150,13 @@ class RunState:
             "env_steps": self.env_steps,
         }
 
+    @property
+    def train_s(self) -> float:
+        """s of wall clock the run has trained, from its start (this process's set-up
+        included), summed over the processes that trained it: the time between a stop and
+        its resume is not counted."""
+        return self._trained_s_before + time.monotonic() - self._started
+
     # ---- checkpoints --------------------------------------------------------------------------
 
     def meta(self, metrics: dict) -> CheckpointMeta:
@@ -187,6 +198,7 @@ class RunState:
         restore_optimizer(self.optimizer, latest)
         self.obs_names = meta.obs_names
         self.iteration, self.env_steps = int(meta.iteration or 0), meta.env_steps
+        self._trained_s_before = float(meta.metrics.get("train_s") or 0.0)
         self.curriculum = CurriculumState.from_json(meta.curriculum.model_dump())
         self.blend_start = meta.blend_start
         self.lineage = [entry.model_dump() for entry in meta.lineage]

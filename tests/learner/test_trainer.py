@@ -56,8 +56,11 @@ def test_resume_after_sigkill_continues_the_step_count(tmp_path: Path) -> None:
         learner.wait()
     _, meta = load_checkpoint(latest_checkpoint(tmp_path / "checkpoints"))
     killed_at, steps_at = meta.iteration, meta.env_steps
+    trained_s = meta.metrics["train_s"]
     assert meta.scene_spec().name == "elbow-reach"
+    time.sleep(2.0)  # the time between a stop and its resume is not training
 
+    before_resume = time.monotonic()
     resumed = Trainer(elbow_job(), tmp_path, tensorboard=False)
     assert (resumed.iteration, resumed.env_steps) == (killed_at, steps_at)
     assert resumed.optimizer.state_dict()["state"], "the optimizer's moments were restored"
@@ -65,6 +68,7 @@ def test_resume_after_sigkill_continues_the_step_count(tmp_path: Path) -> None:
     assert [h["iteration"] for h in history] == [killed_at + 1, killed_at + 2]
     assert [h["policy_lag"] for h in history] == [0.0, 0.0], "in-process: sampled on-policy"
     assert history[0]["env_steps"] == steps_at + 200
+    assert trained_s < history[0]["train_s"] < trained_s + (time.monotonic() - before_resume)
     _, final = load_checkpoint(latest_checkpoint(tmp_path / "checkpoints"))
     assert final.iteration == killed_at + 2 and final.env_steps == steps_at + 400
 
