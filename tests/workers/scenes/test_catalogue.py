@@ -14,7 +14,8 @@ from gaitforge.workers.scenes.spec import Scene
 from gymnasium.utils.env_checker import check_env
 
 SCENES = catalogue() + sorted(set(FORMER_NAMES.values()))
-"""the bases, and the compositions the former catalogue listed"""
+SCENES += ["imitate-walk-3d+standing-starts", "walk-3d+clock"]
+"""the bases, the compositions the former catalogue listed and those of the 3-D recipe"""
 CASES = [(name, b) for name in SCENES for b in load_scene(name).backends]
 
 
