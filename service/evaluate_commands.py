@@ -59,6 +59,10 @@ def evaluate(
         Path | None, typer.Option(help="MCAP recording of the first episode.")
     ] = None,
     video: Annotated[Path | None, typer.Option(help="MP4 video of the first episode.")] = None,
+    gait: Annotated[
+        Path | None,
+        typer.Option(help="PNG of the first episode's gait cycle beside the recorded gait."),
+    ] = None,
     per_episode: Annotated[
         bool, typer.Option("--per-episode", help="Also a table of every episode.")
     ] = False,
@@ -74,7 +78,7 @@ def evaluate(
         request = validate_request(
             ops.EvaluateRequest, checkpoint=checkpoint, scene=scene,
             backend=backend.value if backend else None, episodes=episodes, modes=modes,
-            seed=seed, sweep=reductions, pick=pick.value, record=record, video=video,
+            seed=seed, sweep=reductions, pick=pick.value, record=record, video=video, gait=gait,
             scene_set=assignments(set_fields),
         )  # fmt: skip
     except InputError as exc:

@@ -146,5 +146,22 @@ def render(report: Any, console: Console) -> Group:
             ])  # fmt: skip
         title = f"Speed against safety ({report.sweep_mode})"
         parts.append(_oriented(title, headers, rows, console))
+    if getattr(report, "gait", None) is not None:
+        parts.append(_gait_line(report.gait, report.gait_plot))
     parts += [f"[yellow]note[/yellow]: {note}" for note in getattr(report, "notes", [])]
     return Group(*parts)
+
+
+def _gait_line(gait: Any, plot: str | None) -> str:
+    """One line of the first episode's gait figures (``learner.evaluation.gait_quality``)."""
+    if not gait.strides:
+        return f"gait (first episode): no whole stride (plot: {plot})"
+    clearance = ", ".join(f"{foot} {height:.3f}" for foot, height in gait.clearance_m.items())
+    return (
+        f"gait (first episode): {gait.strides} strides of {gait.stride_length_m:.2f} m in "
+        f"{gait.stride_time_s:.2f} s ({gait.cadence_steps_per_min:.0f} steps/min), step "
+        f"time asymmetry {gait.step_time_asymmetry:.2f}, foot clearance m: {clearance}; "
+        f"joint angles {gait.summary()['joint_rms_rad_mean']:.3f} rad RMS from the recording "
+        "on average "
+        f"(plot: {plot})"
+    )

@@ -40,6 +40,7 @@ from gaitforge.learner.evaluation.episodes import (
     speed_sweep,
     with_target_speed,
 )
+from gaitforge.learner.evaluation.gait_quality import GaitRecorder, gait_quality, plot_gait
 from gaitforge.learner.evaluation.observers import (
     EvaluationError,
     check_recording_available,
@@ -59,6 +60,7 @@ from gaitforge.learner.evaluation.results import (
 from gaitforge.learner.policy import ActorCritic, widen_inputs
 from gaitforge.learner.transitions import collapsed
 from gaitforge.workers.episode import EpisodeObserver
+from gaitforge.workers.motions import Motion, MotionError, load_motion
 from gaitforge.workers.overrides import set_fields
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.spec_io import SpecError, validate_model
@@ -142,6 +144,24 @@ def _scene_of(
         raise EvaluationError(f"{path}: {exc}") from None
 
 
+def compared_motion(scene: Scene) -> Motion:
+    """The recorded gait a gait is judged beside: the scene's clock motion, else the body's
+    walk.
+
+    Raises:
+        EvaluationError: the scene has no clock and the body no recorded walk.
+    """
+    clock = getattr(scene.task, "clock", None)
+    name = clock.motion if clock is not None else "walk"
+    try:
+        return load_motion(scene.body, name)
+    except MotionError as exc:
+        raise EvaluationError(
+            f"gait: scene {scene.name!r} has no gait clock and body {scene.body!r} no recorded "
+            f"walk to compare with ({exc})"
+        ) from None
+
+
 def fitted_to_scene(
     policy: ActorCritic, obs_names: list[str] | None, scene: Scene, backend: str
 ) -> tuple[ActorCritic, list[str] | None]:
@@ -178,6 +198,7 @@ def evaluate_checkpoint(
     observers: Sequence[EpisodeObserver] = (),
     record: Path | None = None,
     video: Path | None = None,
+    gait: Path | None = None,
     pick: Literal["latest", "best"] = "latest",
     progress: ProgressFn | None = None,
 ) -> EvaluationReport:
@@ -198,6 +219,9 @@ def evaluate_checkpoint(
         observers: see every step of the first episode (seed ``seed``) of the first mode.
         record: write that episode as an MCAP recording here (``learner.evaluation.recording``).
         video: write that episode as an MP4 video here (``learner.evaluation.video``).
+        gait: judge that episode's gait beside the recorded one (the scene's clock motion,
+            else the body's walk; ``learner.evaluation.gait_quality``) into the report's
+            ``gait``, and plot its joint angles over the gait cycle as a PNG here.
         pick: "latest" or "best" when ``path`` is a run directory.
         progress: ``(label, done, total)`` after each episode.
 
@@ -222,12 +246,14 @@ def evaluate_checkpoint(
     sweep_list = None if sweep is None else list(sweep)
     if sweep_list is not None:
         check_sweep(chosen, sweep_list)
+    gait_motion = None if gait is None else compared_motion(chosen)
+    gait_recorder = GaitRecorder()
     results: dict[str, ModeResult] = {}
     for k, mode in enumerate(modes):
         with make_runner(policy, chosen, backend, obs_names if scene else None) as run:
             watching: list[EpisodeObserver] = []
             if k == 0:
-                watching = list(observers)
+                watching = list(observers) + ([gait_recorder] if gait is not None else [])
                 info = recording_metadata(ckpt, mode, seed)
                 try:
                     if record is not None:
@@ -261,6 +287,10 @@ def evaluate_checkpoint(
             seed=seed,
             progress=progress,
         )
+    quality = None
+    if gait is not None and gait_motion is not None and gait_recorder.trace is not None:
+        quality = gait_quality(gait_recorder.trace, gait_motion)
+        plot_gait(quality, gait, f"{chosen.name}, seed {seed}")
     trained_on = meta.scene_spec(ckpt / META_FILE)
     pace_note = one_pace_note(trained_on, chosen, sweep=sweep_list is not None)
     return EvaluationReport(
@@ -276,4 +306,6 @@ def evaluate_checkpoint(
         notes=[pace_note] if pace_note else [],
         recording=None if record is None else str(record),
         video=None if video is None else str(video),
+        gait=quality,
+        gait_plot=None if quality is None else str(gait),
     )

@@ -30,6 +30,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from gaitforge.learner.evaluation.gait_quality import GaitQuality
 from gaitforge.learner.evaluation.stats import Rate, Stat
 from gaitforge.workers.episode import EpisodeSummary
 from gaitforge.workers.scenes import Scene
@@ -242,6 +243,10 @@ class EvaluationReport:
     """MCAP file of the first episode, if one was written"""
     video: str | None = None
     """MP4 file of the first episode, if one was written"""
+    gait: GaitQuality | None = None
+    """the first episode's gait beside the recorded one, if asked"""
+    gait_plot: str | None = None
+    """PNG of its joint angles over the gait cycle, if one was written"""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able: NaN written as null, the field ``return_`` as ``"return"``."""

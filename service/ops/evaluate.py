@@ -50,6 +50,11 @@ class EvaluateRequest(BaseModel):
     )
     record: Path | None = Field(default=None, description="MCAP file of the first episode")
     video: Path | None = Field(default=None, description="MP4 file of the first episode")
+    gait: Path | None = Field(
+        default=None,
+        description="PNG of the first episode's joint angles over the gait cycle beside the "
+        "recorded gait; its stride, cadence, symmetry and clearance go into the report",
+    )
 
 
 def parse_percentages(text: str, field: str = "sweep_percent") -> list[float]:
@@ -89,6 +94,7 @@ def evaluate(request: EvaluateRequest, progress: ProgressFn | None = None) -> Ev
         sweep_mode=request.modes[0] if request.modes else "deterministic",
         record=request.record,
         video=request.video,
+        gait=request.gait,
         pick=request.pick,
         progress=progress,
     )
