@@ -2,8 +2,9 @@
 
 Nothing is imported or run to build the graph. Every ``.py`` under ``workers/``,
 ``learner/`` and ``service/`` is a module ``gaitforge.<folder>.<...>`` (``__init__.py`` is
-its package). Every import of a gaitforge module counts: at the top of a file, inside a
-function, under ``if TYPE_CHECKING:``, in a ``try``. Relative imports are resolved.
+its package), but for ``service/top/``, which is the package ``gaitforge`` itself. Every
+import of a gaitforge module counts: at the top of a file, inside a function, under ``if
+TYPE_CHECKING:``, in a ``try``. Relative imports are resolved.
 ``from gaitforge.x import y`` where ``y`` is a module counts as importing ``gaitforge.x.y``,
 otherwise as importing ``gaitforge.x`` (its ``__init__``). The package ``__init__`` files
 that importing a submodule runs implicitly are not edges: a package that re-exports its own
@@ -12,8 +13,9 @@ submodules would otherwise read as a cycle with each of them.
 Rules (each failure names the file, the line and the import):
 
 1. **No cycle** among modules (the cycle's path is printed).
-2. **Packages one way**: ``service`` -> ``learner`` -> ``workers``. ``workers`` imports
-   neither of the others, ``learner`` does not import ``service``.
+2. **Packages one way**: ``gaitforge`` (its top: the Python face) -> ``service`` ->
+   ``learner`` -> ``workers``. ``workers`` imports neither of the others, ``learner`` does
+   not import ``service``, and none imports the top.
 3. **Layers inside workers**, by rank. A module may import a module of lower rank, or of
    the same rank in the same package (folder); never one of higher rank, nor a same-rank
    module of another package:
@@ -65,7 +67,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 FOLDERS = ("workers", "learner", "service")
-PACKAGE_ORDER = {"workers": 0, "learner": 1, "service": 2}
+TOP_FOLDER = ("service", "top")
+"""The folder of the package ``gaitforge`` itself (its modules are ``gaitforge.<name>``)."""
+PACKAGE_ORDER = {"workers": 0, "learner": 1, "service": 2, "top": 3}
 """Top packages: a higher one may import a lower one, never the reverse."""
 
 PACKAGE_RANKS = {"bodies": 1, "motions": 1.5, "scenes": 2, "sim": 3, "fidelity": 5}
@@ -116,7 +120,9 @@ def _modules() -> dict[str, Path]:
     for folder in FOLDERS:
         for path in sorted((ROOT / folder).rglob("*.py")):
             parts = list(path.relative_to(ROOT).with_suffix("").parts)
-            if parts[-1] == "__init__":
+            if tuple(parts[:2]) == TOP_FOLDER:
+                parts = parts[2:]
+            if parts[-1:] == ["__init__"]:
                 parts = parts[:-1]
             out[".".join(["gaitforge", *parts])] = path
     return out
@@ -173,7 +179,9 @@ def _edges() -> list[Edge]:
 
 
 def _top(module: str) -> str:
-    return module.split(".")[1]
+    """The package ``module`` is in: one of ``FOLDERS``, or ``top`` (``gaitforge`` itself)."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and parts[1] in FOLDERS else "top"
 
 
 def _package(module: str, modules: dict[str, Path]) -> str:
@@ -399,7 +407,8 @@ def test_wheel_holds_every_module_and_data_file(tmp_path: Path) -> None:
     with zipfile.ZipFile(wheel) as zf:
         names = {n for n in zf.namelist() if ".dist-info/" not in n}
     expected = {f"gaitforge/{p.relative_to(ROOT)}" for p in _data_files()} | {
-        f"gaitforge/{p.relative_to(ROOT)}" for p in _modules().values()
+        module.replace(".", "/") + ("/__init__.py" if path.name == "__init__.py" else ".py")
+        for module, path in _modules().items()
     }
     assert expected - names == set(), f"missing from the wheel: {sorted(expected - names)}"
     outside = sorted(n for n in names if not n.startswith("gaitforge/"))

@@ -137,44 +137,26 @@ class MujocoReplay:
         mujoco.mj_fwdPosition(m, d)
 
 
-class VideoRecorder(ClosingObserver):
-    """Renders frames of ``env`` into an MP4 at ``path``.
-
-    An episode observer (``workers.episode``); or by hand: call :meth:`capture` after
-    ``reset`` and after every ``step``; one call in ``every`` makes
-    a frame (default: the control rate brought near 30 fps), played at ``control_hz / every``
-    frames per second, i.e. in real time. Then :meth:`close` (or use a ``with`` block). The
-    file is written from the first frame on: with no frame, none is made. :meth:`render`
-    alone returns an image.
+class FrameRenderer:
+    """Images of an env's state, offscreen: a side camera tracking the pelvis, muscles coloured
+    by activation, the skeleton and, with a gait clock, the reference pose's.
 
     Args:
-        path: the .mp4 to write (overwritten; parent directories are created).
         env: a MuJoCo env, or an OpenSim env of a scene that also runs on MuJoCo.
         width, height: pixels; rounded down to even numbers (H.264, yuv420p).
-        every: control steps per frame.
         distance: m from the camera to the tracked point.
         antialias: multisampling, shadows and reflections (about 3 times slower on a CPU).
     """
 
     def __init__(
         self,
-        path: str | os.PathLike[str],
         env: MuscleEnv,
         width: int = 640,
         height: int = 480,
-        every: int | None = None,
         distance: float = 2.5,
         antialias: bool = False,
     ) -> None:
-        self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         self.width, self.height = max(2, width - width % 2), max(2, height - height % 2)
-        control_hz = float(env.scene.control_hz)
-        self.every = every or max(1, round(control_hz / TARGET_FPS))
-        self.fps = control_hz / self.every
-        self.frames = 0
-        self._calls = 0
-        self._closed = False
         self._distance = distance
         self._replay = MujocoReplay(env) if env.backend != "mujoco" else None
         sim = self._replay.sim if self._replay else env.sim
@@ -203,33 +185,8 @@ class VideoRecorder(ClosingObserver):
             m.vis.headlight.ambient[:] = 0.45
             m.vis.headlight.diffuse[:] = 0.7
         self.reference = ReferenceSkeleton(env)
-        """the reference pose's skeleton (imitation scenes)"""
-        self._writer: Any = None  # ffmpeg starts with the first frame
-
-    # ---- public -----------------------------------------------------------------------------
-
-    def capture(self, env: MuscleEnv) -> None:
-        """Render the env's current state if this call is one of every ``every``."""
-        if self._closed:
-            raise RuntimeError(f"video {self.path} is closed")
-        self._calls += 1
-        if (self._calls - 1) % self.every:
-            return
-        frame = self.render(env)
-        if self._writer is None:
-            self._writer = imageio_ffmpeg.write_frames(
-                str(self.path),
-                (self.width, self.height),
-                fps=self.fps,
-                codec="libx264",
-                pix_fmt_in="rgb24",
-                pix_fmt_out="yuv420p",
-                macro_block_size=2,
-                ffmpeg_log_level="error",
-            )
-            self._writer.send(None)
-        self._writer.send(frame)
-        self.frames += 1
+        """the reference pose's skeleton (scenes with a gait clock)"""
+        self._closed = False
 
     def render(self, env: MuscleEnv) -> np.ndarray:
         """[height, width, 3] uint8 RGB image of the env's current state."""
@@ -245,34 +202,11 @@ class VideoRecorder(ClosingObserver):
         self.reference.draw(self._scene, env)
         return self._renderer.render()
 
-    def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
-        """Episode observer (``workers.episode``): :meth:`capture` the reset pose."""
-        self.capture(env)
-
-    def on_step(
-        self,
-        env: MuscleEnv,
-        action: np.ndarray,
-        obs: np.ndarray,
-        reward: float,
-        terminated: bool,
-        truncated: bool,
-        info: dict[str, Any],
-    ) -> None:
-        """Episode observer: :meth:`capture` the step."""
-        self.capture(env)
-
     def close(self) -> None:
-        """Finish the MP4 and free the GL resources; idempotent."""
-        if self._closed:
-            return
-        self._closed = True
-        if self._writer is not None:
-            self._writer.close()
-        self._renderer.close()
-        logger.info("video: %d frames at %.1f fps to %s", self.frames, self.fps, self.path)
-
-    # ---- helpers ----------------------------------------------------------------------------
+        """Free the GL resources; idempotent."""
+        if not self._closed:
+            self._closed = True
+            self._renderer.close()
 
     def _target(self) -> np.ndarray:
         """[3] tracked point: the pelvis along the ground, at a fixed height (m)."""
@@ -320,6 +254,106 @@ class VideoRecorder(ClosingObserver):
             rgba = np.array([shade, shade, shade + 0.05, 1.0], dtype=np.float32)
             if add_geom(self._scene, mujoco.mjtGeom.mjGEOM_BOX, size, pos, rgba) is None:
                 return
+
+
+class VideoRecorder(ClosingObserver):
+    """Renders frames of ``env`` (:class:`FrameRenderer`) into an MP4 at ``path``.
+
+    An episode observer (``workers.episode``); or by hand: call :meth:`capture` after
+    ``reset`` and after every ``step``; one call in ``every`` makes
+    a frame (default: the control rate brought near 30 fps), played at ``control_hz / every``
+    frames per second, i.e. in real time. Then :meth:`close` (or use a ``with`` block). The
+    file is written from the first frame on: with no frame, none is made. :meth:`render`
+    alone returns an image.
+
+    Args:
+        path: the .mp4 to write (overwritten; parent directories are created).
+        env, width, height, distance, antialias: the frames' (:class:`FrameRenderer`).
+        every: control steps per frame.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        env: MuscleEnv,
+        width: int = 640,
+        height: int = 480,
+        every: int | None = None,
+        distance: float = 2.5,
+        antialias: bool = False,
+    ) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._frames = FrameRenderer(env, width, height, distance, antialias)
+        self.width, self.height = self._frames.width, self._frames.height
+        control_hz = float(env.scene.control_hz)
+        self.every = every or max(1, round(control_hz / TARGET_FPS))
+        self.fps = control_hz / self.every
+        self.frames = 0
+        self._calls = 0
+        self._closed = False
+        self._writer: Any = None  # ffmpeg starts with the first frame
+
+    @property
+    def reference(self) -> ReferenceSkeleton:
+        """the reference pose's skeleton (scenes with a gait clock)"""
+        return self._frames.reference
+
+    # ---- public -----------------------------------------------------------------------------
+
+    def capture(self, env: MuscleEnv) -> None:
+        """Render the env's current state if this call is one of every ``every``."""
+        if self._closed:
+            raise RuntimeError(f"video {self.path} is closed")
+        self._calls += 1
+        if (self._calls - 1) % self.every:
+            return
+        frame = self.render(env)
+        if self._writer is None:
+            self._writer = imageio_ffmpeg.write_frames(
+                str(self.path),
+                (self.width, self.height),
+                fps=self.fps,
+                codec="libx264",
+                pix_fmt_in="rgb24",
+                pix_fmt_out="yuv420p",
+                macro_block_size=2,
+                ffmpeg_log_level="error",
+            )
+            self._writer.send(None)
+        self._writer.send(frame)
+        self.frames += 1
+
+    def render(self, env: MuscleEnv) -> np.ndarray:
+        """[height, width, 3] uint8 RGB image of the env's current state."""
+        return self._frames.render(env)
+
+    def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
+        """Episode observer (``workers.episode``): :meth:`capture` the reset pose."""
+        self.capture(env)
+
+    def on_step(
+        self,
+        env: MuscleEnv,
+        action: np.ndarray,
+        obs: np.ndarray,
+        reward: float,
+        terminated: bool,
+        truncated: bool,
+        info: dict[str, Any],
+    ) -> None:
+        """Episode observer: :meth:`capture` the step."""
+        self.capture(env)
+
+    def close(self) -> None:
+        """Finish the MP4 and free the GL resources; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        if self._writer is not None:
+            self._writer.close()
+        self._frames.close()
+        logger.info("video: %d frames at %.1f fps to %s", self.frames, self.fps, self.path)
 
 
 def record_video(
