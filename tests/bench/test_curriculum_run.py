@@ -1,0 +1,42 @@
+"""A curriculum run's stages read off its scalars (``bench/curriculum_run.py``): where each
+stage ended, the env steps and training minutes it took, its last evaluation, on fixed
+data; and the curve's PNG."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "bench"))
+
+from curriculum_run import plot_run, stage_rows  # noqa: E402
+
+SCALARS = {
+    "stage": {100: 0.0, 200: 0.0, 300: 1.0, 400: 1.0, 500: 2.0},
+    "train_s": {100: 60.0, 200: 120.0, 300: 200.0, 400: 300.0, 500: 330.0},
+    "return": {100: 1.0, 200: 2.0, 300: 0.5, 400: 1.5, 500: 2.5},
+    "speed": {100: 0.1, 200: 0.2, 300: 0.3, 400: 0.4, 500: 0.5},
+    "fall_rate": {100: 0.9, 200: 0.8, 300: 0.5, 400: 0.3, 500: 0.2},
+    "eval_speed": {300: 0.9, 400: 1.1},
+    "eval_fall_rate": {300: 0.2, 400: 0.08},
+}
+
+
+def test_each_stage_ends_where_the_next_begins() -> None:
+    rows = stage_rows(SCALARS)
+    assert [r["stage"] for r in rows] == [0, 1, 2]
+    assert [(r["env_steps"], r["stage_env_steps"]) for r in rows] == [
+        (200, 200),
+        (400, 200),
+        (500, 100),
+    ]
+    assert [r["stage_s"] for r in rows] == [120.0, 180.0, 30.0]
+    assert rows[1]["eval_fall_rate"] == 0.08 and rows[1]["eval_speed"] == 1.1
+    assert "eval_speed" not in rows[0]
+
+
+def test_the_curve_is_written(tmp_path: Path) -> None:
+    out = tmp_path / "run.png"
+    plot_run(SCALARS, stage_rows(SCALARS), out)
+    assert out.stat().st_size > 10_000
