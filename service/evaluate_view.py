@@ -154,14 +154,19 @@ def render(report: Any, console: Console) -> Group:
 
 def _gait_line(gait: Any, plot: str | None) -> str:
     """One line of the first episode's gait figures (``learner.evaluation.gait_quality``)."""
+    legs = ""
+    if gait.leg_gap_min_m is not None:
+        legs = (
+            f"; legs at least {gait.leg_gap_min_m:.3f} m apart (through each other in "
+            f"{100 * gait.interpenetrating_fraction:.0f} % of steps)"
+        )
     if not gait.strides:
-        return f"gait (first episode): no whole stride (plot: {plot})"
+        return f"gait (first episode): no whole stride{legs} (plot: {plot})"
     clearance = ", ".join(f"{foot} {height:.3f}" for foot, height in gait.clearance_m.items())
     return (
         f"gait (first episode): {gait.strides} strides of {gait.stride_length_m:.2f} m in "
         f"{gait.stride_time_s:.2f} s ({gait.cadence_steps_per_min:.0f} steps/min), step "
         f"time asymmetry {gait.step_time_asymmetry:.2f}, foot clearance m: {clearance}; "
         f"joint angles {gait.summary()['joint_rms_rad_mean']:.3f} rad RMS from the recording "
-        "on average "
-        f"(plot: {plot})"
+        f"on average{legs} (plot: {plot})"
     )

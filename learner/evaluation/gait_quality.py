@@ -16,7 +16,11 @@ strike, ``samples`` points), :func:`gait_quality` gives:
 - **symmetry**: the step time from a right heel strike to the next left one against the left
   to right one, ``|a - b| / mean(a, b)`` (0: symmetric);
 - **foot clearance**: per foot, the highest point of each swing (no ground force) above the
-  foot's median height in stance, averaged over the swings (m).
+  foot's median height in stance, averaged over the swings (m);
+- **legs through each other** (MuJoCo, bodies with MyoSuite's leg-on-leg contact geoms:
+  thighs, shanks, feet): the closest any such pair of geoms came (m, signed: below 0 they
+  interpenetrate, whether or not the scene lets them collide) and the share of steps where a
+  pair interpenetrated.
 
 :func:`plot_gait` draws the cycle: one panel per joint, the episode's mean with a band of
 one standard deviation, and the recording.
@@ -30,9 +34,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import mujoco
 import numpy as np
 from gaitforge.workers.env import GRAVITY
 from gaitforge.workers.episode import Observer
+from gaitforge.workers.sim.mjcf_models import leg_contact_pairs
 
 if TYPE_CHECKING:
     from gaitforge.workers.env import MuscleEnv
@@ -45,6 +51,8 @@ MIN_SWING_S = 0.15
 between the heel's and the toe's spheres)."""
 RIGHT, LEFT = ("_r", "_right"), ("_l", "_left")
 """How the bodies name their right and left feet."""
+GAP_HORIZON_M = 0.2
+"""m; leg geoms farther apart than this are not measured further (the gap reads this)."""
 
 
 @dataclass
@@ -68,6 +76,8 @@ class GaitTrace:
     forces: list[np.ndarray] = field(default_factory=list)
     heights: list[np.ndarray] = field(default_factory=list)
     forward: list[float] = field(default_factory=list)
+    leg_gaps: list[float] = field(default_factory=list)
+    """[T] the smallest signed distance between the legs' contact geoms (m), where measured"""
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``angles``, ``forces``, ``heights`` and ``forward`` as arrays."""
@@ -85,11 +95,13 @@ class GaitRecorder(Observer):
 
     def __init__(self) -> None:
         self.trace: GaitTrace | None = None
+        self._leg_pairs: list[tuple[int, int]] = []
 
     def on_reset(self, env: MuscleEnv, obs: np.ndarray, info: dict[str, Any]) -> None:
         sim = env.sim
         self.trace = GaitTrace(env.dt, list(sim.dof_names), list(sim.foot_names))
         self._weight_n = GRAVITY * sim.report.mass
+        self._leg_pairs = leg_geom_pairs(sim.model) if env.backend == "mujoco" else []
         self._sample(env)
 
     def on_step(
@@ -114,6 +126,8 @@ class GaitRecorder(Observer):
         self.trace.forces.append(np.asarray(state.foot_forces, dtype=float) / self._weight_n)
         self.trace.heights.append(np.array([feet[f][sim.up_axis] for f in self.trace.feet]))
         self.trace.forward.append(float(state.pelvis_pos[sim.forward_axis]))
+        if self._leg_pairs:
+            self.trace.leg_gaps.append(smallest_gap(sim.model, sim.data, self._leg_pairs))
 
 
 @dataclass(frozen=True)
@@ -137,6 +151,11 @@ class GaitQuality:
     """joint -> the standard deviation over the strides at each sample point"""
     reference: dict[str, list[float]]
     """joint -> the recording's angle at each sample point"""
+    leg_gap_min_m: float | None = None
+    """the closest the legs' contact geoms came, m (below 0: through each other); None where
+    not measured"""
+    interpenetrating_fraction: float | None = None
+    """the share of steps where a pair of the legs' geoms interpenetrated"""
 
     def summary(self) -> dict[str, float]:
         """The scalar figures (no curves), for a table."""
@@ -174,6 +193,7 @@ def gait_quality(trace: GaitTrace, motion: Motion) -> GaitQuality:
     (:data:`RIGHT`, :data:`LEFT`)."""
     angles, forces, heights, forward = trace.arrays()
     stance = in_stance(forces, trace.dt)
+    legs = _legs(trace.leg_gaps)
     right, left = _side_index(trace.feet, RIGHT), _side_index(trace.feet, LEFT)
     points = np.arange(motion.samples) / motion.samples
     joints = [j for j in motion.joints if j in trace.joints]
@@ -184,7 +204,7 @@ def gait_quality(trace: GaitTrace, motion: Motion) -> GaitQuality:
     if not strides:
         clearance = _clearance(trace.feet, stance, heights)
         rms = dict.fromkeys(joints, nan)
-        return GaitQuality(0, nan, nan, nan, nan, clearance, rms, {}, {}, reference)
+        return GaitQuality(0, nan, nan, nan, nan, clearance, rms, {}, {}, reference, *legs)
     curves = {}
     for joint in joints:
         column = angles[:, trace.joints.index(joint)]
@@ -205,6 +225,8 @@ def gait_quality(trace: GaitTrace, motion: Motion) -> GaitQuality:
         cycle={j: c.tolist() for j, c in cycle.items()},
         cycle_sd={j: c.std(axis=0).tolist() for j, c in curves.items()},
         reference=reference,
+        leg_gap_min_m=legs[0],
+        interpenetrating_fraction=legs[1],
     )
 
 
@@ -246,6 +268,30 @@ def plot_gait(quality: GaitQuality, path: Path, title: str) -> Path:
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
+
+
+def leg_geom_pairs(model: mujoco.MjModel) -> list[tuple[int, int]]:
+    """Geom id pairs of MyoSuite's leg-on-leg contacts (``leg_contact_pairs``) that
+    ``model`` has (none on a body without those geoms)."""
+    names = {model.geom(i).name: i for i in range(model.ngeom)}
+    return [(names[a], names[b]) for a, b, _ in leg_contact_pairs() if a in names and b in names]
+
+
+def smallest_gap(model: mujoco.MjModel, data: mujoco.MjData, pairs: list[tuple[int, int]]) -> float:
+    """The smallest signed distance (m) between the geoms of ``pairs`` in ``data``'s pose
+    (negative: penetration depth); pairs more than ``GAP_HORIZON_M`` apart count as that."""
+    fromto = np.zeros(6)
+    return min(
+        float(mujoco.mj_geomDistance(model, data, a, b, GAP_HORIZON_M, fromto)) for a, b in pairs
+    )
+
+
+def _legs(gaps: list[float]) -> tuple[float | None, float | None]:
+    """(closest, share of steps below 0) of a trace's leg gaps; (None, None) unmeasured."""
+    if not gaps:
+        return None, None
+    values = np.asarray(gaps)
+    return float(values.min()), float(np.mean(values < 0.0))
 
 
 def _side_index(feet: list[str], suffixes: tuple[str, ...]) -> int | None:

@@ -1,7 +1,8 @@
 """Gait quality beside a recorded gait (``learner.evaluation.gait_quality``): the recording
 judged against itself on fixed data (its strides, cadence, symmetry and clearance known),
-bounces at touchdown ignored, and the shipped walker's first episode through ``gaitforge
-evaluate --gait`` (real MuJoCo), judged by bounds."""
+bounces at touchdown ignored, MyoLeg's legs through each other measured in real poses, and
+the shipped walker's first episode through ``gaitforge evaluate --gait`` (real MuJoCo),
+judged by bounds."""
 
 from __future__ import annotations
 
@@ -9,12 +10,20 @@ import json
 import math
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 from gaitforge.learner.evaluation.evaluate import compared_motion
-from gaitforge.learner.evaluation.gait_quality import GaitTrace, gait_quality, plot_gait
+from gaitforge.learner.evaluation.gait_quality import (
+    GaitTrace,
+    gait_quality,
+    leg_geom_pairs,
+    plot_gait,
+    smallest_gap,
+)
 from gaitforge.learner.evaluation.observers import EvaluationError
 from gaitforge.service.cli import app
+from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.motions import load_motion
 from gaitforge.workers.scenes import load_scene
 from typer.testing import CliRunner
@@ -109,3 +118,30 @@ def test_the_shipped_walkers_gait_is_reported_and_plotted(tmp_path: Path) -> Non
         assert 60 < gait["cadence_steps_per_min"] < 200
         assert 0.3 < gait["stride_length_m"] < 3.0
         assert all(0 <= rms < 1.0 for rms in gait["joint_rms_rad"].values())
+
+
+def test_myolegs_legs_through_each_other_read_below_zero() -> None:
+    """MyoLeg standing keeps its thighs about 2.5 cm apart; both hips adducted 0.6 rad put
+    them through each other (real MuJoCo; the scene's own contacts play no part). A planar
+    body has no such geoms."""
+    env = MuscleEnv("walk-3d")
+    env.reset(seed=0)
+    m, d = env.sim.model, env.sim.data
+    pairs = leg_geom_pairs(m)
+    assert len(pairs) == 26
+    assert 0.0 < smallest_gap(m, d, pairs) < 0.1
+    for side in ("r", "l"):
+        d.qpos[m.jnt_qposadr[m.joint(f"hip_adduction_{side}").id]] = 0.6
+    mujoco.mj_forward(m, d)
+    assert smallest_gap(m, d, pairs) < 0.0
+    assert leg_geom_pairs(MuscleEnv("walk-2d").sim.model) == []
+
+
+def test_the_legs_figures_read_the_trace() -> None:
+    motion = load_motion("gait2d", "walk")
+    trace = recorded_trace()
+    trace.leg_gaps = [0.03] * (len(trace.forward) - 4) + [-0.01, -0.002, 0.01, 0.02]
+    quality = gait_quality(trace, motion)
+    assert quality.leg_gap_min_m == -0.01
+    assert quality.interpenetrating_fraction == pytest.approx(2 / len(trace.forward))
+    assert gait_quality(recorded_trace(), motion).leg_gap_min_m is None

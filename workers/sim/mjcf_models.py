@@ -111,15 +111,20 @@ def _myoleg_xml() -> str:
 """
 
 
-def _add_self_contacts(spec: mujoco.MjSpec) -> None:
-    """MyoSuite's leg-on-leg contact pairs (thighs, shanks, feet), condim 1."""
+def leg_contact_pairs() -> list[tuple[str, str, int]]:
+    """MyoSuite's leg-on-leg contact pairs of MyoLeg (thighs, shanks, feet): 26 (geom, geom,
+    condim)."""
     path = myosim_models_dir() / "contacts" / "myolegs_contacts.xml"
-    for pair in ET.parse(path).getroot().iter("pair"):
-        spec.add_pair(
-            geomname1=pair.attrib["geom1"],
-            geomname2=pair.attrib["geom2"],
-            condim=int(pair.attrib.get("condim", "3")),
-        )
+    return [
+        (pair.attrib["geom1"], pair.attrib["geom2"], int(pair.attrib.get("condim", "3")))
+        for pair in ET.parse(path).getroot().iter("pair")
+    ]
+
+
+def _add_self_contacts(spec: mujoco.MjSpec) -> None:
+    """:func:`leg_contact_pairs` added to ``spec``."""
+    for first, second, condim in leg_contact_pairs():
+        spec.add_pair(geomname1=first, geomname2=second, condim=condim)
 
 
 def _add_stand_key(spec: mujoco.MjSpec) -> None:
