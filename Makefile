@@ -1,4 +1,5 @@
-# Every target does its own set-up from nothing: a .venv with torch (CPU build) first, then the project.
+# Every target does its own set-up from nothing: Debian's OSMesa (videos) and Chromium (the
+# pages' browser tests) where apt-get exists, a .venv with torch (CPU build) first, then the project.
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
@@ -7,7 +8,7 @@ STAMP := $(VENV)/.installed
 .PHONY: run test lint bench clean
 
 $(STAMP): pyproject.toml
-	command -v apt-get >/dev/null && (dpkg -s libosmesa6 >/dev/null 2>&1 || apt-get install -y -q libosmesa6 || (apt-get update -q && apt-get install -y -q libosmesa6)) || true
+	command -v apt-get >/dev/null && (dpkg -s libosmesa6 chromium >/dev/null 2>&1 || apt-get install -y -q libosmesa6 chromium || (apt-get update -q && apt-get install -y -q libosmesa6 chromium)) || true
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet torch==2.13.0

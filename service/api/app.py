@@ -1,5 +1,6 @@
-"""The FastAPI app: routes, bearer auth, problem+json errors, the body size limit, and a
-lifespan that opens the store, connects Ray and runs the job runner (unless given one)."""
+"""The FastAPI app: routes, the pages for people, bearer and cookie auth, problem+json
+errors, the body size limit, and a lifespan that opens the store, connects Ray and runs the
+job runner (unless given one)."""
 
 from __future__ import annotations
 
@@ -12,8 +13,8 @@ from typing import TYPE_CHECKING
 
 from fastapi import Depends, FastAPI
 from fastapi.concurrency import run_in_threadpool
-from gaitforge.service.api import events, routes_artifacts, routes_jobs, routes_scenes
-from gaitforge.service.api.auth import load_tokens
+from gaitforge.service.api import events, pages, routes_artifacts, routes_jobs, routes_scenes
+from gaitforge.service.api.auth import load_tokens, new_csrf_key
 from gaitforge.service.api.deps import known_query
 from gaitforge.service.api.limits import BodyLimits
 from gaitforge.service.api.openapi import build_openapi
@@ -31,7 +32,8 @@ never code or paths), follow them live, download checkpoints, recordings and eva
 reports. Every endpoint but `/healthz` and the documentation (`/openapi.json`, `/docs`) needs
 `Authorization: Bearer <token>`; a job is its token owner's only (another owner's job answers
 404). Errors are `application/problem+json`. Paths are exact: a trailing slash is a 404, never
-a redirect."""
+a redirect. A person signs in at `/` (the token in a session cookie) and follows jobs on
+pages that read this API."""
 TAGS = [
     {"name": "jobs", "description": "submit, list, follow, cancel and resume training jobs"},
     {"name": "artifacts", "description": "a job's checkpoints, recordings and reports"},
@@ -109,13 +111,14 @@ def create_app(settings: ServiceSettings | None = None, runner: JobRunner | None
         redoc_url=None, swagger_ui_oauth2_redirect_url=None, redirect_slashes=False,
     )  # fmt: skip
     app.state.settings, app.state.tokens = settings, tokens
+    app.state.csrf_key = new_csrf_key()
     if runner is not None:
         app.state.runner, app.state.store = runner, runner.store
     install_problem_handlers(app)
     app.add_middleware(
         BodyLimits, max_bytes=settings.max_body_bytes, timeout_s=settings.body_timeout_s
     )
-    for module in (routes_jobs, events, routes_artifacts, routes_scenes):
+    for module in (routes_jobs, events, routes_artifacts, routes_scenes, pages):
         app.include_router(module.router)
 
     @app.get("/healthz", response_model=Health, tags=["service"], summary="Liveness")
