@@ -5,7 +5,7 @@ status as the REST API; the job page's script reads that API with the session co
 - ``GET /``: the signed-in owner's jobs (state, stage, progress, age), else the sign-in form.
 - ``POST /signin`` (form field ``token``): sets the session cookie (the token itself,
   ``HttpOnly``, ``SameSite=Strict``, ``Secure`` over https) and goes to ``/``; a wrong token
-  answers 401 with the form again.
+  answers 401 with the form again, a form from another site's page 403.
 - ``POST /signout`` (form field ``csrf``): clears the cookie.
 - ``GET /jobs/{job_id}``: the job's page; another owner's job, or none, is a 404 page.
 
@@ -20,7 +20,7 @@ import hmac
 import secrets
 from html import escape
 from typing import Annotated
-from urllib.parse import parse_qs
+from urllib.parse import parse_qs, urlsplit
 
 from fastapi import APIRouter, Depends, Request
 from fastapi.concurrency import run_in_threadpool
@@ -77,7 +77,11 @@ async def jobs_page(request: Request, owner: PageOwner) -> HTMLResponse:
 
 @router.post("/signin")
 async def sign_in(request: Request) -> Response:
-    """Check the form's token; set the session cookie and go to the jobs list."""
+    """Check the form's token; set the session cookie and go to the jobs list. A form sent
+    from another site's page is refused (its ``Origin`` is not this service): no signing a
+    person in as someone else."""
+    if _cross_site(request):
+        return Response("sign in from the service's own page", status_code=403)
     token = (await _form(request)).get("token", "")
     owner = owner_of(token, request.app.state.tokens) if token else None
     if owner is None:
@@ -122,6 +126,12 @@ async def job_page(job_id: JobId, request: Request, owner: PageOwner) -> Respons
     session = request.cookies.get(SESSION_COOKIE, "")
     body = page_html.job_body(job_status(record), csrf_token(request, session), nonce)
     return _page(record.name, body, nonce, owner, request)
+
+
+def _cross_site(request: Request) -> bool:
+    """The request's ``Origin`` names another host than the one it was sent to."""
+    origin = request.headers.get("origin")
+    return origin is not None and urlsplit(origin).netloc != request.headers.get("host")
 
 
 async def _form(request: Request) -> dict[str, str]:

@@ -134,6 +134,9 @@ def test_pages_carry_a_strict_policy_and_no_outside_assets(site: str) -> None:
     with httpx.Client(base_url=site, timeout=30) as client:
         answer = client.get("/")
         wrong = client.post("/signin", data={"token": "nope"})
+        forged = client.post(
+            "/signin", data={"token": ALICE}, headers={"Origin": "http://evil.example"}
+        )
         signed_out = client.get("/jobs/j-000000000000", follow_redirects=False)
         slash = client.get("/jobs/j-000000000000/", follow_redirects=False)
         signed = client.post("/signin", data={"token": ALICE}, follow_redirects=False)
@@ -143,6 +146,7 @@ def test_pages_carry_a_strict_policy_and_no_outside_assets(site: str) -> None:
     assert "frame-ancestors 'none'" in policy
     assert "http" not in answer.text.replace(site, ""), "nothing fetched from outside"
     assert wrong.status_code == 401 and "unknown token" in wrong.text
+    assert forged.status_code == 403 and "set-cookie" not in forged.headers
     assert signed.status_code == 303
     assert "httponly" in signed.headers["set-cookie"].lower()
     assert "samesite=strict" in signed.headers["set-cookie"].lower()
