@@ -56,7 +56,7 @@ def _page(
                 "frame-ancestors 'none'; form-action 'self'; base-uri 'none'"
             ),
             "X-Content-Type-Options": "nosniff",
-            "Referrer-Policy": "no-referrer",
+            "Referrer-Policy": "same-origin",
             "Cache-Control": "no-store",
         }
     )
@@ -129,7 +129,8 @@ async def job_page(job_id: JobId, request: Request, owner: PageOwner) -> Respons
 
 
 def _cross_site(request: Request) -> bool:
-    """The request's ``Origin`` names another host than the one it was sent to."""
+    """The request's ``Origin`` names another host than the one it was sent to, or hides it
+    (``null``: the pages' ``Referrer-Policy: same-origin`` lets their own forms send it)."""
     origin = request.headers.get("origin")
     return origin is not None and urlsplit(origin).netloc != request.headers.get("host")
 
