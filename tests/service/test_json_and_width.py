@@ -31,7 +31,8 @@ def test_scenes_list_json_is_the_catalogue() -> None:
     assert walk["backends"] == ["mujoco", "opensim"] and walk["target_speed_m_s"] == 1.25
     assert walk["description"] and walk["control_hz"] == 100
     clock = next(o for o in options if o["name"] == "clock")
-    assert clock["bases"] == ["obstacles-2d", "run-2d", "walk-2d"] and clock["description"]
+    assert clock["bases"] == ["obstacles-2d", "run-2d", "walk-2d", "walk-3d"]
+    assert clock["description"]
 
 
 def test_scenes_list_at_80_columns_cuts_nothing() -> None:
