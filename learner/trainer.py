@@ -198,9 +198,9 @@ class Trainer:
         for hook in self.hooks:
             hook.on_iteration_end(run, metrics)
         if metrics["verdict"] == BUDGET_SPENT and run.stage.if_not_promoted == "fail":
-            name = run.stage.name or run.stage.scene
             ended_with = evaluation_ended_with(metrics)
-            raise StageShortfallError(run.curriculum.shortfall(run.stage, name, ended_with))
+            shortfall = run.curriculum.shortfall(run.stage, metrics["stage_name"], ended_with)
+            raise StageShortfallError(shortfall)
         if metrics["verdict"] is not None:
             self._next_stage(metrics["verdict"])
         return metrics

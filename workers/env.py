@@ -171,13 +171,15 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             reach_target=self._reach_target,
         )
         terms = weighted(reward_terms(state, ctx), self.scene.task.reward)
+        clock_info = self._clock_info() if self.clock is not None else None
         kept = True
         if self.imitation is not None:
+            assert clock_info is not None
             tracking = self.imitation.track(state, self._state, self.sim, self._steps)
             terms.update(self.imitation.weighted(tracking.kernels))
             kept = self._imitation_info["kept"] and self.imitation.kept(tracking.pose_error_rad)
             self._imitation_info = {
-                **self._clock_info(),
+                **clock_info,
                 "pose_error_rad": tracking.pose_error_rad,
                 "kept": kept,
             }
@@ -188,8 +190,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         info = {"health": HEALTHY, "reward_terms": terms, "fell": fell}
         info.update(self._episode_info(state))
         ended = fell
-        if self.clock is not None:
-            info["clock"] = self._clock_info()
+        if clock_info is not None:
+            info["clock"] = clock_info
         if self.imitation is not None:
             info["imitation"] = dict(self._imitation_info)
             info["lost_track"] = not kept

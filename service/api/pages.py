@@ -40,12 +40,16 @@ FORM_LIMIT_BYTES = 4096
 PageOwner = Annotated[str | None, Depends(session_owner)]
 
 
+def _session_csrf(request: Request) -> str:
+    """The CSRF token of the request's session (a signed-in page's)."""
+    return csrf_token(request, request.cookies[SESSION_COOKIE])
+
+
 def _page(
-    title: str, body: str, nonce: str, owner: str | None, request: Request, status: int = 200
+    title: str, body: str, nonce: str, owner: str | None, csrf: str = "", status: int = 200
 ) -> HTMLResponse:
-    """``body`` in the layout, with the headers every page carries."""
-    session = request.cookies.get(SESSION_COOKIE) if owner is not None else None
-    csrf = csrf_token(request, session) if session else ""
+    """``body`` in the layout (``owner`` signed in, their session's ``csrf`` in its sign-out
+    form), with the headers every page carries."""
     html = page_html.layout(title, body, nonce, owner, csrf)
     response = HTMLResponse(html, status_code=status)
     response.headers.update(
@@ -68,11 +72,11 @@ async def jobs_page(request: Request, owner: PageOwner) -> HTMLResponse:
     """The owner's jobs, newest first; the sign-in form without a session."""
     nonce = secrets.token_urlsafe(16)
     if owner is None:
-        return _page("sign in", page_html.sign_in_body(), nonce, None, request)
+        return _page("sign in", page_html.sign_in_body(), nonce, None)
     records, _ = await run_in_threadpool(app_store(request).list, owner, None, 0, JOBS_SHOWN)
     jobs = [job_status(record) for record in records]
-    csrf = csrf_token(request, request.cookies[SESSION_COOKIE])
-    return _page("jobs", page_html.jobs_body(jobs, csrf, nonce), nonce, owner, request)
+    csrf = _session_csrf(request)
+    return _page("jobs", page_html.jobs_body(jobs, csrf, nonce), nonce, owner, csrf)
 
 
 @router.post("/signin")
@@ -86,7 +90,7 @@ async def sign_in(request: Request) -> Response:
     owner = owner_of(token, request.app.state.tokens) if token else None
     if owner is None:
         body = page_html.sign_in_body("unknown token")
-        return _page("sign in", body, secrets.token_urlsafe(16), None, request, status=401)
+        return _page("sign in", body, secrets.token_urlsafe(16), None, status=401)
     response = RedirectResponse("/", status_code=303)
     response.set_cookie(
         SESSION_COOKIE,
@@ -118,14 +122,13 @@ async def job_page(job_id: JobId, request: Request, owner: PageOwner) -> Respons
     """The job's page, for its owner; a 404 page for any other job id."""
     if owner is None:
         return RedirectResponse("/", status_code=303)
-    nonce = secrets.token_urlsafe(16)
+    nonce, csrf = secrets.token_urlsafe(16), _session_csrf(request)
     record = await run_in_threadpool(app_store(request).get, job_id, owner)
     if record is None:
         body = f"<h2>No job {escape(job_id)}</h2>"
-        return _page("no such job", body, nonce, owner, request, status=404)
-    session = request.cookies.get(SESSION_COOKIE, "")
-    body = page_html.job_body(job_status(record), csrf_token(request, session), nonce)
-    return _page(record.name, body, nonce, owner, request)
+        return _page("no such job", body, nonce, owner, csrf, status=404)
+    body = page_html.job_body(job_status(record), csrf, nonce)
+    return _page(record.name, body, nonce, owner, csrf)
 
 
 def _cross_site(request: Request) -> bool:
