@@ -7,8 +7,15 @@ Conventions (the same as OpenSim's, so a transcription stays literal):
 
 A body is a tree of segments. Each non-root segment hangs from its parent through one
 :class:`Joint`, whose degrees of freedom (:class:`Dof`) are applied in the order listed,
-each about or along an axis expressed in the joint frame. The root segment hangs from the
-ground the same way (for ``gait2d`` a planar joint: slide x, slide y, hinge z).
+each about or along an axis expressed in the joint frame (the frame left by the dofs before
+it). The joint frame sits at ``location_in_parent``, turned by ``orientation_in_parent``; the
+child segment's frame is the joint frame once its dofs have acted. The root segment hangs
+from the ground the same way (for ``gait2d`` a planar joint: slide x, slide y, hinge z).
+
+A dof may be ``coupled``: its value is a function of another dof (OpenSim's CustomJoint
+axes with spline or linear functions, a coordinate coupler). Path points may be active only
+over a dof's range (conditional) or move with a dof (OpenSim's moving path points). A
+backend that lacks a feature approximates it and its compile report says so.
 """
 
 from __future__ import annotations
@@ -16,6 +23,7 @@ from __future__ import annotations
 import itertools
 from typing import Annotated, Literal
 
+from gaitforge.workers.bodies.functions import Function
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 Vec3 = tuple[float, float, float]
@@ -36,7 +44,10 @@ class Segment(_Strict):
     mass: PositiveFloat = Field(description="kg")
     com: Vec3 = Field(default=(0.0, 0.0, 0.0), description="centre of mass, m, segment frame")
     inertia: tuple[PositiveFloat, PositiveFloat, PositiveFloat] = Field(
-        description="principal moments about the centre of mass, kg m^2 (xx, yy, zz)"
+        description="moments about the centre of mass along the segment axes, kg m^2 (xx, yy, zz)"
+    )
+    inertia_products: Vec3 = Field(
+        default=(0.0, 0.0, 0.0), description="products of inertia, kg m^2 (xy, xz, yz)"
     )
     length_hint: float = Field(
         default=0.0, ge=0, description="m; drawn as a capsule along -Y for visuals (0: none)"
@@ -57,6 +68,13 @@ class JointLimit(_Strict):
     transition: float = Field(default=0.17, gt=0, description="rad or m to full stiffness")
 
 
+class Coupling(_Strict):
+    """The dof is not free: its value is ``function(value of coordinate)``."""
+
+    coordinate: str = Field(description="the free dof that drives this one")
+    function: Function
+
+
 class Dof(_Strict):
     """One degree of freedom of a joint."""
 
@@ -67,6 +85,9 @@ class Dof(_Strict):
     default: float = 0.0
     limited: bool = Field(default=True, description="enforce the range with a joint limit")
     limit: JointLimit | None = Field(default=None, description="passive limit force, if any")
+    coupled: Coupling | None = Field(
+        default=None, description="a function of another dof; such a dof is never an action"
+    )
 
     @model_validator(mode="after")
     def _check(self) -> Dof:
@@ -89,14 +110,36 @@ class Joint(_Strict):
     parent: str = Field(description=f"segment name or '{GROUND}'")
     child: str
     location_in_parent: Vec3 = (0.0, 0.0, 0.0)
+    orientation_in_parent: Vec3 = Field(
+        default=(0.0, 0.0, 0.0),
+        description="rad, body-fixed X-Y-Z Euler angles of the joint frame (OpenSim's)",
+    )
     dofs: list[Dof] = Field(default_factory=list)
 
 
+class ActiveRange(_Strict):
+    """A conditional path point is part of the path only while ``coordinate`` is in ``range``."""
+
+    coordinate: str
+    range: tuple[float, float] = Field(description="rad or m")
+
+
+class MovingLocation(_Strict):
+    """A path point whose location (segment frame, m) is a function of ``coordinate``."""
+
+    coordinate: str
+    x: Function
+    y: Function
+    z: Function
+
+
 class PathPoint(_Strict):
-    """A fixed via point of a muscle path."""
+    """A via point of a muscle path: fixed, conditional or moving."""
 
     segment: str
-    location: Vec3
+    location: Vec3 = Field(description="m, segment frame; a moving point's at its dof's default")
+    active_when: ActiveRange | None = None
+    moves_with: MovingLocation | None = None
 
 
 class WrapRef(_Strict):
@@ -153,18 +196,34 @@ class Muscle(_Strict):
 
 
 class WrapObject(_Strict):
-    """A smooth obstacle that muscle paths slide over."""
+    """A smooth obstacle that muscle paths slide over.
+
+    An ellipsoid's semi-axes are ``radii`` along its frame's axes, its frame turned by
+    ``orientation``; ``radius`` is then the sphere a backend without ellipsoids uses.
+    """
 
     name: str
     segment: str
-    type: Literal["cylinder", "sphere"]
+    type: Literal["cylinder", "sphere", "ellipsoid"]
     location: Vec3
     axis: Vec3 = Field(default=(0.0, 0.0, 1.0), description="cylinder axis, segment frame")
+    orientation: Vec3 | None = Field(
+        default=None, description="rad, X-Y-Z Euler angles of an ellipsoid's frame"
+    )
+    radii: tuple[PositiveFloat, PositiveFloat, PositiveFloat] | None = Field(
+        default=None, description="an ellipsoid's semi-axes, m"
+    )
     radius: PositiveFloat
     length: float = Field(default=0.1, gt=0, description="cylinder length, m (visual only)")
     side: Vec3 | None = Field(
         default=None, description="a point (segment frame) on the side the path passes"
     )
+
+    @model_validator(mode="after")
+    def _check(self) -> WrapObject:
+        if (self.type == "ellipsoid") != (self.radii is not None):
+            raise ValueError("radii: given for an ellipsoid, and only for an ellipsoid")
+        return self
 
 
 class ContactSphere(_Strict):
@@ -237,10 +296,18 @@ class Body(_Strict):
         if len(roots) != 1:
             raise ValueError(f"exactly one joint must hang from '{GROUND}', found {len(roots)}")
         self.ordered_joints()
+        self._check_couplings()
+        free = {d.name for j in self.joints for d in j.dofs if d.coupled is None}
         for m in self.muscles:
             for p in m.points:
                 if p.segment not in seg_names:
                     raise ValueError(f"muscle {m.name!r}: unknown segment {p.segment!r}")
+                for depends in (p.active_when, p.moves_with):
+                    if depends is not None and depends.coordinate not in free:
+                        raise ValueError(
+                            f"muscle {m.name!r}: a path point depends on {depends.coordinate!r}, "
+                            "which is not a free dof"
+                        )
             for w in m.wraps:
                 if w not in wrap_names:
                     raise ValueError(f"muscle {m.name!r}: unknown wrap object {w!r}")
@@ -248,6 +315,18 @@ class Body(_Strict):
             if item.segment not in seg_names:
                 raise ValueError(f"{item.name!r}: unknown segment {item.segment!r}")
         return self
+
+    def _check_couplings(self) -> None:
+        dofs = {d.name: d for j in self.joints for d in j.dofs}
+        for dof in dofs.values():
+            if dof.coupled is None:
+                continue
+            driver = dofs.get(dof.coupled.coordinate)
+            if driver is None or driver.coupled is not None or driver is dof:
+                raise ValueError(
+                    f"dof {dof.name!r}: coupled to {dof.coupled.coordinate!r}, which is not "
+                    "another free dof of the body"
+                )
 
     # ---- look-ups used by pruning and backends -------------------------------------
 
@@ -277,6 +356,11 @@ class Body(_Strict):
     def dof_names(self) -> list[str]:
         return [d.name for j in self.ordered_joints() for d in j.dofs]
 
+    @property
+    def coupled_dofs(self) -> dict[str, str]:
+        """Each coupled dof and the free dof that drives it."""
+        return {d.name: d.coupled.coordinate for j in self.joints for d in j.dofs if d.coupled}
+
     def dof(self, name: str) -> Dof:
         return next(d for j in self.joints for d in j.dofs if d.name == name)
 
@@ -291,7 +375,8 @@ class Body(_Strict):
         return chain
 
     def dofs_spanned(self, muscle: Muscle) -> list[str]:
-        """Dofs on the tree path between the segments a muscle's points attach to."""
+        """Free dofs on the tree path between the segments a muscle's points attach to (a
+        coupled dof counts as the dof that drives it)."""
         segments = {p.segment for p in muscle.points}
         chains = [self.chain_to_root(s) for s in segments]
         common = set.intersection(*(set(c) for c in chains))
@@ -301,7 +386,13 @@ class Body(_Strict):
                 if seg in common:
                     break
                 crossed.add(seg)
-        return [d.name for j in self.ordered_joints() if j.child in crossed for d in j.dofs]
+        spanned = [
+            d.coupled.coordinate if d.coupled else d.name
+            for j in self.ordered_joints()
+            if j.child in crossed
+            for d in j.dofs
+        ]
+        return list(dict.fromkeys(spanned))
 
     @property
     def total_mass(self) -> float:
