@@ -1,4 +1,4 @@
-"""The ``gaitforge`` command line: ``scenes``, ``train``, ``evaluate``, ``ship`` and
+"""The ``gaitforge`` command line: ``scenes``, ``bodies``, ``train``, ``evaluate``, ``ship`` and
 ``fidelity``; the REST service (``serve``) and its client (``submit``, ``jobs``,
 ``status``, ``logs``, ``cancel``, ``resume``, ``download``).
 
@@ -10,6 +10,7 @@ log lines to stderr.
 from __future__ import annotations
 
 import typer
+from gaitforge.service.body_commands import bodies_app
 from gaitforge.service.client.commands import register as register_client
 from gaitforge.service.console import configure_logging
 from gaitforge.service.evaluate_commands import evaluate
@@ -25,6 +26,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 app.add_typer(scenes_app, name="scenes")
+app.add_typer(bodies_app, name="bodies")
 app.add_typer(fidelity_app, name="fidelity")
 app.command("evaluate")(evaluate)
 app.command("train")(train)

@@ -10,10 +10,10 @@ values to rounding (``tests/workers/test_body_functions.py``).
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, model_validator
 
 
 class Linear(BaseModel):
@@ -44,7 +44,17 @@ class Spline(BaseModel):
         return self
 
 
-Function = Annotated[Linear | Spline, Field(discriminator="type")]
+def _kind(value: Any) -> str | None:
+    """``type`` where given; else a spline if it has knots (files may leave ``type`` out)."""
+    if isinstance(value, dict):
+        return value.get("type") or ("spline" if "x" in value else "linear")
+    return getattr(value, "type", None)
+
+
+Function = Annotated[
+    Annotated[Linear, Tag("linear")] | Annotated[Spline, Tag("spline")], Discriminator(_kind)
+]
+"""A function of one coordinate: ``{slope, intercept}`` or ``{x: [...], y: [...]}``."""
 
 
 def _fmm_coefficients(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -27,8 +27,8 @@ malformed file fails with its line and column. What maps to the body:
 * contact spheres and markers as they are. A model without foot contact gets the rule of
   :func:`default_foot_contacts`, which a contacts file overrides.
 
-Anything else (other forces, constraints, controllers, probes, unknown components) is listed
-as dropped, with its path in the model.
+Anything else (other forces, constraints, controllers, probes) is listed as dropped, with its
+path in the model; a component OpenSim does not know, or a malformed file, is refused.
 """
 
 from __future__ import annotations
@@ -176,7 +176,7 @@ def _check_xml(path: Path) -> str:
 
 
 def _unknown_components(text: str) -> list[str]:
-    """Named XML elements whose type OpenSim does not know (its loader skips them)."""
+    """Named XML elements whose type OpenSim does not know (its loader refuses them)."""
     import opensim
 
     unknown = []
@@ -184,7 +184,7 @@ def _unknown_components(text: str) -> list[str]:
         tag, name = match.group(1), match.group(2)
         if opensim.OpenSimObject.getDefaultInstanceOfType(tag) is None:
             line = text.count("\n", 0, match.start()) + 1
-            unknown.append(f'line {line}: <{tag} name="{name}">: unknown component, skipped')
+            unknown.append(f'line {line}: <{tag} name="{name}">: an unknown component')
     return unknown
 
 
@@ -219,9 +219,12 @@ def import_osim(
     started = time.perf_counter()
     path = Path(path)
     text = _check_xml(path)
+    unknown = _unknown_components(text)
+    if unknown:
+        more = f" (and {len(unknown) - 1} more)" if len(unknown) > 1 else ""
+        raise SpecError(f"{path}: {unknown[0]}{more}; OpenSim cannot load it; refused")
     model, state = _load_model(path)
     report = ImportReport(model=path.name)
-    report.dropped += [f"{path.name}: {line}" for line in _unknown_components(text)]
     try:
         body = _import(model, state, report, name or path.stem, contacts)
     except UnsupportedPart as exc:

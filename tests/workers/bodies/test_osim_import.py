@@ -1,0 +1,170 @@
+"""Importing OpenSim models as neutral bodies: the six example models, what the import keeps
+(checked against OpenSim on the original file), and bad input (real ``opensim``)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import opensim
+import pytest
+import yaml
+from gaitforge.service.cli import app
+from gaitforge.workers.bodies import load_body
+from gaitforge.workers.bodies.functions import evaluate
+from gaitforge.workers.bodies.osim_import import import_osim
+from gaitforge.workers.spec_io import SpecError
+from typer.testing import CliRunner
+
+MODELS = Path(__file__).resolve().parents[3] / "examples" / "models"
+EXPECTED = {  # model: (free dofs, coupled dofs, muscles)
+    "gait10dof18musc": (10, 4, 18),
+    "leg6dof9musc": (6, 8, 9),
+    "arm26": (2, 0, 6),
+    "gait2354_simbody": (23, 4, 54),
+    "gait2392_millard2012muscle": (23, 4, 92),
+    "Rajagopal2016": (37, 14, 80),
+}
+runner = CliRunner()
+
+
+@pytest.mark.parametrize("model", sorted(EXPECTED))
+def test_every_example_model_imports_quickly_and_whole(model: str) -> None:
+    result = import_osim(MODELS / f"{model}.osim")
+    free, coupled, muscles = EXPECTED[model]
+    body = result.body
+    assert result.report.seconds < 30
+    assert len(body.dof_names) - len(body.coupled_dofs) == free
+    assert len(body.coupled_dofs) == coupled
+    assert len(body.muscles) == muscles
+    reference = opensim.Model(str(MODELS / f"{model}.osim"))
+    bodies = reference.getBodySet()
+    masses = {bodies.get(i).getName(): bodies.get(i).getMass() for i in range(bodies.getSize())}
+    for segment in body.segments:
+        assert segment.mass == pytest.approx(max(masses[segment.name], 1e-3))
+
+
+def test_the_knee_translation_follows_opensims_spline() -> None:
+    """gait2392's knee: the tibia's offset from the femur over the knee's range, read from
+    OpenSim's own kinematics, equals the imported coupled dofs' functions."""
+    body = import_osim(MODELS / "gait2392_millard2012muscle.osim").body
+    model = opensim.Model(str(MODELS / "gait2392_millard2012muscle.osim"))
+    state = model.initSystem()
+    knee = model.getCoordinateSet().get("knee_angle_r")
+    femur, tibia = model.getBodySet().get("femur_r"), model.getBodySet().get("tibia_r")
+    slides = [d for d in body.joint_of_dof("knee_angle_r").dofs if d.type == "slide"]
+    assert [d.coupled.coordinate for d in slides] == ["knee_angle_r", "knee_angle_r"]
+    for angle in np.linspace(-2.0, 0.1, 8):
+        knee.setValue(state, float(angle))
+        model.realizePosition(state)
+        offset = tibia.findStationLocationInAnotherFrame(state, opensim.Vec3(0, 0, 0), femur)
+        expected = np.zeros(3)
+        for dof in slides:
+            expected += np.asarray(dof.axis) * float(evaluate(dof.coupled.function, angle))
+        parent = np.asarray(body.joint_of_dof("knee_angle_r").location_in_parent)
+        got = np.array([offset.get(i) for i in range(3)])
+        np.testing.assert_allclose(got, parent + expected, atol=1e-9)
+
+
+def test_a_coordinate_coupler_becomes_dofs_coupled_to_the_independent_coordinate() -> None:
+    result = import_osim(MODELS / "Rajagopal2016.osim")
+    patella = result.body.joint_of("patella_r")
+    assert patella.dofs and all(d.coupled for d in patella.dofs)
+    assert {d.coupled.coordinate for d in patella.dofs} == {"knee_angle_r"}
+    assert "knee_angle_r_beta" not in result.body.dof_names
+    assert any("knee_angle_r_beta" in note for note in result.report.notes)
+
+
+def test_conditional_and_moving_points_and_ellipsoids_are_kept() -> None:
+    gait = import_osim(MODELS / "gait10dof18musc.osim").body
+    vasti = next(m for m in gait.muscles if m.name == "vasti_r")
+    conditional = [p for p in vasti.points if p.active_when]
+    moving = [p for p in vasti.points if p.moves_with]
+    assert conditional[0].active_when.coordinate == "knee_angle_r"
+    assert conditional[0].active_when.range == pytest.approx((-2.61799, -1.42))
+    assert moving[0].moves_with.coordinate == "knee_angle_r"
+    arm = import_osim(MODELS / "arm26.osim")
+    assert {w.type for w in arm.body.wrap_objects} == {"cylinder", "ellipsoid"}
+
+
+def test_the_cli_writes_a_body_file_that_loads_back_and_its_report(tmp_path: Path) -> None:
+    args = ["bodies", "import", str(MODELS / "leg6dof9musc.osim"), "--out", str(tmp_path)]
+    result = runner.invoke(app, [*args, "--json"])
+    assert result.exit_code == 0, result.output
+    outcome = json.loads(result.stdout)
+    body = load_body(outcome["body_file"])
+    assert body == import_osim(MODELS / "leg6dof9musc.osim").body
+    report = Path(outcome["report_file"]).read_text()
+    assert "## Approximated" in report and "toes_r" in report  # its zero inertia raised
+    again = runner.invoke(app, args)
+    assert again.exit_code == 2 and "--overwrite" in again.stderr
+    assert len(again.stderr.strip().splitlines()) == 1
+
+
+def test_foot_contacts_follow_the_rule_and_a_contacts_file_replaces_them(tmp_path: Path) -> None:
+    body = import_osim(MODELS / "gait2392_millard2012muscle.osim").body
+    feet = {s.name: (s.segment, s.foot) for s in body.contact_spheres}
+    assert feet == {
+        "r_heel": ("calcn_r", "foot_right"),
+        "r_toe": ("toes_r", "foot_right"),
+        "l_heel": ("calcn_l", "foot_left"),
+        "l_toe": ("toes_l", "foot_left"),
+    }
+    contacts = tmp_path / "contacts.yaml"
+    sphere = {"name": "r_ball", "segment": "calcn_r", "location": [0.15, 0, 0], "radius": 0.02}
+    contacts.write_text(yaml.safe_dump([sphere]))
+    replaced = import_osim(MODELS / "gait2392_millard2012muscle.osim", contacts=contacts).body
+    assert [s.name for s in replaced.contact_spheres] == ["r_ball"]
+    contacts.write_text(yaml.safe_dump([{**sphere, "radius": -1}]))
+    with pytest.raises(SpecError, match=r"contacts.yaml: 0.radius"):
+        import_osim(MODELS / "gait2392_millard2012muscle.osim", contacts=contacts)
+
+
+def _cli_error(*args: str) -> str:
+    result = runner.invoke(app, ["bodies", "import", *args])
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, lines
+    return lines[0]
+
+
+def test_bad_models_are_refused_in_one_line_naming_the_element(tmp_path: Path) -> None:
+    out = str(tmp_path / "out")
+    text = (MODELS / "arm26.osim").read_text()
+    assert "cannot read the model" in _cli_error(str(tmp_path / "missing.osim"), "--out", out)
+    truncated = tmp_path / "truncated.osim"
+    truncated.write_text(text[: len(text) // 2])
+    assert "line" in _cli_error(str(truncated), "--out", out)
+    assert "truncated or malformed" in _cli_error(str(truncated), "--out", out)
+    unknown = tmp_path / "unknown.osim"
+    unknown.write_text(text.replace("<WeldJoint", '<Bogus name="strange" /><WeldJoint', 1))
+    assert '<Bogus name="strange">: an unknown component' in _cli_error(str(unknown), "--out", out)
+    other = tmp_path / "other.osim"
+    other.write_text("<?xml version='1.0'?><Storage />")
+    assert "not an OpenSim model" in _cli_error(str(other), "--out", out)
+    assert "ending in .osim" in _cli_error(str(truncated.with_suffix(".txt")), "--out", out)
+
+
+def test_an_unsupported_joint_names_its_path(tmp_path: Path) -> None:
+    model = opensim.Model()
+    model.setName("one_ellipsoid")
+    bone = opensim.Body("bone", 1.0, opensim.Vec3(0), opensim.Inertia(0.1, 0.1, 0.1))
+    model.addBody(bone)
+    joint = opensim.EllipsoidJoint(
+        "shoulder",
+        model.getGround(),
+        opensim.Vec3(0),
+        opensim.Vec3(0),
+        bone,
+        opensim.Vec3(0),
+        opensim.Vec3(0),
+        opensim.Vec3(0.1, 0.2, 0.3),
+    )
+    model.addJoint(joint)
+    model.finalizeConnections()
+    path = tmp_path / "one_ellipsoid.osim"
+    model.printToXML(str(path))
+    with pytest.raises(SpecError, match=r"/jointset/shoulder: joint type EllipsoidJoint"):
+        import_osim(path)
