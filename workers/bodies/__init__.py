@@ -24,8 +24,13 @@ def available_bodies() -> list[str]:
 
 @lru_cache(maxsize=16)
 def load_body(name_or_path: str) -> Body:
-    """Load a shipped body by name, or any body file by path."""
+    """Load a shipped body by name, any body file by path, or an OpenSim model (``.osim``:
+    imported as ``gaitforge bodies import`` does, which also writes its report)."""
     path = Path(name_or_path)
+    if path.suffix == ".osim":
+        from gaitforge.workers.bodies.osim_import import import_osim
+
+        return import_osim(path).body
     if path.suffix not in {".yaml", ".yml"}:
         path = _data_dir() / f"{name_or_path}.yaml"
         if not path.exists():

@@ -68,8 +68,14 @@ logger = logging.getLogger(__name__)
 
 FOOT_SPHERE_RADIUS = 0.05
 """m: radius of the default foot contact spheres (the 2017 challenge model's)."""
-FOOT_SPHERE_LOCATION = (0.03, 0.04, 0.0)
-"""m, segment frame: centre of a default foot sphere on a ``calcn_*`` or ``toes_*`` segment."""
+FOOT_SPHERES = {
+    # segment stem: (sphere name, location in OpenSim's body frame for the right side, m)
+    "calcn": [("heel", (0.03, 0.04, 0.0))],
+    "toes": [("toe_lateral", (0.03, 0.04, 0.03)), ("toe_medial", (0.03, 0.04, -0.03))],
+}
+"""The default rule: the 2017 challenge model's heel and toe spheres, the toe split in two
+across the foot so that a 3-D foot stands on three points (Z is to the right: a left toe's
+lateral sphere is at -Z)."""
 
 
 @dataclass
@@ -78,19 +84,19 @@ class ImportResult:
     report: ImportReport
 
 
-# ---- wraps, markers, contacts ------------------------------------------------------------
-
-
 def default_foot_contacts(segments: list[str], frames: dict[str, Frame]) -> list[ContactSphere]:
-    """The rule for a model without foot contact: a sphere of ``FOOT_SPHERE_RADIUS`` at
-    ``FOOT_SPHERE_LOCATION`` (OpenSim body frame) on each ``calcn_r``/``calcn_l`` (heel) and
-    ``toes_r``/``toes_l`` (toe) segment, as the 2017 challenge model placed them; none when
-    the model lacks those segments."""
+    """The rule for a model without foot contact (:data:`FOOT_SPHERES`): on each
+    ``calcn_r``/``calcn_l`` a heel sphere, on each ``toes_r``/``toes_l`` a lateral and a
+    medial toe sphere, of radius :data:`FOOT_SPHERE_RADIUS`; none when the model lacks those
+    segments."""
     spheres = []
-    for side in ("r", "l"):
-        for segment, label in ((f"calcn_{side}", "heel"), (f"toes_{side}", "toe")):
-            if segment in segments:
-                location = frames[segment].point_in(np.asarray(FOOT_SPHERE_LOCATION))
+    for side, mirror in (("r", 1.0), ("l", -1.0)):
+        for stem, placed in FOOT_SPHERES.items():
+            segment = f"{stem}_{side}"
+            if segment not in segments:
+                continue
+            for label, (x, y, z) in placed:
+                location = frames[segment].point_in(np.array([x, y, mirror * z]))
                 spheres.append(
                     ContactSphere(
                         name=f"{side}_{label}",
@@ -327,10 +333,9 @@ def _contacts(
     default = default_foot_contacts(segments, ctx.frames)
     if default:
         ctx.report.notes.append(
-            "the model has no foot contact: spheres of radius "
-            f"{FOOT_SPHERE_RADIUS} m at {list(FOOT_SPHERE_LOCATION)} on "
-            f"{sorted({s.segment for s in default})} (the default rule; --contacts FILE "
-            "replaces it)"
+            f"the model has no foot contact: {len(default)} spheres of radius "
+            f"{FOOT_SPHERE_RADIUS} m on {sorted({s.segment for s in default})}, a heel and two "
+            "toes a foot (the default rule; --contacts FILE replaces it)"
         )
     else:
         ctx.report.notes.append(

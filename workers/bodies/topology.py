@@ -28,12 +28,15 @@ class Topology:
     """Names and relations of a body's parts (every mapping in the body's order).
 
     Attributes:
-        dof_defaults: every non-root dof and its default value (rad or m).
-        root_dofs: dofs that place the body in the world (never locked by a scene).
+        dof_defaults: every free non-root dof and its default value (rad or m).
+        root_dofs: free dofs that place the body in the world (never locked by a scene).
         root_defaults: initial values of root dofs given as hinges/slides (rad or m).
         muscle_spans: each muscle and the dofs its path crosses.
         contact_geoms: all the body's geoms that may touch the ground (feet included).
         feet: foot name -> its contact geoms (ground reaction forces are summed per foot).
+        coupled: dofs that are functions of another (imported bodies' coupled dofs) -> the
+            free dof that drives each; they are never kept or locked on their own: they
+            follow their driver.
     """
 
     dof_defaults: dict[str, float]
@@ -42,14 +45,18 @@ class Topology:
     muscle_spans: dict[str, list[str]]
     contact_geoms: list[str]
     feet: dict[str, list[str]] = field(default_factory=dict)
+    coupled: dict[str, str] = field(default_factory=dict)
 
     @property
     def muscles(self) -> list[str]:
         return list(self.muscle_spans)
 
     def to_data(self) -> dict[str, Any]:
-        """Plain data (YAML-ready; order kept)."""
-        return asdict(self)
+        """Plain data (YAML-ready; order kept; no ``coupled`` when there is none)."""
+        data = asdict(self)
+        if not self.coupled:
+            del data["coupled"]
+        return data
 
     @classmethod
     def from_data(cls, data: dict[str, Any]) -> Topology:
@@ -60,6 +67,7 @@ class Topology:
             muscle_spans={str(k): [str(d) for d in v] for k, v in data["muscle_spans"].items()},
             contact_geoms=[str(g) for g in data["contact_geoms"]],
             feet={str(k): [str(g) for g in v] for k, v in data.get("feet", {}).items()},
+            coupled={str(k): str(v) for k, v in data.get("coupled", {}).items()},
         )
 
 
@@ -88,15 +96,21 @@ def _neutral_topology(name: str) -> Topology:
     for sphere in body.contact_spheres:
         if sphere.foot is not None:
             feet.setdefault(sphere.foot, []).append(sphere.name)
+    free = [d for d in root.dofs if d.coupled is None]
     return Topology(
         dof_defaults={
-            d.name: d.default for j in body.ordered_joints() if j is not root for d in j.dofs
+            d.name: d.default
+            for j in body.ordered_joints()
+            if j is not root
+            for d in j.dofs
+            if d.coupled is None
         },
-        root_dofs=[d.name for d in root.dofs],
-        root_defaults={d.name: d.default for d in root.dofs},
+        root_dofs=[d.name for d in free],
+        root_defaults={d.name: d.default for d in free},
         muscle_spans={m.name: body.dofs_spanned(m) for m in body.muscles},
         contact_geoms=[c.name for c in body.contact_spheres],
         feet=feet,
+        coupled=body.coupled_dofs,
     )
 
 

@@ -179,7 +179,7 @@ class Scene(_Strict):
     description: str = Field(default="", max_length=MAX_TEXT_LENGTH)
     body: str = Field(
         max_length=MAX_NAME_LENGTH,
-        description=f"a neutral body name, or one of {list(MJCF_BODIES)}",
+        description=f"a neutral body name or body file (.yaml), or one of {list(MJCF_BODIES)}",
     )
     backends: list[Backend] = Field(default_factory=lambda: ["mujoco"], min_length=1)
     keep: Keep = Keep()

@@ -28,8 +28,8 @@ import time
 
 import numpy as np
 import opensim
-from gaitforge.workers.bodies import available_bodies, load_body
-from gaitforge.workers.bodies.topology import topology_for
+from gaitforge.workers.bodies import load_body
+from gaitforge.workers.bodies.topology import MJCF_BODIES, topology_for
 from gaitforge.workers.scenes import Scene, plan_pruning
 from gaitforge.workers.sim.base import (
     HEALTHY,
@@ -67,7 +67,7 @@ class OpenSimSimulator:
 
     def __init__(self, scene: Scene, rebuild_every: int | None = None) -> None:
         quiet_opensim_log()
-        if scene.body not in available_bodies():
+        if scene.body in MJCF_BODIES:
             raise ValueError(f"body {scene.body!r}: OpenSim runs neutral bodies only")
         self.scene = scene
         self.rebuild_every = rebuild_every or scene.opensim.rebuild_every

@@ -107,10 +107,14 @@ def test_foot_contacts_follow_the_rule_and_a_contacts_file_replaces_them(tmp_pat
     feet = {s.name: (s.segment, s.foot) for s in body.contact_spheres}
     assert feet == {
         "r_heel": ("calcn_r", "foot_right"),
-        "r_toe": ("toes_r", "foot_right"),
+        "r_toe_lateral": ("toes_r", "foot_right"),
+        "r_toe_medial": ("toes_r", "foot_right"),
         "l_heel": ("calcn_l", "foot_left"),
-        "l_toe": ("toes_l", "foot_left"),
+        "l_toe_lateral": ("toes_l", "foot_left"),
+        "l_toe_medial": ("toes_l", "foot_left"),
     }
+    lateral = {s.name: s.location[2] for s in body.contact_spheres if "lateral" in s.name}
+    assert lateral["r_toe_lateral"] > 0 > lateral["l_toe_lateral"]  # Z is to the right
     contacts = tmp_path / "contacts.yaml"
     sphere = {"name": "r_ball", "segment": "calcn_r", "location": [0.15, 0, 0], "radius": 0.02}
     contacts.write_text(yaml.safe_dump([sphere]))
