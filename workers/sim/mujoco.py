@@ -24,6 +24,7 @@ from gaitforge.workers.sim.base import (
     SimState,
     check_pose_names,
 )
+from gaitforge.workers.sim.mjcf_couplings import set_coupled_qpos
 from gaitforge.workers.sim.mujoco_compile import OBSTACLE_PREFIX, compile_scene
 from gaitforge.workers.sim.mujoco_drawing import body_frames, muscle_paths
 from gaitforge.workers.sim.mujoco_pose import PoseSetter
@@ -139,6 +140,7 @@ class MujocoSimulator:
         noise = self.scene.init_noise
         jitter = self._rng.uniform(-noise, noise, len(self._qadr))
         d.qpos[self._qadr] = np.clip(d.qpos[self._qadr] + jitter, self._qlo, self._qhi)
+        set_coupled_qpos(m, d)  # an imported body's coupled dofs follow their drivers
         self._place_obstacles()
         self._touch_floor()
         floor = self.scene.mujoco.muscle_min_activation

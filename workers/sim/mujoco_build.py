@@ -14,18 +14,51 @@ MuJoCo's muscle has no pennation, so its peak force is the max isometric force p
 the tendon, ``F_max cos(pennation)``, as a pennated Hill muscle delivers at optimal length.
 Its passive force follows Thelen 2003's (see ``muscle_curves``); MuJoCo's default passive
 curve is two to three times stiffer than the reference's.
+
+Bodies imported from OpenSim (``gaitforge bodies import``) use features MuJoCo lacks or has
+in another form:
+
+* a joint's ``orientation_in_parent`` (X-Y-Z body-fixed Euler angles) is the child body's
+  ``quat``; products of inertia make the body's ``fullinertia``;
+* MuJoCo refuses principal moments of inertia that break the triangle inequality
+  (``A + B >= C``), which OpenSim accepts (leg6dof9musc's toes: 1e-6, 1e-6, 9e-4 kg m^2):
+  the compiler's ``balanceinertia`` replaces such a segment's moments by their mean;
+* a coupled dof is an unlimited joint held to its driver by a quartic polynomial (a joint
+  equality ``couple_<dof>``): see :mod:`workers.sim.mjcf_couplings`, which also reports
+  each polynomial's fit error and places coupled joints exactly;
+* MuJoCo has no conditional site: a conditional path point is kept (as an ordinary site)
+  iff the default of its coordinate lies in its active range, and dropped otherwise, unless
+  dropping it would leave a wrap object or the path's end without a site (then it is kept,
+  with a warning). The path is thus right about the default pose only;
+* MuJoCo has no moving site: a moving path point is a fixed site at ``location`` (its place
+  at its coordinate's default);
+* MuJoCo's tendons wrap only spheres and cylinders: an ellipsoid wrap object is a sphere of
+  its ``radius``. A wrap object's ``orientation`` (X-Y-Z Euler angles), where given, turns
+  its geom; without it a cylinder's +Z is turned onto ``axis``.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 
 import mujoco
 import numpy as np
-from gaitforge.workers.bodies.schema import GROUND, Body, PathPoint, WrapObject
+from gaitforge.workers.bodies.schema import (
+    GROUND,
+    Body,
+    Muscle,
+    PathElement,
+    PathPoint,
+    Vec3,
+    WrapObject,
+    WrapRef,
+)
+from gaitforge.workers.sim.mjcf_couplings import add_couplings
 from gaitforge.workers.sim.mujoco_warnings import route_warnings
 from gaitforge.workers.sim.muscle_curves import fit_mujoco_fpmax
 
+logger = logging.getLogger(__name__)
 route_warnings()  # MuJoCo's warnings to logging, not to MUJOCO_LOG.TXT in the cwd
 
 FLOOR = "floor"
@@ -52,6 +85,17 @@ def quat_from_z(axis: tuple[float, float, float]) -> np.ndarray:
     return quat
 
 
+def quat_from_euler_xyz(angles: Vec3) -> np.ndarray:
+    """Quaternion (w, x, y, z) of body-fixed X-Y-Z Euler angles (rad), OpenSim's frame
+    ``orientation``: ``R = Rx(a) @ Ry(b) @ Rz(c)``."""
+    quat = np.array([1.0, 0.0, 0.0, 0.0])
+    for axis, angle in zip(np.eye(3), angles, strict=True):
+        turn = np.zeros(4)
+        mujoco.mju_axisAngle2Quat(turn, axis, float(angle))
+        mujoco.mju_mulQuat(quat, quat.copy(), turn)
+    return quat
+
+
 def _add_floor(spec: mujoco.MjSpec, friction: float) -> None:
     spec.worldbody.add_geom(
         name=FLOOR,
@@ -71,14 +115,19 @@ def _add_segments(spec: mujoco.MjSpec, body: Body) -> dict[str, mujoco.MjsBody]:
         mj_body = bodies[joint.parent].add_body(
             name=seg.name,
             pos=list(joint.location_in_parent),
+            quat=quat_from_euler_xyz(joint.orientation_in_parent).tolist(),
             mass=seg.mass,
             ipos=list(seg.com),
-            inertia=list(seg.inertia),
             explicitinertial=True,
         )
+        if any(seg.inertia_products):  # MuJoCo's order: ixx iyy izz ixy ixz iyz
+            mj_body.fullinertia = [*seg.inertia, *seg.inertia_products]
+        else:
+            mj_body.inertia = list(seg.inertia)
         # The root's dofs place the body in the world: never limited (OpenSim clamps no
         # coordinate either). A range there is a wall: gait2d's pelvis_tx range of +-5 m
-        # stopped every walker 5 m from the origin.
+        # stopped every walker 5 m from the origin. A coupled dof follows its driver
+        # (``mjcf_couplings``): a limit of its own would fight the coupling.
         in_world = joint.parent == GROUND
         for dof in joint.dofs:
             kind = (
@@ -89,7 +138,9 @@ def _add_segments(spec: mujoco.MjSpec, body: Body) -> dict[str, mujoco.MjsBody]:
                 type=kind,
                 axis=list(dof.axis),
                 range=list(dof.limit.range if dof.limit else dof.range),
-                limited=mujoco.mjtLimited.mjLIMITED_TRUE if dof.limited and not in_world else 0,
+                limited=mujoco.mjtLimited.mjLIMITED_TRUE
+                if dof.limited and not in_world and dof.coupled is None
+                else 0,
             )
         if seg.length_hint > 0:
             mj_body.add_geom(
@@ -107,13 +158,26 @@ def _add_segments(spec: mujoco.MjSpec, body: Body) -> dict[str, mujoco.MjsBody]:
 
 
 def _add_wrap(mj_body: mujoco.MjsBody, wrap: WrapObject) -> None:
+    """A cylinder or sphere geom (an ellipsoid becomes the sphere of its ``radius``)."""
     is_cyl = wrap.type == "cylinder"
+    quat = (
+        quat_from_euler_xyz(wrap.orientation)
+        if wrap.orientation is not None
+        else quat_from_z(wrap.axis)
+    )
+    if wrap.type == "ellipsoid":
+        logger.info(
+            "wrap object %r: ellipsoid of semi-axes %s wrapped as a sphere of radius %g m",
+            wrap.name,
+            wrap.radii,
+            wrap.radius,
+        )
     mj_body.add_geom(
         name=wrap.name,
         type=mujoco.mjtGeom.mjGEOM_CYLINDER if is_cyl else mujoco.mjtGeom.mjGEOM_SPHERE,
         size=[wrap.radius, wrap.length / 2 if is_cyl else 0, 0],
         pos=list(wrap.location),
-        quat=quat_from_z(wrap.axis),
+        quat=quat.tolist(),
         contype=0,
         conaffinity=0,
         group=WRAP_GROUP,
@@ -121,6 +185,41 @@ def _add_wrap(mj_body: mujoco.MjsBody, wrap: WrapObject) -> None:
     )
     if wrap.side is not None:
         mj_body.add_site(name=f"{wrap.name}_side", pos=list(wrap.side), group=WRAP_GROUP)
+
+
+def _point_kept(point: PathPoint, body: Body) -> bool:
+    """A conditional point is kept iff its coordinate's default lies in its active range."""
+    if point.active_when is None:
+        return True
+    lo, hi = point.active_when.range
+    return lo <= body.dof(point.active_when.coordinate).default <= hi
+
+
+def _mujoco_path(muscle: Muscle, body: Body) -> list[tuple[int, PathElement]]:
+    """The muscle's path elements MuJoCo keeps, with their indices in ``muscle.path``.
+
+    Inactive conditional points (:func:`_point_kept`) are dropped, except one whose absence
+    would leave a wrap object without a site on each side or the path without its ends."""
+    path = muscle.path
+    kept: list[tuple[int, PathElement]] = []
+    for i, element in enumerate(path):
+        if isinstance(element, PathPoint) and not _point_kept(element, body):
+            needed = (
+                i in (0, len(path) - 1)
+                or isinstance(path[i - 1], WrapRef)
+                or isinstance(path[i + 1], WrapRef)
+            )
+            if not needed:
+                logger.info("muscle %r: conditional point %d inactive at default", muscle.name, i)
+                continue
+            logger.warning(
+                "muscle %r: conditional point %d is inactive at its coordinate's default but "
+                "kept: the path needs a site there",
+                muscle.name,
+                i,
+            )
+        kept.append((i, element))
+    return kept
 
 
 def _add_muscles(spec: mujoco.MjSpec, body: Body, bodies: dict[str, mujoco.MjsBody]) -> None:
@@ -136,7 +235,7 @@ def _add_muscles(spec: mujoco.MjSpec, body: Body, bodies: dict[str, mujoco.MjsBo
             * muscle.max_isometric_force
             / (muscle.max_contraction_velocity * muscle.optimal_fiber_length),
         )
-        for i, element in enumerate(muscle.path):
+        for i, element in _mujoco_path(muscle, body):
             if isinstance(element, PathPoint):
                 site = f"{muscle.name}_p{i}"
                 bodies[element.segment].add_site(name=site, pos=list(element.location))
@@ -192,8 +291,10 @@ def build_spec(body: Body) -> mujoco.MjSpec:
     spec.option.gravity = [0.0, -9.81, 0.0]
     spec.compiler.autolimits = True
     spec.compiler.degree = False
+    spec.compiler.balanceinertia = True  # see the module docstring (imported bodies)
     _add_floor(spec, body.contact.static_friction)
     bodies = _add_segments(spec, body)
+    add_couplings(spec, body)
     _add_muscles(spec, body, bodies)
     _add_contacts(body, bodies)
     for marker in body.markers:
