@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 from gaitforge.service.cli_options import AsJson
 from gaitforge.service.console import err, fail, out, print_json
+from gaitforge.service.conversion_commands import compare
 from gaitforge.service.ops import SpecError
 from gaitforge.service.ops import bodies as ops
 
@@ -62,3 +63,6 @@ def import_model(
     )
     for line in result.notes:
         err.print(f"note: {line}", highlight=False, soft_wrap=True)
+
+
+bodies_app.command("compare")(compare)
