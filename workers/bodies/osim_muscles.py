@@ -19,6 +19,7 @@ from gaitforge.workers.bodies.osim_basics import (
     rotation_xyz,
     vec3_array,
 )
+from gaitforge.workers.bodies.osim_stand_ins import fit_stand_ins
 from gaitforge.workers.bodies.schema import (
     ActiveRange,
     MovingLocation,
@@ -149,6 +150,8 @@ def _muscle(muscle: Any, wraps: dict[str, WrapObject], ctx: ImportContext) -> Mu
     points = [_path_point(point_set.get(i), ctx) for i in range(point_set.getSize())]
     gaps: dict[int, str] = {}
     wrap_set = geometry.getWrapSet()
+    if wrap_set.getSize() == 0:
+        points = fit_stand_ins(muscle, points, ctx)
     for i in range(wrap_set.getSize()):
         path_wrap = wrap_set.get(i)
         name = path_wrap.get_wrap_object()

@@ -133,6 +133,16 @@ class MovingLocation(_Strict):
     z: Function
 
 
+class StandIn(_Strict):
+    """How a backend without conditional or moving points stands in for such a point: a
+    fixed point (on ``segment`` at ``location``, each defaulting to the point's own), or
+    none (``keep: false``). The importer picks it to keep the muscle's moment arms."""
+
+    keep: bool = True
+    segment: str | None = None
+    location: Vec3 | None = None
+
+
 class PathPoint(_Strict):
     """A via point of a muscle path: fixed, conditional or moving."""
 
@@ -140,6 +150,12 @@ class PathPoint(_Strict):
     location: Vec3 = Field(description="m, segment frame; a moving point's at its dof's default")
     active_when: ActiveRange | None = None
     moves_with: MovingLocation | None = None
+    stand_in: StandIn | None = Field(
+        default=None,
+        description="a conditional or moving point's fixed stand-in where a backend has neither "
+        "(none: a conditional point is kept iff active at its dof's default; a moving one is "
+        "fixed at location)",
+    )
 
 
 class WrapRef(_Strict):
@@ -302,6 +318,10 @@ class Body(_Strict):
             for p in m.points:
                 if p.segment not in seg_names:
                     raise ValueError(f"muscle {m.name!r}: unknown segment {p.segment!r}")
+                if p.stand_in and p.stand_in.segment and p.stand_in.segment not in seg_names:
+                    raise ValueError(
+                        f"muscle {m.name!r}: a stand-in on unknown segment {p.stand_in.segment!r}"
+                    )
                 for depends in (p.active_when, p.moves_with):
                     if depends is not None and depends.coordinate not in free:
                         raise ValueError(

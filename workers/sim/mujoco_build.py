@@ -26,12 +26,13 @@ in another form:
 * a coupled dof is an unlimited joint held to its driver by a quartic polynomial (a joint
   equality ``couple_<dof>``): see :mod:`workers.sim.mjcf_couplings`, which also reports
   each polynomial's fit error and places coupled joints exactly;
-* MuJoCo has no conditional site: a conditional path point is kept (as an ordinary site)
-  iff the default of its coordinate lies in its active range, and dropped otherwise, unless
-  dropping it would leave a wrap object or the path's end without a site (then it is kept,
-  with a warning). The path is thus right about the default pose only;
-* MuJoCo has no moving site: a moving path point is a fixed site at ``location`` (its place
-  at its coordinate's default);
+* MuJoCo has neither conditional nor moving sites: a point with a ``stand_in`` (the
+  importer fits one to keep the muscle's moment arms) becomes that fixed site, or none.
+  Without one, a conditional path point is kept (as an ordinary site) iff the default of
+  its coordinate lies in its active range, and dropped otherwise, unless dropping it would
+  leave a wrap object or the path's end without a site (then it is kept, with a warning);
+  a moving path point is a fixed site at ``location`` (its place at its coordinate's
+  default);
 * MuJoCo's tendons wrap only spheres and cylinders: an ellipsoid wrap object is a sphere of
   its ``radius``. A wrap object's ``orientation`` (X-Y-Z Euler angles), where given, turns
   its geom; without it a cylinder's +Z is turned onto ``axis``.
@@ -188,7 +189,10 @@ def _add_wrap(mj_body: mujoco.MjsBody, wrap: WrapObject) -> None:
 
 
 def _point_kept(point: PathPoint, body: Body) -> bool:
-    """A conditional point is kept iff its coordinate's default lies in its active range."""
+    """A conditional point is kept as its stand-in says, or else iff its coordinate's default
+    lies in its active range."""
+    if point.stand_in is not None:
+        return point.stand_in.keep
     if point.active_when is None:
         return True
     lo, hi = point.active_when.range
@@ -238,7 +242,10 @@ def _add_muscles(spec: mujoco.MjSpec, body: Body, bodies: dict[str, mujoco.MjsBo
         for i, element in _mujoco_path(muscle, body):
             if isinstance(element, PathPoint):
                 site = f"{muscle.name}_p{i}"
-                bodies[element.segment].add_site(name=site, pos=list(element.location))
+                stand_in = element.stand_in
+                segment = (stand_in and stand_in.segment) or element.segment
+                location = (stand_in and stand_in.location) or element.location
+                bodies[segment].add_site(name=site, pos=list(location))
                 tendon.wrap_site(site)
             else:
                 side = wraps[element.wrap].side

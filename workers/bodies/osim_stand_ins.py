@@ -1,0 +1,198 @@
+"""Fixed stand-ins for a muscle's conditional and moving path points, for backends that have
+neither (MuJoCo), fitted on the OpenSim model being imported.
+
+Each rotational coordinate the muscle spans is swept over its range (the others at their
+defaults) and OpenSim's own muscle-tendon length is the reference. The
+candidates are, for a conditional point, kept or dropped; for a moving point, fixed where
+the point is at one of the sweep's poses, either on its own segment or on the parent of the
+joint its coordinate turns (a patella-like point rides with the femur). A candidate path's
+length is the sum of its straight pieces; the choice minimises the RMS error of the moment
+arm (``-dL/dq``) over what the conversion allows, summed over the sweeps, then of the length,
+by coordinate descent over the muscle's special points (two passes). A muscle with wrap
+objects keeps the default rule (a straight-piece length would not be its length).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from gaitforge.workers.bodies.osim_basics import ImportContext, as_tuple, vec3_array
+from gaitforge.workers.bodies.schema import PathPoint, StandIn
+
+SWEEP_POINTS = 21
+"""poses per coordinate sweep (and candidate poses of a moving point)"""
+ARM_TOLERANCE_M = 0.002
+ARM_TOLERANCE_SHARE = 0.05
+"""A moment arm is kept if within 2 mm RMS or 5 % of its peak (the conversion's measure)."""
+
+
+@dataclass
+class _Candidate:
+    """One way to stand in for a point: ``ground[k]`` its position at sweep pose ``k`` (None:
+    the point is left out), and the stand-in it would be."""
+
+    ground: np.ndarray | None  # [poses, 3] m
+    stand_in: StandIn
+
+
+def fit_stand_ins(muscle: Any, points: list[PathPoint], ctx: ImportContext) -> list[PathPoint]:
+    """``points`` with a fitted ``stand_in`` on each conditional or moving point (the OpenSim
+    ``muscle`` has no wraps; see the module)."""
+    special = [i for i, p in enumerate(points) if p.active_when or p.moves_with]
+    if not special:
+        return points
+    spanned = _spanned_coordinates(points, ctx)
+    sweeps = [_Sweep(muscle, points, coordinate, ctx) for coordinate in spanned]
+    choice = {i: 0 for i in special}  # index into each point's candidates, summed over sweeps
+    for _ in range(2):
+        for i in special:
+            scores = [
+                sum(s.error({**choice, i: c}) for s in sweeps)
+                for c in range(len(sweeps[0].candidates[i]))
+            ]
+            choice[i] = int(np.argmin(scores))
+    fitted = list(points)
+    for i in special:
+        stand_in = sweeps[0].candidates[i][choice[i]].stand_in
+        fitted[i] = points[i].model_copy(update={"stand_in": stand_in})
+    return fitted
+
+
+def _spanned_coordinates(points: list[PathPoint], ctx: ImportContext) -> list[str]:
+    """The free coordinates of the joints between the segments the points sit on."""
+    parent_of: dict[str, tuple[str, Any]] = {}
+    joints = ctx.model.getJointSet()
+    for i in range(joints.getSize()):
+        joint = joints.get(i)
+        child = joint.getChildFrame().findBaseFrame().getName()
+        parent_of[child] = (joint.getParentFrame().findBaseFrame().getName(), joint)
+
+    def chain(segment: str) -> list[str]:
+        links = [segment]
+        while links[-1] in parent_of:
+            links.append(parent_of[links[-1]][0])
+        return links
+
+    chains = [chain(p.segment) for p in points]
+    common = set.intersection(*(set(c) for c in chains))
+    crossed = {s for c in chains for s in c if s not in common}
+    free = set(ctx.coords.info) - set(ctx.coords.couplers)
+    names = []
+    for segment in sorted(crossed):
+        joint = parent_of[segment][1]
+        for k in range(joint.numCoordinates()):
+            name = joint.get_coordinates(k).getName()
+            if name in free and ctx.coords.info[name].getMotionType() != 2:  # 2: translational
+                names.append(name)
+    return names
+
+
+class _Sweep:
+    """One coordinate swept: OpenSim's length, every point's positions, and each special
+    point's candidates (the same candidates, in the same order, in every sweep)."""
+
+    def __init__(self, muscle: Any, points: list[PathPoint], coordinate: str, ctx: ImportContext):
+        model, state = ctx.model, ctx.state
+        point_set = muscle.getGeometryPath().getPathPointSet()
+        values = _sweep_values(ctx, coordinate)
+        self.step = float(values[1] - values[0])
+        n = len(points)
+        special = [i for i, p in enumerate(points) if p.active_when or p.moves_with]
+        hosts = {i: _moving_places(points[i], point_set.get(i), ctx) for i in special}
+        self.fixed = np.zeros((SWEEP_POINTS, n, 3))
+        self.length = np.zeros(SWEEP_POINTS)
+        hosted = {i: np.zeros((len(hosts[i]), SWEEP_POINTS, 3)) for i in special}
+        info = ctx.coords.info[coordinate]
+        default = info.getValue(state)
+        for k, value in enumerate(values):
+            info.setValue(state, float(value), True)
+            model.realizePosition(state)
+            self.length[k] = muscle.getLength(state)
+            for i in range(n):
+                self.fixed[k, i] = vec3_array(point_set.get(i).getLocationInGround(state))
+            for i in special:
+                for c, (host, local, _) in enumerate(hosts[i]):
+                    hosted[i][c, k] = vec3_array(host.findStationLocationInGround(state, local))
+        info.setValue(state, default, True)
+        model.realizePosition(state)
+        self.candidates = {
+            i: _candidates(points[i], self.fixed[:, i], hosts[i], hosted[i], ctx) for i in special
+        }
+        self.reference_arm = -np.gradient(self.length, self.step)
+
+    def error(self, choice: dict[int, int]) -> float:
+        """RMS moment-arm error over what the conversion allows (2 mm or 5 % of the peak
+        moment arm), plus a tenth of the RMS length error over 2 mm, of a choice."""
+        pieces = []
+        for i in range(self.fixed.shape[1]):
+            if i in choice:
+                ground = self.candidates[i][choice[i]].ground
+                if ground is None:
+                    continue
+                pieces.append(ground)
+            else:
+                pieces.append(self.fixed[:, i])
+        path = np.stack(pieces, axis=1)  # [poses, points, 3]
+        length = np.linalg.norm(np.diff(path, axis=1), axis=2).sum(axis=1)
+        arm = -np.gradient(length, self.step)
+        arm_rms = float(np.sqrt(np.mean((arm - self.reference_arm) ** 2)))
+        length_rms = float(np.sqrt(np.mean((length - self.length) ** 2)))
+        allowed = max(
+            ARM_TOLERANCE_M, ARM_TOLERANCE_SHARE * float(np.abs(self.reference_arm).max())
+        )
+        return arm_rms / allowed + 0.1 * length_rms / ARM_TOLERANCE_M
+
+
+def _sweep_values(ctx: ImportContext, coordinate: str) -> np.ndarray:
+    info = ctx.coords.info[coordinate]
+    return np.linspace(info.getRangeMin(), info.getRangeMax(), SWEEP_POINTS)
+
+
+def _candidates(
+    point: PathPoint,
+    ground: np.ndarray,
+    hosts: list[tuple[Any, Any, StandIn]],
+    hosted: np.ndarray,
+    ctx: ImportContext,
+) -> list[_Candidate]:
+    """A point's stand-ins, the default rule's first, with positions over a sweep: a
+    conditional point kept (``ground``, its own positions) or dropped; a moving point at
+    each of its ``hosts`` places (``hosted[c]``)."""
+    if point.active_when is None:
+        return [_Candidate(hosted[c], stand_in) for c, (_, _, stand_in) in enumerate(hosts)]
+    lo, hi = point.active_when.range
+    default = ctx.coords.info[point.active_when.coordinate].getDefaultValue()
+    keep, drop = _Candidate(ground, StandIn(keep=True)), _Candidate(None, StandIn(keep=False))
+    return [keep, drop] if lo <= default <= hi else [drop, keep]
+
+
+def _moving_places(
+    point: PathPoint, opensim_point: Any, ctx: ImportContext
+) -> list[tuple[Any, Any, StandIn]]:
+    """Where a moving point may be fixed: where it is at each pose of its coordinate's sweep,
+    on its own segment or on the parent of its coordinate's joint (the place nearest its
+    default pose first). Each as (OpenSim body, location there, the stand-in)."""
+    if point.moves_with is None:
+        return []
+    model, state = ctx.model, ctx.state
+    info = ctx.coords.info[point.moves_with.coordinate]
+    default = info.getValue(state)
+    parent = info.getJoint().getParentFrame().findBaseFrame().getName()
+    names = [point.segment] + ([parent] if parent != point.segment and parent in ctx.frames else [])
+    hosts = [model.getBodySet().get(n) for n in names if n != "ground"]
+    values = sorted(_sweep_values(ctx, info.getName()), key=lambda v: abs(v - default))
+    places = []
+    for value in values:
+        info.setValue(state, float(value), True)
+        model.realizePosition(state)
+        where = opensim_point.getLocationInGround(state)
+        for host in hosts:
+            local = model.getGround().findStationLocationInAnotherFrame(state, where, host)
+            location = ctx.frames[host.getName()].point_in(vec3_array(local))
+            stand_in = StandIn(segment=host.getName(), location=as_tuple(location))
+            places.append((host, local, stand_in))
+    info.setValue(state, default, True)
+    model.realizePosition(state)
+    return places
