@@ -298,6 +298,7 @@ def _import(
         "moving path points": sum(
             1 for m in body.muscles for p in m.points if p.moves_with is not None
         ),
+        "fitted stand-ins": sum(1 for m in body.muscles for p in m.points if p.stand_in),
         "wrap objects": len(body.wrap_objects),
         "contact spheres": len(body.contact_spheres),
         "markers": len(body.markers),
