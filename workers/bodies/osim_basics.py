@@ -4,6 +4,7 @@ the body's (:mod:`workers.bodies.functions`), coordinates and their couplers."""
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -78,6 +79,11 @@ def axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     k = axis / np.linalg.norm(axis)
     kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
     return np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
+
+
+def items(opensim_set: Any) -> Iterator[Any]:
+    """The members of an OpenSim set or array (anything with ``getSize`` and ``get``)."""
+    return (opensim_set.get(i) for i in range(opensim_set.getSize()))
 
 
 def vec3_array(v: Any) -> np.ndarray:
@@ -203,8 +209,7 @@ def read_couplers(model: Any, report: ImportReport) -> dict[str, tuple[str, Line
 
     couplers: dict[str, tuple[str, Linear | Spline]] = {}
     constraints = model.getConstraintSet()
-    for i in range(constraints.getSize()):
-        c = constraints.get(i)
+    for c in items(constraints):
         where = c.getAbsolutePathString()
         coupler = opensim.CoordinateCouplerConstraint.safeDownCast(c)
         if coupler is None or not c.get_isEnforced():
@@ -260,9 +265,5 @@ def coordinate_of(socket_path: str) -> str:
 
 
 def read_coordinates(model: Any, report: ImportReport) -> Coordinates:
-    coordinate_set = model.getCoordinateSet()
-    info = {
-        coordinate_set.get(i).getName(): coordinate_set.get(i)
-        for i in range(coordinate_set.getSize())
-    }
+    info = {c.getName(): c for c in items(model.getCoordinateSet())}
     return Coordinates(info=info, couplers=read_couplers(model, report))

@@ -49,6 +49,7 @@ from gaitforge.workers.bodies.osim_basics import (
     ImportReport,
     UnsupportedPart,
     as_tuple,
+    items,
     read_coordinates,
     vec3_array,
 )
@@ -113,8 +114,7 @@ def _model_contacts(ctx: ImportContext) -> list[ContactSphere]:
 
     spheres = []
     geometry = ctx.model.getContactGeometrySet()
-    for i in range(geometry.getSize()):
-        g = geometry.get(i)
+    for g in items(geometry):
         where = g.getAbsolutePathString()
         sphere = opensim.ContactSphere.safeDownCast(g)
         if sphere is None:
@@ -250,20 +250,16 @@ def _import(
     model: Any, state: Any, report: ImportReport, name: str, contacts: Path | str | None
 ) -> Body:
     ctx = ImportContext(model, state, read_coordinates(model, report), child_frames(model), report)
-    body_set = model.getBodySet()
-    segments = [
-        read_segment(body_set.get(i), ctx.frames[body_set.get(i).getName()], report)
-        for i in range(body_set.getSize())
-    ]
+    bodies = list(items(model.getBodySet()))
+    segments = [read_segment(b, ctx.frames[b.getName()], report) for b in bodies]
     joints = read_joints(ctx)
     wraps: dict[str, WrapObject] = {}
     used: set[str] = set()
-    for i in range(body_set.getSize()):
-        wrap_set = body_set.get(i).getWrapObjectSet()
-        for k in range(wrap_set.getSize()):
-            wrap = read_wrap(wrap_set.get(k), body_set.get(i).getName(), ctx, used)
+    for body in bodies:
+        for obj in items(body.getWrapObjectSet()):
+            wrap = read_wrap(obj, body.getName(), ctx, used)
             if wrap is not None:
-                wraps[wrap_set.get(k).getName()] = wrap
+                wraps[obj.getName()] = wrap
     muscles = read_muscles(ctx, wraps)
     used_wraps = {w for m in muscles for w in m.wraps}
     markers = _markers(ctx)
@@ -309,8 +305,7 @@ def _import(
 def _markers(ctx: ImportContext) -> list[Marker]:
     markers = []
     marker_set = ctx.model.getMarkerSet()
-    for i in range(marker_set.getSize()):
-        marker = marker_set.get(i)
+    for marker in items(marker_set):
         segment, location = ctx.in_segment(
             marker.getParentFrame(), vec3_array(marker.get_location())
         )

@@ -20,6 +20,7 @@ from gaitforge.workers.bodies.osim_basics import (
     euler_xyz,
     frame_in_base,
     identity_sign,
+    items,
     read_function,
     resolve_coupling,
     vec3_array,
@@ -92,7 +93,7 @@ def _joint_axes(joint: Any, report: ImportReport) -> list[_Axis]:
     for index in (3, 4, 5, 0, 1, 2):  # translations act first, along the joint frame
         ax = transform.getTransformAxis(index)
         names = ax.getCoordinateNamesInArray()
-        coords = [names.get(i) for i in range(names.getSize())]
+        coords = list(items(names))
         label = ax.getName()
         fn = read_function(ax.get_function(), f"{where}/{label}", report)
         if len(coords) > 1:
@@ -235,12 +236,10 @@ def read_segment(body: Any, frame: Frame, report: ImportReport) -> Segment:
 def child_frames(model: Any) -> dict[str, Frame]:
     """Each body's joint child frame in the body's frame (identity for bodies without)."""
     frames = {GROUND: Frame.identity()}
-    body_set = model.getBodySet()
-    for i in range(body_set.getSize()):
-        frames[body_set.get(i).getName()] = Frame.identity()
-    joint_set = model.getJointSet()
-    for i in range(joint_set.getSize()):
-        base, frame = frame_in_base(joint_set.get(i).getChildFrame())
+    for body in items(model.getBodySet()):
+        frames[body.getName()] = Frame.identity()
+    for joint in items(model.getJointSet()):
+        base, frame = frame_in_base(joint.getChildFrame())
         frames[base] = frame
     return frames
 
@@ -248,8 +247,7 @@ def child_frames(model: Any) -> dict[str, Frame]:
 def read_joints(ctx: ImportContext) -> list[Joint]:
     joints, placed = [], set()
     joint_set = ctx.model.getJointSet()
-    for i in range(joint_set.getSize()):
-        joint = joint_set.get(i)
+    for joint in items(joint_set):
         parent, offset = frame_in_base(joint.getParentFrame())
         child, _ = frame_in_base(joint.getChildFrame())
         in_parent = Frame(

@@ -14,6 +14,7 @@ from gaitforge.workers.bodies.osim_basics import (
     coordinate_of,
     euler_xyz,
     frame_in_base,
+    items,
     read_function,
     resolve_coupling,
     rotation_xyz,
@@ -147,13 +148,12 @@ def _muscle(muscle: Any, wraps: dict[str, WrapObject], ctx: ImportContext) -> Mu
     where = muscle.getAbsolutePathString()
     geometry = muscle.getGeometryPath()
     point_set = geometry.getPathPointSet()
-    points = [_path_point(point_set.get(i), ctx) for i in range(point_set.getSize())]
+    points = [_path_point(p, ctx) for p in items(point_set)]
     gaps: dict[int, str] = {}
     wrap_set = geometry.getWrapSet()
     if wrap_set.getSize() == 0:
         points = fit_stand_ins(muscle, points, ctx)
-    for i in range(wrap_set.getSize()):
-        path_wrap = wrap_set.get(i)
+    for path_wrap in items(wrap_set):
         name = path_wrap.get_wrap_object()
         if name not in wraps:
             ctx.report.dropped.append(f"{where}: wraps over {name!r}, which was not imported")
@@ -263,8 +263,7 @@ def read_muscles(ctx: ImportContext, wraps: dict[str, WrapObject]) -> list[Muscl
 
     muscles = []
     force_set = ctx.model.getForceSet()
-    for i in range(force_set.getSize()):
-        force = force_set.get(i)
+    for force in items(force_set):
         where = force.getAbsolutePathString()
         muscle = opensim.Muscle.safeDownCast(force)
         if muscle is None:
@@ -276,14 +275,12 @@ def read_muscles(ctx: ImportContext, wraps: dict[str, WrapObject]) -> list[Muscl
             ctx.report.dropped.append(f"{where}: a disabled muscle")
             continue
         muscles.append(_muscle(muscle, wraps, ctx))
-    kinds = {}
-    for i in range(force_set.getSize()):
-        if opensim.Muscle.safeDownCast(force_set.get(i)) is not None:
-            kind = force_set.get(i).getConcreteClassName()
-            kinds[kind] = kinds.get(kind, 0) + 1
-    if kinds.get("Millard2012EquilibriumMuscle"):
+    millard = sum(
+        1 for f in items(force_set) if f.getConcreteClassName() == "Millard2012EquilibriumMuscle"
+    )
+    if millard:
         ctx.report.approximated.append(
-            f"{kinds['Millard2012EquilibriumMuscle']} Millard 2012 muscles: their passive fibre "
+            f"{millard} Millard 2012 muscles: their passive fibre "
             "curve is kept by its strain at one norm force, with Thelen 2003's shape (4)"
         )
     return muscles

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from gaitforge.workers.bodies.osim_basics import ImportContext, as_tuple, vec3_array
+from gaitforge.workers.bodies.osim_basics import ImportContext, as_tuple, items, vec3_array
 from gaitforge.workers.bodies.schema import PathPoint, StandIn
 
 SWEEP_POINTS = 21
@@ -64,8 +64,7 @@ def _spanned_coordinates(points: list[PathPoint], ctx: ImportContext) -> list[st
     """The free coordinates of the joints between the segments the points sit on."""
     parent_of: dict[str, tuple[str, Any]] = {}
     joints = ctx.model.getJointSet()
-    for i in range(joints.getSize()):
-        joint = joints.get(i)
+    for joint in items(joints):
         child = joint.getChildFrame().findBaseFrame().getName()
         parent_of[child] = (joint.getParentFrame().findBaseFrame().getName(), joint)
 
