@@ -35,9 +35,9 @@ def compare(
     try:
         load_opensim_model(model)  # a bad model fails here, before an import is tried
         if body is None:
-            from gaitforge.workers.bodies.osim_import import import_osim
+            from gaitforge.service.ops.bodies import convert
 
-            converted = import_osim(model).body
+            converted = convert(model).body
         else:
             converted = load_yaml_model(body, Body)
         with err.status(f"measuring {model.name} on OpenSim and MuJoCo"):

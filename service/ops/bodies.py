@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from gaitforge.service.ops.errors import InputError
 from pydantic import BaseModel
+
+if TYPE_CHECKING:  # a heavy import (OpenSim): loaded when an operation runs
+    from gaitforge.workers.bodies.osim_import import ImportResult
 
 
 class BodyImport(BaseModel):
@@ -29,6 +34,21 @@ def list_bodies() -> list[str]:
     return [*available_bodies(), *MJCF_BODIES]
 
 
+def convert(model: Path, *, contacts: Path | None = None, name: str | None = None) -> ImportResult:
+    """The OpenSim ``model`` as a body (``import_osim``), then which muscles keep MuJoCo's
+    side sites on their wraps chosen against the original (``choose_wrap_sides``); the
+    report's time covers both."""
+    from gaitforge.workers.bodies.osim_import import ImportResult, import_osim
+    from gaitforge.workers.fidelity.wrap_sides import choose_wrap_sides
+
+    started = time.perf_counter()
+    result = import_osim(model, contacts=contacts, name=name)
+    body, choices = choose_wrap_sides(model, result.body)
+    result.report.approximated += choices
+    result.report.seconds = time.perf_counter() - started
+    return ImportResult(body=body, report=result.report)
+
+
 def import_body(
     model: Path,
     out_dir: Path,
@@ -38,7 +58,8 @@ def import_body(
     overwrite: bool = False,
 ) -> BodyImport:
     """Import the OpenSim ``model`` into ``out_dir/<name>.yaml`` with its report beside it
-    (``<name>.import.md``).
+    (``<name>.import.md``). Which muscles keep MuJoCo's side sites on their wraps is then
+    chosen against the original (``workers.fidelity.wrap_sides``).
 
     Raises:
         SpecError: the model (or the contacts file) cannot be imported; one line naming the
@@ -47,7 +68,6 @@ def import_body(
             ``overwrite`` is not set.
     """
     from gaitforge.workers.bodies import body_yaml
-    from gaitforge.workers.bodies.osim_import import import_osim
 
     if model.suffix.lower() != ".osim":
         raise InputError("model", f"{model}: an OpenSim model file ending in .osim")
@@ -55,7 +75,7 @@ def import_body(
         raise InputError("name", f"{name!r}: letters, digits, '_' and '-' only")
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError("out", f"{out_dir} is not a folder")
-    result = import_osim(model, contacts=contacts, name=name)
+    result = convert(model, contacts=contacts, name=name)
     body_file = out_dir / f"{result.body.name}.yaml"
     report_file = out_dir / f"{result.body.name}.import.md"
     if body_file.exists() and not overwrite:

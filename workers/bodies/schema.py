@@ -162,6 +162,13 @@ class WrapRef(_Strict):
     """The muscle path wraps over the named wrap object between its neighbouring points."""
 
     wrap: str
+    use_side: bool = Field(
+        default=True,
+        description="MuJoCo: keep to the wrap's side point (its sidesite). MuJoCo then forces "
+        "the path round that side even where it clears the wrap on the other, which OpenSim's "
+        "quadrant does not; the import turns this off where that happens more often than the "
+        "path crossing the wrap from the wrong side",
+    )
 
 
 PathElement = PathPoint | WrapRef

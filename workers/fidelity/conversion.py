@@ -441,7 +441,7 @@ def load_opensim_model(path: Path) -> Any:
         raise SpecError(f"{path}: OpenSim cannot load the model: {shorten(reason, 300)}") from None
 
 
-class _OpenSimSide:
+class OpenSimSide:
     """The original model, posed by coordinate name.
 
     Every coordinate is unlocked unless named in ``locked`` (those are locked at their
@@ -600,7 +600,7 @@ class _OpenSimSide:
 # --------------------------------------------------------------------------- MuJoCo
 
 
-class _MujocoSide:
+class MujocoSide:
     """The model built from the body, posed by joint name."""
 
     def __init__(self, model: mujoco.MjModel) -> None:
@@ -721,13 +721,13 @@ def measure_conversion(
     osim_path = Path(osim_path)
     if poses < 1 or sweep_points < 2 or force_poses < 1 or drop_s < 0:
         raise ValueError("poses >= 1, sweep_points >= 2, force_poses >= 1 and drop_s >= 0")
-    opensim_side = _OpenSimSide(osim_path)
+    opensim_side = OpenSimSide(osim_path)
     try:
         mujoco_model = build_spec(body).compile()
     except ValueError as exc:
         reason = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
         raise SpecError(f"body {body.name!r}: does not build a MuJoCo model: {reason}") from None
-    mujoco_side = _MujocoSide(mujoco_model)
+    mujoco_side = MujocoSide(mujoco_model)
     notes: list[str] = []
     missing = [c for c in opensim_side.free if c not in mujoco_side.joints]
     if missing:
@@ -739,7 +739,7 @@ def measure_conversion(
         body=body.name,
         masses=_masses(opensim_side, mujoco_side, notes),
         kinematics=_kinematics(opensim_side, mujoco_side, poses, rng),
-        pairs=_sweeps(opensim_side, mujoco_side, sweep_points, notes),
+        pairs=sweep_pairs(opensim_side, mujoco_side, sweep_points, notes),
         forces=_forces(opensim_side, mujoco_side, force_poses, rng),
         drop=None,
         notes=notes,
@@ -755,7 +755,7 @@ def measure_conversion(
     return report
 
 
-def _masses(osim: _OpenSimSide, mj: _MujocoSide, notes: list[str]) -> list[MassRow]:
+def _masses(osim: OpenSimSide, mj: MujocoSide, notes: list[str]) -> list[MassRow]:
     rows = [
         MassRow(
             name,
@@ -786,7 +786,7 @@ def _random_pose(
 
 
 def _kinematics(
-    osim: _OpenSimSide, mj: _MujocoSide, poses: int, rng: np.random.Generator
+    osim: OpenSimSide, mj: MujocoSide, poses: int, rng: np.random.Generator
 ) -> Kinematics:
     names = [n for n in osim.bodies if n in mj.bodies]
     distances = np.zeros((poses, len(names)))
@@ -809,9 +809,18 @@ def _kinematics(
     )
 
 
-def _sweeps(osim: _OpenSimSide, mj: _MujocoSide, points: int, notes: list[str]) -> list[PairResult]:
-    """Every muscle over every rotational free coordinate it spans (OpenSim's topology)."""
+def sweep_pairs(
+    osim: OpenSimSide,
+    mj: MujocoSide,
+    points: int,
+    notes: list[str],
+    only: list[str] | None = None,
+) -> list[PairResult]:
+    """Every muscle (or those in ``only``) over every rotational free coordinate it spans
+    (OpenSim's topology)."""
     spans = osim.spanned()
+    if only is not None:
+        spans = {m: c for m, c in spans.items() if m in only}
     slides = sorted({c for cs in spans.values() for c in cs if not osim.rotational(c)})
     if slides:
         notes.append(f"translational coordinates not swept: {', '.join(slides)}")
@@ -857,7 +866,7 @@ def _sweeps(osim: _OpenSimSide, mj: _MujocoSide, points: int, notes: list[str]) 
 
 
 def _forces(
-    osim: _OpenSimSide, mj: _MujocoSide, poses: int, rng: np.random.Generator
+    osim: OpenSimSide, mj: MujocoSide, poses: int, rng: np.random.Generator
 ) -> list[ForceRow]:
     """Default pose, then random ones in the middle half of the ranges; activation 1 and the
     minimum."""
@@ -888,7 +897,7 @@ def _forces(
     return rows
 
 
-def _drop(osim_path: Path, body: Body, posed: _OpenSimSide, duration: float) -> Drop:
+def _drop(osim_path: Path, body: Body, posed: OpenSimSide, duration: float) -> Drop:
     """Both simulators let go from the default pose, the root and OpenSim's locked
     coordinates held, no excitation, no contact (MuJoCo's contacts disabled)."""
     root = [d.name for d in body.ordered_joints()[0].dofs]
@@ -936,7 +945,7 @@ def _drop_mujoco(
     """[samples, len(compared)] MuJoCo's coordinates after each :data:`DROP_SAMPLE_S`, each
     muscle's control and activation held at ``activations`` (OpenSim's minimum: what its
     activation stays at without excitation)."""
-    side = _MujocoSide(model)
+    side = MujocoSide(model)
     side.set_pose(defaults)
     side.data.act[:] = 0.0
     side.data.ctrl[:] = 0.0
@@ -959,7 +968,7 @@ def _drop_opensim(
     """[samples, len(compared)] OpenSim's coordinates after each :data:`DROP_SAMPLE_S`,
     muscles at their minimum activation, fibres in equilibrium at the start; and why it
     stopped early ("" if it did not)."""
-    side = _OpenSimSide(path, locked)
+    side = OpenSimSide(path, locked)
     side.set_pose(side.defaults())
     for name, muscle in side.muscles.items():
         muscle.setActivation(side.state, side.minimum_activation(name))

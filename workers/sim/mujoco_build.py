@@ -248,7 +248,7 @@ def _add_muscles(spec: mujoco.MjSpec, body: Body, bodies: dict[str, mujoco.MjsBo
                 bodies[segment].add_site(name=site, pos=list(location))
                 tendon.wrap_site(site)
             else:
-                side = wraps[element.wrap].side
+                side = wraps[element.wrap].side is not None and element.use_side
                 tendon.wrap_geom(element.wrap, f"{element.wrap}_side" if side else "")
         fibre = muscle.optimal_fiber_length * math.cos(muscle.pennation_angle)
         lo, hi = MUSCLE_RANGE

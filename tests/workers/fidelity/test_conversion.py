@@ -17,7 +17,7 @@ from gaitforge.workers.bodies.osim_import import import_osim
 from gaitforge.workers.bodies.schema import Body
 from gaitforge.workers.fidelity.conversion import (
     ConversionReport,
-    _MujocoSide,
+    MujocoSide,
     load_opensim_model,
     measure_conversion,
 )
@@ -121,7 +121,7 @@ def test_mujoco_moment_arm_is_minus_the_total_derivative_of_length() -> None:
     coupled joint following the knee."""
     model = build_spec(_body(GAIT10)).compile()
     assert model.neq > 0  # the knee's coupled translations
-    side = _MujocoSide(model)
+    side = MujocoSide(model)
     knee, step = "knee_angle_r", 1e-6
     tendon = side.tendons["bifemsh_r"]
     for angle in (-1.5, -0.7, -0.1):
