@@ -43,12 +43,21 @@ def import_model(
         str | None, typer.Option(help="The body's name (default: the file's stem).")
     ] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing body file.")] = False,
+    fit: Annotated[
+        bool,
+        typer.Option(
+            help="Fit MuJoCo's stand-ins (wrap cylinders for conditional points, wrap sides) "
+            "against the original."
+        ),
+    ] = True,
     json: AsJson = False,
 ) -> None:
     """Import an OpenSim model as a body file, with a report of what was approximated and
     dropped (``<name>.import.md``)."""
     try:
-        result = ops.import_body(model, out_dir, contacts=contacts, name=name, overwrite=overwrite)
+        result = ops.import_body(
+            model, out_dir, contacts=contacts, name=name, overwrite=overwrite, fit=fit
+        )
     except SpecError as exc:
         raise fail(exc) from None
     if json:

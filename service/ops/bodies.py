@@ -34,17 +34,24 @@ def list_bodies() -> list[str]:
     return [*available_bodies(), *MJCF_BODIES]
 
 
-def convert(model: Path, *, contacts: Path | None = None, name: str | None = None) -> ImportResult:
-    """The OpenSim ``model`` as a body (``import_osim``), then which muscles keep MuJoCo's
-    side sites on their wraps chosen against the original (``choose_wrap_sides``); the
-    report's time covers both."""
+def convert(
+    model: Path, *, contacts: Path | None = None, name: str | None = None, fit: bool = True
+) -> ImportResult:
+    """The OpenSim ``model`` as a body (``import_osim``); with ``fit``, MuJoCo's stand-ins
+    then fitted against the original: wrap cylinders for conditional points
+    (``fit_conditional_wraps``) and which muscles keep their wraps' side sites
+    (``choose_wrap_sides``). The report's time covers all."""
     from gaitforge.workers.bodies.osim_import import ImportResult, import_osim
+    from gaitforge.workers.fidelity.conditional_wraps import fit_conditional_wraps
     from gaitforge.workers.fidelity.wrap_sides import choose_wrap_sides
 
     started = time.perf_counter()
     result = import_osim(model, contacts=contacts, name=name)
-    body, choices = choose_wrap_sides(model, result.body)
-    result.report.approximated += choices
+    body = result.body
+    if fit:
+        body, wrapped = fit_conditional_wraps(model, body)
+        body, sides = choose_wrap_sides(model, body)
+        result.report.approximated += wrapped + sides
     result.report.seconds = time.perf_counter() - started
     return ImportResult(body=body, report=result.report)
 
@@ -56,10 +63,10 @@ def import_body(
     contacts: Path | None = None,
     name: str | None = None,
     overwrite: bool = False,
+    fit: bool = True,
 ) -> BodyImport:
     """Import the OpenSim ``model`` into ``out_dir/<name>.yaml`` with its report beside it
-    (``<name>.import.md``). Which muscles keep MuJoCo's side sites on their wraps is then
-    chosen against the original (``workers.fidelity.wrap_sides``).
+    (``<name>.import.md``), MuJoCo's stand-ins fitted unless ``fit`` is off (:func:`convert`).
 
     Raises:
         SpecError: the model (or the contacts file) cannot be imported; one line naming the
@@ -75,7 +82,7 @@ def import_body(
         raise InputError("name", f"{name!r}: letters, digits, '_' and '-' only")
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError("out", f"{out_dir} is not a folder")
-    result = convert(model, contacts=contacts, name=name)
+    result = convert(model, contacts=contacts, name=name, fit=fit)
     body_file = out_dir / f"{result.body.name}.yaml"
     report_file = out_dir / f"{result.body.name}.import.md"
     if body_file.exists() and not overwrite:

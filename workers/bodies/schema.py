@@ -135,12 +135,14 @@ class MovingLocation(_Strict):
 
 class StandIn(_Strict):
     """How a backend without conditional or moving points stands in for such a point: a
-    fixed point (on ``segment`` at ``location``, each defaulting to the point's own), or
-    none (``keep: false``). The importer picks it to keep the muscle's moment arms."""
+    fixed point (on ``segment`` at ``location``, each defaulting to the point's own), none
+    (``keep: false``), or wrapping over the wrap object ``wrap`` instead. The import picks
+    it to keep the muscle's moment arms."""
 
     keep: bool = True
     segment: str | None = None
     location: Vec3 | None = None
+    wrap: str | None = Field(default=None, description="a wrap object in the point's place")
 
 
 class PathPoint(_Strict):
@@ -328,6 +330,10 @@ class Body(_Strict):
                 if p.stand_in and p.stand_in.segment and p.stand_in.segment not in seg_names:
                     raise ValueError(
                         f"muscle {m.name!r}: a stand-in on unknown segment {p.stand_in.segment!r}"
+                    )
+                if p.stand_in and p.stand_in.wrap and p.stand_in.wrap not in wrap_names:
+                    raise ValueError(
+                        f"muscle {m.name!r}: a stand-in wraps unknown {p.stand_in.wrap!r}"
                     )
                 for depends in (p.active_when, p.moves_with):
                     if depends is not None and depends.coordinate not in free:

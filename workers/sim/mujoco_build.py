@@ -27,7 +27,8 @@ in another form:
   equality ``couple_<dof>``): see :mod:`workers.sim.mjcf_couplings`, which also reports
   each polynomial's fit error and places coupled joints exactly;
 * MuJoCo has neither conditional nor moving sites: a point with a ``stand_in`` (the
-  importer fits one to keep the muscle's moment arms) becomes that fixed site, or none.
+  importer fits one to keep the muscle's moment arms) becomes that fixed site, none, or the
+  wrap object it names (a wrap cylinder fitted in place of a conditional point).
   Without one, a conditional path point is kept (as an ordinary site) iff the default of
   its coordinate lies in its active range, and dropped otherwise, unless dropping it would
   leave a wrap object or the path's end without a site (then it is kept, with a warning);
@@ -207,6 +208,9 @@ def _mujoco_path(muscle: Muscle, body: Body) -> list[tuple[int, PathElement]]:
     path = muscle.path
     kept: list[tuple[int, PathElement]] = []
     for i, element in enumerate(path):
+        if isinstance(element, PathPoint) and element.stand_in and element.stand_in.wrap:
+            kept.append((i, WrapRef(wrap=element.stand_in.wrap)))
+            continue
         if isinstance(element, PathPoint) and not _point_kept(element, body):
             needed = (
                 i in (0, len(path) - 1)

@@ -92,11 +92,14 @@ def test_conditional_and_moving_points_and_ellipsoids_are_kept() -> None:
 
 def test_the_cli_writes_a_body_file_that_loads_back_and_its_report(tmp_path: Path) -> None:
     args = ["bodies", "import", str(MODELS / "leg6dof9musc.osim"), "--out", str(tmp_path)]
-    result = runner.invoke(app, [*args, "--json"])
+    result = runner.invoke(app, [*args, "--json", "--no-fit"])
     assert result.exit_code == 0, result.output
     outcome = json.loads(result.stdout)
     body = load_body(outcome["body_file"])
     assert body == import_osim(MODELS / "leg6dof9musc.osim").body
+    fitted = runner.invoke(app, [*args, "--json", "--overwrite"])
+    assert fitted.exit_code == 0, fitted.output
+    assert any("wrap cylinder" in line for line in json.loads(fitted.stdout)["approximated"])
     report = Path(outcome["report_file"]).read_text()
     assert "## Approximated" in report and "toes_r" in report  # its zero inertia raised
     again = runner.invoke(app, args)
