@@ -11,6 +11,17 @@ from typing import Any
 import numpy as np
 from gaitforge.workers.bodies.functions import Linear, Spline, evaluate
 
+ARM_TOLERANCE_M = 0.002
+ARM_TOLERANCE_SHARE = 0.05
+"""A converted muscle keeps its moment arm about a coordinate if the RMS error over the
+coordinate's range is within 2 mm or 5 % of the peak moment arm (the conversion's measure,
+``workers.fidelity.conversion``, and the import's fits)."""
+
+
+def arm_allowance(reference: np.ndarray) -> float:
+    """The RMS moment-arm error (m) allowed against ``reference`` moment arms (m)."""
+    return max(ARM_TOLERANCE_M, ARM_TOLERANCE_SHARE * float(np.abs(reference).max()))
+
 
 @dataclass
 class ImportReport:

@@ -2,8 +2,8 @@
 neither (MuJoCo), fitted on the OpenSim model being imported.
 
 Each rotational coordinate the muscle spans is swept over its range (the others at their
-defaults) and OpenSim's own muscle-tendon length is the reference. The
-candidates are, for a conditional point, kept or dropped; for a moving point, fixed where
+defaults) and OpenSim's own muscle-tendon length is the reference. The candidates are, for
+a conditional point, kept or dropped; for a moving point, fixed where
 the point is at one of the sweep's poses, either on its own segment or on the parent of the
 joint its coordinate turns (a patella-like point rides with the femur). A candidate path's
 length is the sum of its straight pieces; the choice minimises the RMS error of the moment
@@ -18,14 +18,18 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from gaitforge.workers.bodies.osim_basics import ImportContext, as_tuple, items, vec3_array
+from gaitforge.workers.bodies.osim_basics import (
+    ARM_TOLERANCE_M,
+    ImportContext,
+    arm_allowance,
+    as_tuple,
+    items,
+    vec3_array,
+)
 from gaitforge.workers.bodies.schema import PathPoint, StandIn
 
 SWEEP_POINTS = 21
 """poses per coordinate sweep (and candidate poses of a moving point)"""
-ARM_TOLERANCE_M = 0.002
-ARM_TOLERANCE_SHARE = 0.05
-"""A moment arm is kept if within 2 mm RMS or 5 % of its peak (the conversion's measure)."""
 
 
 @dataclass
@@ -44,6 +48,8 @@ def fit_stand_ins(muscle: Any, points: list[PathPoint], ctx: ImportContext) -> l
     if not special:
         return points
     spanned = _spanned_coordinates(points, ctx)
+    if not spanned:
+        return points
     sweeps = [_Sweep(muscle, points, coordinate, ctx) for coordinate in spanned]
     choice = {i: 0 for i in special}  # index into each point's candidates, summed over sweeps
     for _ in range(2):
@@ -138,10 +144,7 @@ class _Sweep:
         arm = -np.gradient(length, self.step)
         arm_rms = float(np.sqrt(np.mean((arm - self.reference_arm) ** 2)))
         length_rms = float(np.sqrt(np.mean((length - self.length) ** 2)))
-        allowed = max(
-            ARM_TOLERANCE_M, ARM_TOLERANCE_SHARE * float(np.abs(self.reference_arm).max())
-        )
-        return arm_rms / allowed + 0.1 * length_rms / ARM_TOLERANCE_M
+        return arm_rms / arm_allowance(self.reference_arm) + 0.1 * length_rms / ARM_TOLERANCE_M
 
 
 def _sweep_values(ctx: ImportContext, coordinate: str) -> np.ndarray:

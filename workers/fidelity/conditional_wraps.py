@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from gaitforge.workers.bodies.osim_basics import euler_xyz, rotation_xyz
+from gaitforge.workers.bodies.osim_basics import arm_allowance, euler_xyz, rotation_xyz
 from gaitforge.workers.bodies.schema import Body, Muscle, PathPoint, StandIn, WrapObject
 from gaitforge.workers.fidelity.conversion import (
     DEFAULT_SWEEP_POINTS,
@@ -37,7 +37,6 @@ RADII_M = (0.005, 0.01, 0.02, 0.04)
 DIRECTIONS = 8
 COPY = "~"
 """Separates a muscle's name from its candidate's number in the fitting model."""
-ARM_TOLERANCE_M, ARM_TOLERANCE_SHARE = 0.002, 0.05
 FAILED_PAIR = 100.0
 """A pair beyond what is allowed costs as much as this many allowances of error: the fit
 keeps pairs within bounds first, then lowers the error."""
@@ -205,7 +204,6 @@ def _scores(osim_path: Path, trial: Body, originals: list[str], points: int) -> 
             arms[:, k] = all_arms[[rows[i] for i in users]]
         for j, i in enumerate(users):
             ref = reference[names.index(originals[i])]
-            allowed = max(ARM_TOLERANCE_M, ARM_TOLERANCE_SHARE * float(np.abs(ref).max()))
-            error = float(np.sqrt(np.mean((arms[j] - ref) ** 2))) / allowed
+            error = float(np.sqrt(np.mean((arms[j] - ref) ** 2))) / arm_allowance(ref)
             scores[i] += error / FAILED_PAIR + (error > 1.0)
     return scores.tolist()

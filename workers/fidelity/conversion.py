@@ -47,6 +47,7 @@ from xml.etree import ElementTree
 import mujoco
 import numpy as np
 import opensim
+from gaitforge.workers.bodies.osim_basics import ARM_TOLERANCE_M, ARM_TOLERANCE_SHARE
 from gaitforge.workers.bodies.schema import Body
 from gaitforge.workers.sim.mjcf_lock import coupled_qpos, lock_joints
 from gaitforge.workers.sim.mujoco_build import build_spec
@@ -55,9 +56,9 @@ from gaitforge.workers.spec_io import SpecError, shorten
 
 logger = logging.getLogger(__name__)
 
-PASS_RMS_M = 0.002
+PASS_RMS_M = ARM_TOLERANCE_M
 """a muscle-coordinate pair passes at this moment-arm RMS error (m) or below ..."""
-PASS_SHARE = 0.05
+PASS_SHARE = ARM_TOLERANCE_SHARE
 """... or at this share of OpenSim's peak |moment arm| over the sweep, or below"""
 TARGET_PASS_SHARE = 0.95
 """the share of passing pairs a conversion aims at"""
