@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 from gaitforge.workers.bodies.functions import Linear, Spline, evaluate
+from gaitforge.workers.bodies.rotations import rotation_xyz
 
 ARM_TOLERANCE_M = 0.002
 ARM_TOLERANCE_SHARE = 0.05
@@ -68,28 +69,6 @@ class ImportReport:
 
 
 # ---- small geometry helpers -----------------------------------------------------------
-
-
-def rotation_xyz(angles: tuple[float, float, float] | np.ndarray) -> np.ndarray:
-    """Rotation matrix of body-fixed X-Y-Z Euler angles (rad): ``Rx(a) @ Ry(b) @ Rz(c)``."""
-    a, b, c = (float(v) for v in angles)
-    rx = np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
-    ry = np.array([[math.cos(b), 0, math.sin(b)], [0, 1, 0], [-math.sin(b), 0, math.cos(b)]])
-    rz = np.array([[math.cos(c), -math.sin(c), 0], [math.sin(c), math.cos(c), 0], [0, 0, 1]])
-    return rx @ ry @ rz
-
-
-def euler_xyz(r: np.ndarray) -> tuple[float, float, float]:
-    """Body-fixed X-Y-Z Euler angles (rad) of rotation matrix ``r`` (inverse of
-    :func:`rotation_xyz`)."""
-    b = math.asin(max(-1.0, min(1.0, float(r[0, 2]))))
-    return (math.atan2(-r[1, 2], r[2, 2]), b, math.atan2(-r[0, 1], r[0, 0]))
-
-
-def axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    k = axis / np.linalg.norm(axis)
-    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
 
 
 def items(opensim_set: Any) -> Iterator[Any]:

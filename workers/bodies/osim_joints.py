@@ -15,9 +15,7 @@ from gaitforge.workers.bodies.osim_basics import (
     ImportReport,
     UnsupportedPart,
     as_tuple,
-    axis_rotation,
     clean_float,
-    euler_xyz,
     frame_in_base,
     identity_sign,
     items,
@@ -25,6 +23,7 @@ from gaitforge.workers.bodies.osim_basics import (
     resolve_coupling,
     vec3_array,
 )
+from gaitforge.workers.bodies.rotations import axis_rotation, euler_xyz
 from gaitforge.workers.bodies.schema import (
     GROUND,
     Coupling,

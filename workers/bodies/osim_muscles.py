@@ -12,15 +12,14 @@ from gaitforge.workers.bodies.osim_basics import (
     UnsupportedPart,
     as_tuple,
     coordinate_of,
-    euler_xyz,
     frame_in_base,
     items,
     read_function,
     resolve_coupling,
-    rotation_xyz,
     vec3_array,
 )
 from gaitforge.workers.bodies.osim_stand_ins import fit_stand_ins
+from gaitforge.workers.bodies.rotations import euler_xyz, rotation_xyz
 from gaitforge.workers.bodies.schema import (
     ActiveRange,
     MovingLocation,

@@ -22,7 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from gaitforge.workers.bodies.osim_basics import arm_allowance, euler_xyz, rotation_xyz
+from gaitforge.workers.bodies.osim_basics import arm_allowance
+from gaitforge.workers.bodies.rotations import euler_xyz, rotation_xyz
 from gaitforge.workers.bodies.schema import Body, Muscle, PathPoint, StandIn, WrapObject
 from gaitforge.workers.fidelity.conversion import (
     DEFAULT_SWEEP_POINTS,

@@ -56,6 +56,7 @@ from typing import Literal
 import numpy as np
 import opensim
 from gaitforge.workers.bodies.functions import Linear, Spline, evaluate
+from gaitforge.workers.bodies.rotations import axis_rotation, euler_xyz, rotation_xyz
 from gaitforge.workers.bodies.schema import (
     GROUND,
     Body,
@@ -116,13 +117,6 @@ def _vec(v: tuple[float, float, float] | np.ndarray) -> opensim.Vec3:
     return opensim.Vec3(float(v[0]), float(v[1]), float(v[2]))
 
 
-def _rot(axis: tuple[float, float, float] | np.ndarray, angle: float) -> np.ndarray:
-    """Rotation matrix about unit ``axis`` by ``angle`` (rad), Rodrigues."""
-    k = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
-    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
-
-
 def _z_to(axis: tuple[float, float, float], frame_axis: int = 2) -> np.ndarray:
     """A rotation taking the frame's axis ``frame_axis`` (2: Z, 0: X) onto ``axis``."""
     a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
@@ -131,20 +125,13 @@ def _z_to(axis: tuple[float, float, float], frame_axis: int = 2) -> np.ndarray:
     if c > 1 - 1e-12:
         return np.eye(3)
     if c < -1 + 1e-12:
-        return _rot(np.eye(3)[(frame_axis + 1) % 3], math.pi)
-    return _rot(np.cross(e, a), math.acos(c))
+        return axis_rotation(np.eye(3)[(frame_axis + 1) % 3], math.pi)
+    return axis_rotation(np.cross(e, a), math.acos(c))
 
 
 def _euler_xyz(r: np.ndarray) -> opensim.Vec3:
     """Body-fixed X-Y-Z Euler angles (OpenSim's frame ``orientation``) of rotation ``r``."""
-    b = math.asin(max(-1.0, min(1.0, r[0, 2])))
-    return _vec((math.atan2(-r[1, 2], r[2, 2]), b, math.atan2(-r[0, 1], r[0, 0])))
-
-
-def _rotation_xyz(angles: tuple[float, float, float]) -> np.ndarray:
-    """Rotation matrix of body-fixed X-Y-Z Euler angles (rad): ``Rx(a) @ Ry(b) @ Rz(c)``, the
-    inverse of :func:`_euler_xyz` (OpenSim's frame ``orientation``)."""
-    return _rot((1, 0, 0), angles[0]) @ _rot((0, 1, 0), angles[1]) @ _rot((0, 0, 1), angles[2])
+    return _vec(euler_xyz(r))
 
 
 def opensim_function(function: Linear | Spline) -> opensim.Function:
@@ -201,13 +188,13 @@ def _make_joint(
         defaults: dof -> initial value (rad or m), as :func:`default_values` gives.
     """
     loc, dofs = joint.location_in_parent, joint.dofs
-    frame = _rotation_xyz(joint.orientation_in_parent)  # joint frame in the parent segment
+    frame = rotation_xyz(joint.orientation_in_parent)  # joint frame in the parent segment
     zero = _vec((0, 0, 0))
     if all(d.name in locked for d in dofs):  # also the dof-less joints
         rot, pos = frame, np.asarray(loc, dtype=float)
         for d in dofs:  # each dof acts in the frame left by the previous ones
             if d.type == "hinge":
-                rot = rot @ _rot(d.axis, locked[d.name])
+                rot = rot @ axis_rotation(d.axis, locked[d.name])
             else:
                 pos = pos + rot @ (np.asarray(d.axis) / np.linalg.norm(d.axis)) * locked[d.name]
         return opensim.WeldJoint(joint.name, parent, _vec(pos), _euler_xyz(rot), child, zero, zero)
@@ -358,7 +345,7 @@ def _wrap_frame(wrap: WrapObject) -> np.ndarray:
     """The wrap object's frame in its segment: turned by ``orientation`` where given, else a
     cylinder's Z along its ``axis`` (a sphere's or an ellipsoid's frame is the segment's)."""
     if wrap.orientation is not None:
-        return _rotation_xyz(wrap.orientation)
+        return rotation_xyz(wrap.orientation)
     return _z_to(wrap.axis) if wrap.type == "cylinder" else np.eye(3)
 
 
