@@ -4,9 +4,11 @@
 
 reads ``subject01_walk_IK.mot`` + ``subject01_walk_grf.mot`` + ``walk_subject_controls.sto``
 (treadmill walk), ``subject02_running_ik.mot`` (treadmill run) and ``normal.mot`` (one
-normalised 3-D walking cycle) and writes ``workers/motions/data/{gait2d,myoleg}-{walk,run}.yaml``
-and ``gait2d-walk-excitations.yaml``. It lives in ``sim`` (not in the motions package) because
-it replays the motions on the MuJoCo models; the motions package itself imports bodies only.
+normalised 3-D walking cycle) and writes ``workers/motions/data/``: ``gait2d-walk.yaml``,
+``gait2d-run.yaml``, ``myoleg-walk.yaml``, ``myoleg-run.yaml``, ``gait2354-walk.yaml`` (the
+3-D walk on the imported body) and ``gait2d-walk-excitations.yaml``. It lives in ``sim`` (not
+in the motions package) because it replays the motions on the MuJoCo models; the motions
+package itself imports bodies only.
 
 Method, per motion (details in each file's ``source`` and the README's "Motion imitation"):
 
@@ -61,7 +63,7 @@ BELT_SHARE = 0.8
 """With no force data, a stance foot moves backward (relative to the treadmill) faster than
 this share of the belt speed."""
 WALK_2D_JOINTS = [f"{j}_{s}" for s in "rl" for j in ("hip_flexion", "knee_angle", "ankle_angle")]
-MYOLEG_JOINTS = [
+WALK_3D_JOINTS = [
     f"{j}_{s}"
     for s in "rl"
     for j in ("hip_flexion", "hip_adduction", "hip_rotation", "knee_angle", "ankle_angle")
@@ -262,7 +264,7 @@ def run(ref: Path, body: str) -> None:
     """A run from subject02 (Hamner): one stride between right heel strikes found by replay."""
     ik = read_mot(ref / "subject02_running_ik.mot")
     t = ik["time"]
-    names = WALK_2D_JOINTS if body == "gait2d" else MYOLEG_JOINTS
+    names = WALK_2D_JOINTS if body == "gait2d" else WALK_3D_JOINTS
     raw = _body_joints(body, ik, names)
     pitch, ty = np.radians(ik["pelvis_tilt"]), ik["pelvis_ty"]
     lateral = {}
@@ -319,19 +321,19 @@ NORMAL_PERIOD_S = 1.1
 self-selected walking speed (cadence ~109 steps/min)."""
 
 
-def walk_3d(ref: Path) -> None:
-    """MyoLeg walk from normal.mot: pelvis height and stance by replay (no force, no height)."""
+def walk_3d(ref: Path, body: str = "myoleg") -> None:
+    """The 3-D walk from normal.mot on MyoLeg or a 3-D neutral body whose coordinates have
+    OpenSim's gait names (an imported one): pelvis height and stance by replay (no force, no
+    height)."""
     nm = read_mot(ref / "normal.mot")
     t = nm["time"] * NORMAL_PERIOD_S
     period = NORMAL_PERIOD_S
-    joints = {
-        j: cycle(t, v, 0, period) for j, v in _body_joints("myoleg", nm, MYOLEG_JOINTS).items()
-    }
+    joints = {j: cycle(t, v, 0, period) for j, v in _body_joints(body, nm, WALK_3D_JOINTS).items()}
     lateral = {k: cycle(t, np.radians(nm[c]), 0, period)
                for k, c in (("list_", "pelvis_list"), ("rotation", "pelvis_rotation"))}  # fmt: skip
     lateral["rotation"] -= lateral["rotation"].mean()
     pitch = cycle(t, np.radians(nm["pelvis_tilt"]), 0, period)
-    replay = Replay("myoleg")
+    replay = Replay(body)
     ones = np.ones(SAMPLES)
     lows, _ = replay_feet(replay, joints, pitch, ones, **lateral)
     height = 1.0 - np.minimum(lows["foot_right"], lows["foot_left"])  # the lower foot touches
@@ -346,27 +348,30 @@ def walk_3d(ref: Path) -> None:
     stance["foot_left"] |= nobody & ~lower_right
     shift = int(np.flatnonzero(stance["foot_right"] & ~np.roll(stance["foot_right"], 1))[0])
     log.info(
-        "walk (myoleg): right foot lands at phase %.3f of normal.mot in the replay", shift / SAMPLES
+        "walk (%s): right foot lands at phase %.3f of normal.mot in the replay",
+        body,
+        shift / SAMPLES,
     )
 
     def roll(x: np.ndarray) -> np.ndarray:
         return np.roll(x, -shift, axis=0)
 
+    knee = "knee (negated: MyoLeg flexes positive)" if body == "myoleg" else "knee"
     source = f"""OpenSim example data normal.mot (one normalised 3-D walking cycle, 51 rows, 2 %
-    apart, from heel strike), on MyoLeg: hip flexion/adduction/rotation, knee (negated: MyoLeg
-    flexes positive) and ankle per side, pelvis tilt/list/rotation (the rotation's mean, the
-    heading, removed). Period chosen: {NORMAL_PERIOD_S:g} s, a typical adult stride at the
+    apart, from heel strike), on {body}: hip flexion/adduction/rotation, {knee} and ankle per
+    side, pelvis tilt/list/rotation (the rotation's mean, the heading, removed). Period
+    chosen: {NORMAL_PERIOD_S:g} s, a typical adult stride at the
     self-selected speed (the file has no time). Resampled to {SAMPLES} phases,
-    {HARMONICS} Fourier harmonics kept. Pelvis height by kinematic replay on MyoLeg: set per
+    {HARMONICS} Fourier harmonics kept. Pelvis height by kinematic replay on {body}: set per
     sample so that the lower foot's lowest contact point touches the floor (pelvis_ty in the
     file is a constant). Stance from the replay: the foot's lowest point within
     {100 * WALK_CONTACT_M:g} cm of the floor and its grounded contact geom moving backward
     relative to the pelvis; where neither foot passes (the toe of the foot leaving the ground
-    stays within 1 cm of it for a few samples, MyoLeg's mtp being held at 0) the lower foot is
-    the stance foot. On MyoLeg the right foot
+    stays within 1 cm of it for a few samples, the mtp being held at 0) the lower foot is
+    the stance foot. On {body} the right foot
     lands (replay) at phase {shift / SAMPLES:.3f} of normal.mot (its swing foot comes down
     later than in the recorded model): the cycle is shifted so
-    that phase 0 is that landing. Forward speed: stride length on MyoLeg (the stance foot's
+    that phase 0 is that landing. Forward speed: stride length on {body} (the stance foot's
     backward travel relative to the pelvis) / period; no within-cycle fluctuation (none
     recorded)."""
     build(replay, name="walk", period=period, joints={j: roll(v) for j, v in joints.items()},
@@ -384,6 +389,7 @@ def main() -> None:
     run(args.reference, "gait2d")
     run(args.reference, "myoleg")
     walk_3d(args.reference)
+    walk_3d(args.reference, "gait2354")
 
 
 if __name__ == "__main__":

@@ -19,8 +19,8 @@ from gaitforge.workers.sim.mjcf_lock import coupled_qpos
 from gaitforge.workers.sim.mjcf_models import myoleg_spec
 from gaitforge.workers.sim.mujoco_build import build_spec
 
-UP = {"gait2d": 1, "myoleg": 2}
-"""World up axis index per body (forward is X, index 0, for both)."""
+UP = {"myoleg": 2}
+"""World up axis index of the MJCF bodies; neutral bodies are Y-up (1). Forward is X (0)."""
 _OS_TO_WORLD = {"myoleg": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])}
 """OpenSim ground axes (X fwd, Y up, Z right) as columns in the body's world axes."""
 
@@ -57,12 +57,14 @@ class Replay:
     """One body's model posed from OpenSim-convention coordinates.
 
     Args:
-        body: "gait2d" or "myoleg".
+        body: "myoleg", or a neutral body (``gait2d``, an imported one: Y up, its root
+            ``pelvis_tx``, ``pelvis_ty`` and ``pelvis_tilt``, with ``pelvis_tz``,
+            ``pelvis_list`` and ``pelvis_rotation`` where it has them).
     """
 
     def __init__(self, body: str) -> None:
         self.body = body
-        self.up = UP[body]
+        self.up = UP.get(body, 1)
         if body == "myoleg":
             self.model = myoleg_spec().compile()
         else:
@@ -73,6 +75,7 @@ class Replay:
             foot: [self.model.geom(g).id for g in geoms] for foot, geoms in topo.feet.items()
         }
         self.pelvis = self.model.body("pelvis").id
+        self._joints = {self.model.joint(j).name for j in range(self.model.njnt)}
         if self.model.nkey:
             mujoco.mj_resetDataKeyframe(self.model, self.data, 0)
         mujoco.mj_kinematics(self.model, self.data)
@@ -106,9 +109,11 @@ class Replay:
             q[3:7] = quat
             q = coupled_qpos(m, q)
         else:
-            q[m.jnt_qposadr[m.joint("pelvis_tilt").id]] = pitch
-            q[m.jnt_qposadr[m.joint("pelvis_tx").id]] = 0.0
-            q[m.jnt_qposadr[m.joint("pelvis_ty").id]] = 0.0
+            root = {"pelvis_tilt": pitch, "pelvis_list": list_, "pelvis_rotation": rotation}
+            for name, value in {**root, "pelvis_tx": 0.0, "pelvis_ty": 0.0}.items():
+                if name in self._joints:
+                    q[m.jnt_qposadr[m.joint(name).id]] = value
+            q = coupled_qpos(m, q)
             d.qpos[:] = q
             mujoco.mj_kinematics(m, d)
             offset = d.xpos[self.pelvis].copy()

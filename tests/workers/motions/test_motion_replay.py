@@ -28,7 +28,13 @@ FLOOR_MARGIN_M = 0.02
 STANCE_HEIGHT_M = 0.05
 STILL_MEDIAN_M_S = 0.3
 STILL_P90_M_S = 0.8
-SHIPPED = [("gait2d", "walk"), ("gait2d", "run"), ("myoleg", "walk"), ("myoleg", "run")]
+SHIPPED = [
+    ("gait2d", "walk"),
+    ("gait2d", "run"),
+    ("myoleg", "walk"),
+    ("myoleg", "run"),
+    ("gait2354", "walk"),
+]
 
 
 @cache

@@ -13,12 +13,19 @@ from gaitforge.workers.motions import (
 )
 from gaitforge.workers.motions.model import PELVIS_SERIES, seam_problem
 
-SHIPPED = [("gait2d", "walk"), ("gait2d", "run"), ("myoleg", "walk"), ("myoleg", "run")]
+SHIPPED = [
+    ("gait2d", "walk"),
+    ("gait2d", "run"),
+    ("myoleg", "walk"),
+    ("myoleg", "run"),
+    ("gait2354", "walk"),
+]
 
 
 def test_available() -> None:
     assert available_motions("gait2d") == ["run", "walk"]
     assert available_motions("myoleg") == ["run", "walk"]
+    assert available_motions("gait2354") == ["walk"]
     assert available_motions("myoelbow") == []
 
 
@@ -114,9 +121,9 @@ def test_mirrored_state_swaps(body: str, name: str) -> None:
     # a mirrored state resembles the motion half a cycle on (symmetric gait): within 0.25 rad
     errors = [abs(mirrored.joints[j] - half.joints[j]) for j in motion.joints]
     assert float(np.sqrt(np.mean(np.square(errors)))) < 0.25
-    # the right foot is on the right: +Z for gait2d, -Y for MyoLeg
+    # the right foot is on the right: +Z for neutral bodies, -Y for MyoLeg
     right = state.feet_rel_pelvis["foot_right"][lateral]
-    assert right > 0.03 if body == "gait2d" else right < -0.01
+    assert right < -0.01 if body == "myoleg" else right > 0.03
 
 
 def test_excitations() -> None:
