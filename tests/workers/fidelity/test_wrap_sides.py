@@ -18,9 +18,7 @@ def test_a_side_site_that_forces_the_long_way_round_is_dropped() -> None:
     round (70 allowances of moment-arm error, 0.9 without)."""
     body = import_osim(ARM26).body
     tuned, notes = choose_wrap_sides(ARM26, body)
-    sides = {
-        m.name: [e.use_side for e in m.path if isinstance(e, WrapRef)] for m in tuned.muscles
-    }
+    sides = {m.name: [e.use_side for e in m.path if isinstance(e, WrapRef)] for m in tuned.muscles}
     assert sides["TRIlong"] == [False] * len(sides["TRIlong"])
     assert any("TRIlong" in n for n in notes)
     options = {"poses": 1, "force_poses": 1, "drop_s": 0.0}
