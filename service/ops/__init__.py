@@ -10,7 +10,8 @@ one-line message.
 - :mod:`.train`: load a job with overrides and budget scaling, train (stoppable between
   iterations), one-line status reports;
 - :mod:`.evaluate`: evaluate a checkpoint, with the speed-against-safety sweep;
-- :mod:`.fidelity`: the fidelity sweep and its recommendation, and the stress test.
+- :mod:`.fidelity`: the fidelity sweep and its recommendation, and the stress test;
+- :mod:`.bodies`: list the bodies, import an OpenSim model (with MuJoCo's stand-ins fitted).
 
 Heavy libraries (torch, MuJoCo, OpenSim, Ray) load only when an operation runs.
 """
