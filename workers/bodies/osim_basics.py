@@ -123,6 +123,10 @@ class UnsupportedPart(Exception):
     """A part the import cannot represent; the message says which and why."""
 
 
+RESAMPLED_KNOTS = 81
+"""knots of the spline that stands for an OpenSim function other than a line or SimmSpline"""
+
+
 def read_function(fn: Any, where: str, report: ImportReport) -> Linear | Spline:
     """OpenSim function -> ``Linear`` or ``Spline`` (constants are zero-slope lines)."""
     import opensim
@@ -140,15 +144,16 @@ def read_function(fn: Any, where: str, report: ImportReport) -> Linear | Spline:
     if kind == "MultiplierFunction":
         mf = opensim.MultiplierFunction.safeDownCast(fn)
         return _scaled(read_function(mf.getFunction(), where, report), mf.getScale())
-    if kind in {"PiecewiseLinearFunction", "NaturalCubicSpline", "GCVSpline", "PolynomialFunction"}:
-        # Sample over the function's own knots where it has them, else a generous span.
-        xs = np.linspace(-math.pi, math.pi, 41)
-        if hasattr(fn, "getX") and hasattr(fn, "getSize"):
-            xs = np.array([fn.getX(i) for i in range(fn.getSize())])
+    # Any other function of one coordinate: sampled, as a spline, over a rotation's span.
+    xs = np.linspace(-math.pi, math.pi, RESAMPLED_KNOTS)
+    try:
         ys = [fn.calcValue(opensim.Vector(1, float(x))) for x in xs]
-        report.approximated.append(f"{where}: {kind} resampled as a spline through {len(xs)} knots")
-        return Spline(x=[float(x) for x in xs], y=[float(y) for y in ys])
-    raise UnsupportedPart(f"{where}: function {kind} is not supported")
+    except RuntimeError:
+        raise UnsupportedPart(f"{where}: function {kind} is not supported") from None
+    report.approximated.append(
+        f"{where}: {kind} resampled as a spline through {len(xs)} knots over +-pi"
+    )
+    return Spline(x=[float(x) for x in xs], y=[float(y) for y in ys])
 
 
 def _scaled(fn: Linear | Spline, scale: float) -> Linear | Spline:

@@ -211,3 +211,22 @@ def test_fitted_stand_ins_keep_moment_arms_better_than_the_default_rule() -> Non
         return float(np.mean([p.arm_rms_mm for p in report.pairs]))
 
     assert mean_error(fitted) < 0.75 * mean_error(default)
+
+
+def test_another_function_is_resampled_and_reported(tmp_path: Path) -> None:
+    """A custom-joint axis driven through a function the body has no type for (here OpenSim's
+    PiecewiseLinearFunction) becomes a spline through its values, and the report says so."""
+    model = opensim.Model(str(MODELS / "gait10dof18musc.osim"))
+    knee = opensim.CustomJoint.safeDownCast(model.getJointSet().get("knee_r"))
+    piecewise = opensim.PiecewiseLinearFunction()
+    for x, y in [(-2.1, -0.003), (-1.0, 0.004), (0.0, -0.005), (2.1, -0.005)]:
+        piecewise.addPoint(x, y)
+    knee.updSpatialTransform().updTransformAxis(3).set_function(piecewise)
+    model.finalizeConnections()
+    path = tmp_path / "piecewise.osim"
+    model.printToXML(str(path))
+    result = import_osim(path)
+    assert any("PiecewiseLinearFunction resampled" in a for a in result.report.approximated)
+    slide = next(d for d in result.body.joint_of_dof("knee_angle_r").dofs if d.coupled)
+    values = evaluate(slide.coupled.function, [-1.0, 0.0])
+    np.testing.assert_allclose(values, [0.004, -0.005], atol=3e-4)  # kinks between knots
