@@ -261,6 +261,16 @@ def _import(
             if wrap is not None:
                 wraps[obj.getName()] = wrap
     muscles = read_muscles(ctx, wraps)
+    for what, components in (
+        ("controller", model.getControllerSet()),
+        ("probe", model.getProbeSet()),
+        ("component", model.getMiscModelComponentSet()),
+    ):
+        for component in items(components):
+            report.dropped.append(
+                f"{component.getAbsolutePathString()}: {component.getConcreteClassName()} "
+                f"(a {what}; not imported)"
+            )
     used_wraps = {w for m in muscles for w in m.wraps}
     markers = _markers(ctx)
     spheres = _contacts(ctx, [s.name for s in segments], contacts)

@@ -273,6 +273,10 @@ def read_muscles(ctx: ImportContext, wraps: dict[str, WrapObject]) -> list[Muscl
         if not force.get_appliesForce():
             ctx.report.dropped.append(f"{where}: a disabled muscle")
             continue
+        if opensim.GeometryPath.safeDownCast(muscle.getPath()) is None:
+            kind = muscle.getPath().getConcreteClassName()
+            ctx.report.dropped.append(f"{where}: a muscle on a {kind} (only geometry paths)")
+            continue
         muscles.append(_muscle(muscle, wraps, ctx))
     millard = sum(
         1 for f in items(force_set) if f.getConcreteClassName() == "Millard2012EquilibriumMuscle"
