@@ -194,7 +194,9 @@ def _unknown_components(text: str) -> list[str]:
     return unknown
 
 
-def _load_model(path: Path) -> tuple[Any, Any]:
+def _load_model(path: Path, text: str) -> tuple[Any, Any]:
+    """The model and its initial state; where OpenSim refuses the file, the first component
+    it does not know (line, tag, name), else OpenSim's own first line, as a ``SpecError``."""
     import opensim
 
     opensim.Logger.removeFileSink()
@@ -203,6 +205,11 @@ def _load_model(path: Path) -> tuple[Any, Any]:
         model = opensim.Model(str(path))
         state = model.initSystem()
     except RuntimeError as exc:
+        unknown = _unknown_components(text)
+        if unknown:
+            more = f" (and {len(unknown) - 1} more)" if len(unknown) > 1 else ""
+            problem = f"{unknown[0]}{more}; OpenSim cannot load it; refused"
+            raise SpecError(f"{path}: {problem}") from None
         message = str(exc).strip().splitlines()[0] if str(exc).strip() else "no message"
         raise SpecError(f"{path}: OpenSim cannot load the model: {message}; refused") from None
     return model, state
@@ -225,11 +232,7 @@ def import_osim(
     started = time.perf_counter()
     path = Path(path)
     text = _check_xml(path)
-    unknown = _unknown_components(text)
-    if unknown:
-        more = f" (and {len(unknown) - 1} more)" if len(unknown) > 1 else ""
-        raise SpecError(f"{path}: {unknown[0]}{more}; OpenSim cannot load it; refused")
-    model, state = _load_model(path)
+    model, state = _load_model(path, text)
     report = ImportReport(model=path.name)
     try:
         body = _import(model, state, report, name or path.stem, contacts)
