@@ -195,8 +195,11 @@ class Coordinates:
     couplers: dict[str, tuple[str, Linear | Spline]]
 
     def span(self, name: str) -> tuple[float, float]:
+        """The coordinate's range (rad or m); an empty one (a file's min >= max) widened to
+        +-1e-3 about its min, as a body's dof needs an increasing range."""
         c = self.info[name]
-        return (c.getRangeMin(), c.getRangeMax())
+        low, high = c.getRangeMin(), c.getRangeMax()
+        return (low, high) if high > low else (low - 1e-3, low + 1e-3)
 
 
 def read_couplers(model: Any, report: ImportReport) -> dict[str, tuple[str, Linear | Spline]]:

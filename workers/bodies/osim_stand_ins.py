@@ -148,8 +148,7 @@ class _Sweep:
 
 
 def _sweep_values(ctx: ImportContext, coordinate: str) -> np.ndarray:
-    info = ctx.coords.info[coordinate]
-    return np.linspace(info.getRangeMin(), info.getRangeMax(), SWEEP_POINTS)
+    return np.linspace(*ctx.coords.span(coordinate), SWEEP_POINTS)
 
 
 def _candidates(
