@@ -49,9 +49,13 @@ def convert(
     result = import_osim(model, contacts=contacts, name=name)
     body = result.body
     if fit:
-        body, wrapped = fit_conditional_wraps(model, body)
-        body, sides = choose_wrap_sides(model, body)
-        result.report.approximated += wrapped + sides
+        try:
+            body, wrapped = fit_conditional_wraps(model, body)
+            body, sides = choose_wrap_sides(model, body)
+            result.report.approximated += wrapped + sides
+        except (ValueError, RuntimeError) as exc:  # MuJoCo cannot build the body: say so
+            reason = " ".join(str(exc).split())[:300]
+            result.report.notes.append(f"MuJoCo's stand-ins not fitted: {reason}")
     result.report.seconds = time.perf_counter() - started
     return ImportResult(body=body, report=result.report)
 
