@@ -11,11 +11,15 @@ import opensim
 import pytest
 import yaml
 from gaitforge.service.cli import app
+from gaitforge.service.ops.bodies import convert
 from gaitforge.workers.bodies import load_body
 from gaitforge.workers.bodies.functions import evaluate
 from gaitforge.workers.bodies.osim_import import import_osim
 from gaitforge.workers.bodies.schema import Body, PathPoint
 from gaitforge.workers.fidelity.conversion import ConversionReport, measure_conversion
+from gaitforge.workers.scenes.prune import PrunePlan
+from gaitforge.workers.sim.mujoco_build import build_spec
+from gaitforge.workers.sim.opensim_build import build_model
 from gaitforge.workers.spec_io import SpecError
 from typer.testing import CliRunner
 
@@ -45,6 +49,25 @@ def test_every_example_model_imports_quickly_and_whole(model: str) -> None:
     masses = {bodies.get(i).getName(): bodies.get(i).getMass() for i in range(bodies.getSize())}
     for segment in body.segments:
         assert segment.mass == pytest.approx(max(masses[segment.name], 1e-3))
+
+
+@pytest.mark.parametrize("model", sorted(EXPECTED))
+def test_every_imported_body_builds_on_both_simulators(model: str) -> None:
+    """With MuJoCo's stand-ins fitted (``convert``, what ``bodies import`` writes)."""
+    body = convert(MODELS / f"{model}.osim").body
+    mujoco_model = build_spec(body).compile()
+    assert mujoco_model.ntendon == len(body.muscles)
+    plan = PrunePlan(
+        kept_dofs=body.dof_names,
+        locked_dofs={},
+        kept_muscles=[m.name for m in body.muscles],
+        removed_muscles={},
+        contact_geoms=[s.name for s in body.contact_spheres],
+        obstacles=0,
+    )
+    built = build_model(body, plan).model
+    built.initSystem()
+    assert built.getMuscles().getSize() == len(body.muscles)
 
 
 def test_the_knee_translation_follows_opensims_spline() -> None:
