@@ -76,8 +76,20 @@ def stage_rows(scalars: dict[str, dict[int, float]]) -> list[dict]:
     return rows
 
 
-def plot_run(scalars: dict[str, dict[int, float]], rows: list[dict], out: Path) -> None:
-    """The run's curve (see the module's docstring) as a PNG at ``out``."""
+def stage_names(run_dir: Path) -> list[str]:
+    """The job's stage names, from the newest checkpoint's ``meta.json`` (empty if none)."""
+    metas = sorted((run_dir / "checkpoints").glob("ckpt-*/meta.json"))
+    if not metas:
+        return []
+    job = json.loads(metas[-1].read_text()).get("job") or {}
+    return [stage.get("name", "") for stage in job.get("stages", [])]
+
+
+def plot_run(
+    scalars: dict[str, dict[int, float]], rows: list[dict], names: list[str], out: Path
+) -> None:
+    """The run's curve (see the module's docstring) as a PNG at ``out``, each stage's
+    boundary marked with its index and name (``names``, by stage index)."""
     figure, axes = plt.subplots(len(PANELS), 1, figsize=(10, 8), sharex=True)
     for ax, (training, evaluation, title) in zip(axes, PANELS, strict=True):
         series = sorted(scalars.get(training, {}).items())
@@ -100,10 +112,12 @@ def plot_run(scalars: dict[str, dict[int, float]], rows: list[dict], out: Path) 
         for row in rows[1:]:
             ax.axvline(row["first_env_steps"] / 1e6, color="grey", ls="--", lw=0.7)
         ax.set_ylabel(title, fontsize="small")
-    for row in rows:
+    for position, row in enumerate(rows):
+        index = row["stage"]
+        name = names[index] if index < len(names) else ""
         axes[0].annotate(
-            f"stage {row['stage']}",
-            (row["first_env_steps"] / 1e6, 1.0),
+            f"{index} {name}".strip(),
+            (row["first_env_steps"] / 1e6, 1.0 + 0.07 * (position % 2)),
             xycoords=("data", "axes fraction"),
             fontsize="x-small",
             va="bottom",
@@ -123,9 +137,11 @@ def main() -> None:
     args = parser.parse_args()
     scalars = run_scalars(args.run)
     rows = stage_rows(scalars)
-    plot_run(scalars, rows, args.out)
+    names = stage_names(args.run)
+    plot_run(scalars, rows, names, args.out)
     table = Table(
         "stage",
+        "name",
         "env steps",
         "of which in it",
         "train min",
@@ -138,8 +154,10 @@ def main() -> None:
         stage_min = "-" if "stage_s" not in row else f"{row['stage_s'] / 60:.1f}"
         speed = "-" if "eval_speed" not in row else f"{row['eval_speed']:.2f}"
         falls = "-" if "eval_fall_rate" not in row else f"{100 * row['eval_fall_rate']:.0f} %"
+        index = row["stage"]
         table.add_row(
-            str(row["stage"]),
+            str(index),
+            names[index] if index < len(names) else "",
             f"{row['env_steps']:,}",
             f"{row['stage_env_steps']:,}",
             minutes,
