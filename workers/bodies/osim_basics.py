@@ -76,6 +76,27 @@ def items(opensim_set: Any) -> Iterator[Any]:
     return (opensim_set.get(i) for i in range(opensim_set.getSize()))
 
 
+def joints_between(model: Any, bodies: set[str]) -> list[Any]:
+    """The joints of an OpenSim model on the tree paths between ``bodies`` (names of bodies or
+    ground): each joint whose child is on one body's path to the root but not on every
+    body's; in no particular order."""
+    parent_of: dict[str, tuple[str, Any]] = {}
+    for joint in items(model.getJointSet()):
+        child = joint.getChildFrame().findBaseFrame().getName()
+        parent_of[child] = (joint.getParentFrame().findBaseFrame().getName(), joint)
+
+    def chain(body: str) -> list[str]:
+        links = [body]
+        while links[-1] in parent_of and len(links) <= len(parent_of):
+            links.append(parent_of[links[-1]][0])
+        return links
+
+    chains = [chain(body) for body in bodies]
+    common = set.intersection(*(set(c) for c in chains)) if chains else set()
+    crossed = {body for c in chains for body in c if body not in common and body in parent_of}
+    return [parent_of[body][1] for body in sorted(crossed)]
+
+
 def vec3_array(v: Any) -> np.ndarray:
     return np.array([v.get(0), v.get(1), v.get(2)], dtype=float)
 

@@ -23,7 +23,7 @@ from gaitforge.workers.bodies.osim_basics import (
     ImportContext,
     arm_allowance,
     as_tuple,
-    items,
+    joints_between,
     vec3_array,
 )
 from gaitforge.workers.bodies.schema import PathPoint, StandIn
@@ -67,31 +67,14 @@ def fit_stand_ins(muscle: Any, points: list[PathPoint], ctx: ImportContext) -> l
 
 
 def _spanned_coordinates(points: list[PathPoint], ctx: ImportContext) -> list[str]:
-    """The free coordinates of the joints between the segments the points sit on."""
-    parent_of: dict[str, tuple[str, Any]] = {}
-    joints = ctx.model.getJointSet()
-    for joint in items(joints):
-        child = joint.getChildFrame().findBaseFrame().getName()
-        parent_of[child] = (joint.getParentFrame().findBaseFrame().getName(), joint)
-
-    def chain(segment: str) -> list[str]:
-        links = [segment]
-        while links[-1] in parent_of:
-            links.append(parent_of[links[-1]][0])
-        return links
-
-    chains = [chain(p.segment) for p in points]
-    common = set.intersection(*(set(c) for c in chains))
-    crossed = {s for c in chains for s in c if s not in common}
+    """The free rotational coordinates of the joints between the segments the points sit on."""
     free = set(ctx.coords.info) - set(ctx.coords.couplers)
-    names = []
-    for segment in sorted(crossed):
-        joint = parent_of[segment][1]
-        for k in range(joint.numCoordinates()):
-            name = joint.get_coordinates(k).getName()
-            if name in free and ctx.coords.info[name].getMotionType() != 2:  # 2: translational
-                names.append(name)
-    return names
+    return [
+        name
+        for joint in joints_between(ctx.model, {p.segment for p in points})
+        for name in (joint.get_coordinates(k).getName() for k in range(joint.numCoordinates()))
+        if name in free and ctx.coords.info[name].getMotionType() != 2  # 2: translational
+    ]
 
 
 class _Sweep:

@@ -47,7 +47,11 @@ from xml.etree import ElementTree
 import mujoco
 import numpy as np
 import opensim
-from gaitforge.workers.bodies.osim_basics import ARM_TOLERANCE_M, ARM_TOLERANCE_SHARE
+from gaitforge.workers.bodies.osim_basics import (
+    ARM_TOLERANCE_M,
+    ARM_TOLERANCE_SHARE,
+    joints_between,
+)
 from gaitforge.workers.bodies.schema import Body
 from gaitforge.workers.sim.mjcf_lock import coupled_qpos, lock_joints
 from gaitforge.workers.sim.mujoco_build import build_spec
@@ -526,21 +530,6 @@ class OpenSimSide:
         """Each muscle's free coordinates: those of the joints between the bodies its path
         points (and moving or conditional points' coordinates) attach to, a coupled
         coordinate replaced by its driver."""
-        parent_of: dict[str, tuple[str, list[str]]] = {}
-        joints = self.model.getJointSet()
-        for i in range(joints.getSize()):
-            joint = joints.get(i)
-            child = joint.getChildFrame().findBaseFrame().getName()
-            parent = joint.getParentFrame().findBaseFrame().getName()
-            coords = [joint.get_coordinates(k).getName() for k in range(joint.numCoordinates())]
-            parent_of[child] = (parent, coords)
-
-        def chain(body: str) -> list[str]:
-            bodies = [body]
-            while bodies[-1] in parent_of and len(bodies) <= len(parent_of):
-                bodies.append(parent_of[bodies[-1]][0])
-            return bodies
-
         spans: dict[str, list[str]] = {}
         for name, muscle in self.muscles.items():
             points = muscle.getGeometryPath().getPathPointSet()
@@ -555,14 +544,10 @@ class OpenSimSide:
                 conditional = opensim.ConditionalPathPoint.safeDownCast(point)
                 if conditional is not None:
                     extra += [conditional.getCoordinate().getName()]
-            chains = [chain(s) for s in segments]
-            common = set.intersection(*(set(c) for c in chains)) if chains else set()
             crossed = [
-                coordinate
-                for c in chains
-                for body in c
-                if body not in common and body in parent_of
-                for coordinate in parent_of[body][1]
+                joint.get_coordinates(k).getName()
+                for joint in joints_between(self.model, segments)
+                for k in range(joint.numCoordinates())
             ]
             free = [self.driver_of.get(c, c) for c in [*crossed, *extra]]
             spans[name] = [c for c in dict.fromkeys(free) if c in self.free]
