@@ -16,9 +16,12 @@ from gaitforge.workers.scenes.spec import Scene
 from gaitforge.workers.spec_io import SpecError
 
 POLICIES = Path(__file__).parents[3] / "examples" / "policies"
-OLDER = json.loads((POLICIES / "obstacles-2d" / "meta.json").read_text())["scene"]
-"""The obstacle runner's scene as its checkpoint stores it: the older layout (the clock inside
-``task.imitate``), every retired setting it knew at its former default."""
+OLDER = json.loads(
+    (Path(__file__).parents[2] / "fixtures" / "older-layout-obstacle-scene.json").read_text()
+)
+"""An obstacle runner's scene as its checkpoint stored it (the obstacle runner shipped
+until the curriculum's replaced it): the older layout (the clock inside ``task.imitate``),
+every retired setting it knew at its former default."""
 
 
 def with_setting(fields: dict, dotted: str, value: object) -> dict:
