@@ -79,7 +79,7 @@ def items(opensim_set: Any) -> Iterator[Any]:
 def joints_between(model: Any, bodies: set[str]) -> list[Any]:
     """The joints of an OpenSim model on the tree paths between ``bodies`` (names of bodies or
     ground): each joint whose child is on one body's path to the root but not on every
-    body's; in no particular order."""
+    body's, ordered by the child's name."""
     parent_of: dict[str, tuple[str, Any]] = {}
     for joint in items(model.getJointSet()):
         child = joint.getChildFrame().findBaseFrame().getName()
