@@ -1,16 +1,17 @@
 """A curriculum run's stages read off its scalars (``bench/curriculum_run.py``): where each
 stage ended, the env steps and training minutes it took, its last evaluation, on fixed
-data; and the curve's PNG."""
+data; the stage names from the newest checkpoint's job; and the curve's PNG."""
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "bench"))
 
-from curriculum_run import plot_run, stage_rows  # noqa: E402
+from curriculum_run import plot_run, stage_names, stage_rows  # noqa: E402
 
 SCALARS = {
     "stage": {100: 0.0, 200: 0.0, 300: 1.0, 400: 1.0, 500: 2.0},
@@ -36,7 +37,17 @@ def test_each_stage_ends_where_the_next_begins() -> None:
     assert "eval_speed" not in rows[0]
 
 
+def test_the_stage_names_come_from_the_newest_checkpoint(tmp_path: Path) -> None:
+    assert stage_names(tmp_path) == []
+    for steps, names in ((100, ["old"]), (500, ["walk", "run", "obstacles"])):
+        checkpoint = tmp_path / "checkpoints" / f"ckpt-{steps:012d}"
+        checkpoint.mkdir(parents=True)
+        job = {"stages": [{"name": name} for name in names]}
+        (checkpoint / "meta.json").write_text(json.dumps({"job": job}))
+    assert stage_names(tmp_path) == ["walk", "run", "obstacles"]
+
+
 def test_the_curve_is_written(tmp_path: Path) -> None:
     out = tmp_path / "run.png"
-    plot_run(SCALARS, stage_rows(SCALARS), out)
+    plot_run(SCALARS, stage_rows(SCALARS), ["walk", "run", "obstacles"], out)
     assert out.stat().st_size > 10_000
