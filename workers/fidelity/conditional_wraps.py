@@ -29,6 +29,7 @@ from gaitforge.workers.fidelity.conversion import (
     DEFAULT_SWEEP_POINTS,
     MujocoSide,
     OpenSimSide,
+    sweep_coordinate,
 )
 from gaitforge.workers.sim.mujoco_build import build_spec
 
@@ -182,7 +183,6 @@ def _scores(osim_path: Path, trial: Body, originals: list[str], points: int) -> 
     osim = OpenSimSide(osim_path)
     mj = MujocoSide(build_spec(trial).compile())
     spans = osim.spanned()
-    defaults, ranges = osim.defaults(), osim.ranges()
     rows = [mj.tendons[m.name] for m in trial.muscles]
     scores = np.zeros(len(rows))
     for coordinate in sorted({c for o in set(originals) for c in spans.get(o, [])}):
@@ -190,21 +190,10 @@ def _scores(osim_path: Path, trial: Body, originals: list[str], points: int) -> 
             continue
         users = [i for i, o in enumerate(originals) if coordinate in spans.get(o, [])]
         names = sorted({originals[i] for i in users})
-        q = np.linspace(*ranges[coordinate], points)
-        reference = np.zeros((len(names), points))
-        arms = np.zeros((len(users), points))
-        for k, value in enumerate(q):
-            pose = {**defaults, coordinate: float(value)}
-            osim.set_pose(pose)
-            for n, name in enumerate(names):
-                reference[n, k] = osim.muscles[name].computeMomentArm(
-                    osim.state, osim.coordinates[coordinate]
-                )
-            mj.set_pose(pose)
-            all_arms = mj.moment_arms(coordinate)
-            arms[:, k] = all_arms[[rows[i] for i in users]]
+        sweep = sweep_coordinate(osim, mj, coordinate, names, [rows[i] for i in users], points)
         for j, i in enumerate(users):
-            ref = reference[names.index(originals[i])]
-            error = float(np.sqrt(np.mean((arms[j] - ref) ** 2))) / arm_allowance(ref)
+            reference = sweep.arm_osim[names.index(originals[i])]
+            error = float(np.sqrt(np.mean((sweep.arm_mujoco[j] - reference) ** 2)))
+            error /= arm_allowance(reference)
             scores[i] += error / FAILED_PAIR + (error > 1.0)
     return scores.tolist()

@@ -795,6 +795,52 @@ def _kinematics(
     )
 
 
+@dataclass
+class CoordinateSweep:
+    """One coordinate swept over its range, the others at their defaults: ``q`` [points]
+    (rad), OpenSim's path lengths and moment arms (m) [muscles, points] and MuJoCo's of the
+    tendons swept [tendons, points] (NaN where a tendon is missing or MuJoCo lacks the
+    coordinate)."""
+
+    q: np.ndarray
+    length_osim: np.ndarray
+    arm_osim: np.ndarray
+    length_mujoco: np.ndarray
+    arm_mujoco: np.ndarray
+
+
+def sweep_coordinate(
+    osim: OpenSimSide,
+    mj: MujocoSide,
+    coordinate: str,
+    muscles: list[str],
+    rows: list[int | None],
+    points: int,
+) -> CoordinateSweep:
+    """OpenSim's ``muscles`` and MuJoCo's tendon ``rows`` (None: no tendon) over ``points``
+    values of rotational ``coordinate`` across its range."""
+    q = np.linspace(*osim.ranges()[coordinate], points)
+    defaults = osim.defaults()
+    length_os, arm_os = np.zeros((len(muscles), points)), np.zeros((len(muscles), points))
+    length_mj = np.full((len(rows), points), math.nan)
+    arm_mj = np.full((len(rows), points), math.nan)
+    for k, value in enumerate(q):
+        pose = {**defaults, coordinate: float(value)}
+        osim.set_pose(pose)
+        for i, muscle in enumerate(muscles):
+            path = osim.muscles[muscle]
+            length_os[i, k] = path.getLength(osim.state)
+            arm_os[i, k] = path.computeMomentArm(osim.state, osim.coordinates[coordinate])
+        if coordinate not in mj.joints:
+            continue
+        mj.set_pose(pose)
+        lengths, arms = mj.lengths(), mj.moment_arms(coordinate)
+        for i, row in enumerate(rows):
+            if row is not None:
+                length_mj[i, k], arm_mj[i, k] = lengths[row], arms[row]
+    return CoordinateSweep(q, length_os, arm_os, length_mj, arm_mj)
+
+
 def sweep_pairs(
     osim: OpenSimSide,
     mj: MujocoSide,
@@ -818,31 +864,20 @@ def sweep_pairs(
         for c in coordinates:
             if osim.rotational(c):
                 by_coordinate.setdefault(c, []).append(muscle)
-    defaults = osim.defaults()
-    ranges = osim.ranges()
     pairs: list[PairResult] = []
     for coordinate, muscles in by_coordinate.items():
-        q = np.linspace(*ranges[coordinate], points)
-        shape = (len(muscles), points)
-        length_os, arm_os = np.zeros(shape), np.zeros(shape)
-        length_mj, arm_mj = np.full(shape, math.nan), np.full(shape, math.nan)
         rows = [mj.tendons.get(m) for m in muscles]
-        for k, value in enumerate(q):
-            pose = {**defaults, coordinate: float(value)}
-            osim.set_pose(pose)
-            for i, muscle in enumerate(muscles):
-                path = osim.muscles[muscle]
-                length_os[i, k] = path.getLength(osim.state)
-                arm_os[i, k] = path.computeMomentArm(osim.state, osim.coordinates[coordinate])
-            if coordinate not in mj.joints:
-                continue
-            mj.set_pose(pose)
-            lengths, arms = mj.lengths(), mj.moment_arms(coordinate)
-            for i, row in enumerate(rows):
-                if row is not None:
-                    length_mj[i, k], arm_mj[i, k] = lengths[row], arms[row]
+        sweep = sweep_coordinate(osim, mj, coordinate, muscles, rows, points)
         pairs += [
-            PairResult(muscle, coordinate, q, length_os[i], length_mj[i], arm_os[i], arm_mj[i])
+            PairResult(
+                muscle,
+                coordinate,
+                sweep.q,
+                sweep.length_osim[i],
+                sweep.length_mujoco[i],
+                sweep.arm_osim[i],
+                sweep.arm_mujoco[i],
+            )
             for i, muscle in enumerate(muscles)
         ]
     muscle_order = {name: i for i, name in enumerate(osim.muscles)}
