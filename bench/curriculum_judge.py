@@ -1,9 +1,10 @@
 """Curriculum runs judged stage by stage on the episodes nobody picked: for each stage with
 promotion rules, the network it ended with (``RUN/best/stage-<i>``) on the scene it trained
 on as the catalogue composes it (the stage's ``scene_set`` left out: the scene the README
-names for it), deterministic episodes from ``--seed``; a stage whose scene draws its target
-speed also swept at 0 / 10 / 20 / 30 % slower on ``--sweep-episodes`` episodes. One table:
-falls and mean speed per run and stage, and the median over the runs.
+names for it), ``--episodes`` deterministic episodes from ``--seed``; a stage whose scene
+draws its target speed on ``--sweep-episodes`` episodes instead, also swept at 0 / 10 / 20 /
+30 % slower. One table: falls and mean speed per run and stage, and the median over the
+runs.
 
 Usage: python bench/curriculum_judge.py RUN [RUN ...] [--labels seed-0 ...] [--episodes 100]
            [--sweep-episodes 300] [--seed 0] [--json-out judged.json]
@@ -17,6 +18,8 @@ import statistics
 from pathlib import Path
 from typing import Any
 
+# bench/curriculum_run.py (this script's folder is on sys.path)
+from curriculum_run import job_stages
 from gaitforge.learner.checkpoint import latest_checkpoint
 from gaitforge.learner.evaluation.evaluate import evaluate_checkpoint
 from gaitforge.learner.evaluation.results import ModeResult
@@ -36,10 +39,9 @@ def judged_stages(run_dir: Path) -> list[tuple[int, str, str]]:
     Raises:
         SystemExit: the run has no checkpoint.
     """
-    metas = sorted((run_dir / "checkpoints").glob("ckpt-*/meta.json"))
-    if not metas:
+    stages = job_stages(run_dir)
+    if not stages:
         raise SystemExit(f"{run_dir}: no checkpoints")
-    stages = json.loads(metas[-1].read_text())["job"]["stages"]
     return [
         (index, stage.get("name") or f"stage-{index}", stage["scene"])
         for index, stage in enumerate(stages)
@@ -59,17 +61,23 @@ def figures(result: ModeResult) -> dict[str, Any]:
 def judge_stage(
     checkpoint: Path, scene: str, episodes: int, sweep_episodes: int, seed: int
 ) -> dict[str, Any]:
-    """``checkpoint`` on catalogue ``scene``: its figures and, if the scene draws its target
-    speed, the sweep's (each point's target in m/s)."""
-    report = evaluate_checkpoint(checkpoint, scene=scene, episodes=episodes, seed=seed)
+    """``checkpoint`` on catalogue ``scene``: its figures over ``episodes`` episodes or, if
+    the scene draws its target speed, over ``sweep_episodes`` with the sweep's (each point's
+    target in m/s) from the same evaluation."""
+    sweeps = load_scene(scene).task.target_speed_range is not None
+    report = evaluate_checkpoint(
+        checkpoint,
+        scene=scene,
+        episodes=sweep_episodes if sweeps else episodes,
+        seed=seed,
+        sweep=SWEEP if sweeps else None,
+    )
     judged = {"checkpoint": str(checkpoint), "scene": scene}
     judged.update(figures(report.results["deterministic"]))
-    if load_scene(scene).task.target_speed_range is not None:
-        swept = evaluate_checkpoint(
-            checkpoint, scene=scene, episodes=sweep_episodes, seed=seed, sweep=SWEEP
-        )
+    if sweeps:
         judged["sweep"] = [
-            {"target_m_s": point.target_speed_m_s, **figures(point.result)} for point in swept.sweep
+            {"target_m_s": point.target_speed_m_s, **figures(point.result)}
+            for point in report.sweep
         ]
     return judged
 

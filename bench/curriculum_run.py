@@ -18,6 +18,8 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from gaitforge.learner.checkpoint import latest_checkpoint
+from gaitforge.learner.checkpoint_meta import read_meta
 from rich.console import Console
 from rich.table import Table
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
@@ -76,13 +78,18 @@ def stage_rows(scalars: dict[str, dict[int, float]]) -> list[dict]:
     return rows
 
 
-def stage_names(run_dir: Path) -> list[str]:
-    """The job's stage names, from the newest checkpoint's ``meta.json`` (empty if none)."""
-    metas = sorted((run_dir / "checkpoints").glob("ckpt-*/meta.json"))
-    if not metas:
+def job_stages(run_dir: Path) -> list[dict]:
+    """The stages of the job (as its file gives them) stored in the run's newest complete
+    checkpoint; empty if there is none."""
+    newest = latest_checkpoint(run_dir / "checkpoints")
+    if newest is None:
         return []
-    job = json.loads(metas[-1].read_text()).get("job") or {}
-    return [stage.get("name", "") for stage in job.get("stages", [])]
+    return (read_meta(newest).job or {}).get("stages", [])
+
+
+def stage_names(run_dir: Path) -> list[str]:
+    """The job's stage names (see :func:`job_stages`)."""
+    return [stage.get("name", "") for stage in job_stages(run_dir)]
 
 
 def plot_run(

@@ -20,6 +20,7 @@ def run_with_job(root: Path, stages: list[dict]) -> Path:
     checkpoint = root / "checkpoints" / "ckpt-000000001000"
     checkpoint.mkdir(parents=True)
     (checkpoint / "meta.json").write_text(json.dumps({"job": {"stages": stages}}))
+    (checkpoint / "manifest.json").write_text("{}")  # written last: the checkpoint is complete
     return root
 
 

@@ -44,6 +44,7 @@ def test_the_stage_names_come_from_the_newest_checkpoint(tmp_path: Path) -> None
         checkpoint.mkdir(parents=True)
         job = {"stages": [{"name": name} for name in names]}
         (checkpoint / "meta.json").write_text(json.dumps({"job": job}))
+        (checkpoint / "manifest.json").write_text("{}")  # written last: the checkpoint is complete
     assert stage_names(tmp_path) == ["walk", "run", "obstacles"]
 
 
