@@ -82,11 +82,18 @@ def judge_stage(
     return judged
 
 
+def percent(value: float) -> str:
+    """A share in percent to one decimal, without a trailing ``.0`` (2 of 300: "0.7")."""
+    return f"{value:.1f}".removesuffix(".0")
+
+
 def cell(judged: dict[str, Any] | None) -> str:
     """One run's stage as a table cell: falls in percent at its speed, and the sweep's falls."""
     if judged is None:
         return "-"
-    text = f"{100 * judged['falls'] / judged['episodes']:.0f} % at {judged['speed_m_s']:.2f} m/s"
+    text = (
+        f"{percent(100 * judged['falls'] / judged['episodes'])} % at {judged['speed_m_s']:.2f} m/s"
+    )
     if judged.get("sweep"):
         falls = " / ".join(str(point["falls"]) for point in judged["sweep"])
         text += f"; sweep {falls} of {judged['sweep'][0]['episodes']}"
@@ -99,7 +106,7 @@ def median_cell(runs: list[dict[str, Any]]) -> str:
         return "-"
     falls = statistics.median(100 * r["falls"] / r["episodes"] for r in runs)
     speed = statistics.median(r["speed_m_s"] for r in runs)
-    text = f"{falls:g} % at {speed:.2f} m/s"
+    text = f"{percent(falls)} % at {speed:.2f} m/s"
     sweeps = [r["sweep"] for r in runs if r.get("sweep")]
     if sweeps:
         points = zip(*sweeps, strict=True)

@@ -68,6 +68,12 @@ def test_the_median_is_taken_per_figure_and_per_sweep_point() -> None:
     assert median_cell([]) == "-"
 
 
+def test_a_share_of_300_episodes_keeps_one_decimal() -> None:
+    two_of_300 = {"falls": 2, "episodes": 300, "speed_m_s": 2.23}
+    assert cell(two_of_300) == "0.7 % at 2.23 m/s"
+    assert median_cell([two_of_300]) == "0.7 % at 2.23 m/s"
+
+
 def test_the_table_has_a_row_per_stage_and_a_column_per_run() -> None:
     out = table(
         {
