@@ -1,6 +1,7 @@
-"""A curriculum run's stages read off its scalars (``bench/curriculum_run.py``): where each
-stage ended, the env steps and training minutes it took, its last evaluation, on fixed
-data; the stage names from the newest checkpoint's job; and the curve's PNG."""
+"""Curriculum runs' stages read off their scalars (``bench/curriculum_run.py``): where each
+stage ended, the env steps and training minutes it took, its last evaluation, the median
+over runs, on fixed data; the stage names from the newest checkpoint's job; and the curves'
+PNG."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "bench"))
 
-from curriculum_run import plot_run, stage_names, stage_rows  # noqa: E402
+from curriculum_run import Run, median_rows, plot_runs, stage_names, stage_rows  # noqa: E402
 
 SCALARS = {
     "stage": {100: 0.0, 200: 0.0, 300: 1.0, 400: 1.0, 500: 2.0},
@@ -48,7 +49,29 @@ def test_the_stage_names_come_from_the_newest_checkpoint(tmp_path: Path) -> None
     assert stage_names(tmp_path) == ["walk", "run", "obstacles"]
 
 
-def test_the_curve_is_written(tmp_path: Path) -> None:
-    out = tmp_path / "run.png"
-    plot_run(SCALARS, stage_rows(SCALARS), ["walk", "run", "obstacles"], out)
-    assert out.stat().st_size > 10_000
+NAMES = ["walk", "run", "obstacles"]
+
+
+def slower(scalars: dict[str, dict[int, float]], factor: float) -> dict[str, dict[int, float]]:
+    """The same run with every training second ``factor`` times longer."""
+    return {**scalars, "train_s": {k: v * factor for k, v in scalars["train_s"].items()}}
+
+
+def test_the_median_over_runs_is_taken_per_stage() -> None:
+    runs = [
+        Run(f"seed-{i}", slower(SCALARS, factor), stage_rows(slower(SCALARS, factor)), NAMES)
+        for i, factor in enumerate((1.0, 3.0, 2.0))
+    ]
+    runs[2].rows.pop()  # a run that has not reached the last stage
+    medians = median_rows(runs)
+    assert [m["stage"] for m in medians] == [0, 1]
+    assert [m["stage_s"] for m in medians] == [240.0, 360.0]
+    assert [m["train_s"] for m in medians] == [240.0, 600.0]
+    assert [m["stage_env_steps"] for m in medians] == [200, 200]
+
+
+def test_the_curves_are_written(tmp_path: Path) -> None:
+    one = Run("seed-0", SCALARS, stage_rows(SCALARS), NAMES)
+    for runs, name in (([one], "one.png"), ([one, one], "two.png")):
+        plot_runs(runs, tmp_path / name)
+        assert (tmp_path / name).stat().st_size > 10_000
