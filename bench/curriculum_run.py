@@ -106,6 +106,10 @@ class Run:
     names: list[str]
     """the job's stage names, by stage index"""
 
+    def stage_name(self, index: int) -> str:
+        """Stage ``index``'s name in the job; empty if the job does not name it."""
+        return self.names[index] if index < len(self.names) else ""
+
 
 def read_run(run_dir: Path, label: str) -> Run:
     """The run at ``run_dir``: its scalars, stage rows and stage names."""
@@ -153,9 +157,8 @@ def plot_runs(runs: list[Run], out: Path) -> None:
     first = runs[0]
     for position, row in enumerate(first.rows):
         index = row["stage"]
-        name = first.names[index] if index < len(first.names) else ""
         axes[0].annotate(
-            f"{index} {name}".strip(),
+            f"{index} {first.stage_name(index)}".strip(),
             (row["first_env_steps"] / 1e6, 1.0 + 0.07 * (position % 2)),
             xycoords=("data", "axes fraction"),
             fontsize="x-small",
@@ -193,7 +196,7 @@ def run_table(run: Run) -> Table:
         index = row["stage"]
         table.add_row(
             str(index),
-            run.names[index] if index < len(run.names) else "",
+            run.stage_name(index),
             f"{row['env_steps']:,}",
             f"{row['stage_env_steps']:,}",
             minutes(row["train_s"]),
@@ -230,12 +233,11 @@ def median_table(runs: list[Run]) -> Table:
         "train min at its end",
         title=f"median of {len(runs)}",
     )
-    names = runs[0].names
     for row in median_rows(runs):
         index = row["stage"]
         table.add_row(
             str(index),
-            names[index] if index < len(names) else "",
+            runs[0].stage_name(index),
             f"{row['stage_env_steps']:,.0f}",
             minutes(row["stage_s"]),
             minutes(row["train_s"]),

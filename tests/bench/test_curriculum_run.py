@@ -58,10 +58,8 @@ def slower(scalars: dict[str, dict[int, float]], factor: float) -> dict[str, dic
 
 
 def test_the_median_over_runs_is_taken_per_stage() -> None:
-    runs = [
-        Run(f"seed-{i}", slower(SCALARS, factor), stage_rows(slower(SCALARS, factor)), NAMES)
-        for i, factor in enumerate((1.0, 3.0, 2.0))
-    ]
+    scaled = [slower(SCALARS, factor) for factor in (1.0, 3.0, 2.0)]
+    runs = [Run(f"seed-{i}", s, stage_rows(s), NAMES) for i, s in enumerate(scaled)]
     runs[2].rows.pop()  # a run that has not reached the last stage
     medians = median_rows(runs)
     assert [m["stage"] for m in medians] == [0, 1]
@@ -72,6 +70,7 @@ def test_the_median_over_runs_is_taken_per_stage() -> None:
 
 def test_the_curves_are_written(tmp_path: Path) -> None:
     one = Run("seed-0", SCALARS, stage_rows(SCALARS), NAMES)
+    assert one.stage_name(2) == "obstacles" and one.stage_name(3) == ""
     for runs, name in (([one], "one.png"), ([one, one], "two.png")):
         plot_runs(runs, tmp_path / name)
         assert (tmp_path / name).stat().st_size > 10_000
