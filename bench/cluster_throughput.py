@@ -112,8 +112,9 @@ def table_rows(results: dict) -> tuple[list[tuple[str, ...]], str]:
     for row in results["rows"]:
         n, rate = row["actors"], row["steps_per_s"]
         versus = f"{rate / (n * one):.2f}" if one else "-"
-        rows.append(("pool", str(n), str(row["nodes"]), f"{rate:.1f}",
-                     f"{rate / (n * raw):.2f}", versus))  # fmt: skip
+        rows.append(
+            ("pool", str(n), str(row["nodes"]), f"{rate:.1f}", f"{rate / (n * raw):.2f}", versus)
+        )
     return rows, caption
 
 
@@ -136,8 +137,12 @@ def write(results: dict, out: Path) -> Path:
     stem = out / f"{results['scene']}-{results['backend']}-{results['cores']}cores"
     stem.with_suffix(".json").write_text(json.dumps(results, indent=2) + "\n")
     rows, caption = table_rows(results)
-    lines = [f"## {title(results)}", "", "| " + " | ".join(HEADER) + " |",
-             "|" + "---|" * len(HEADER)]  # fmt: skip
+    lines = [
+        f"## {title(results)}",
+        "",
+        "| " + " | ".join(HEADER) + " |",
+        "|" + "---|" * len(HEADER),
+    ]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     lines += ["", caption + f" (measured {results['measured_at']}, {results['platform']})", ""]
     stem.with_suffix(".md").write_text("\n".join(lines))
@@ -148,18 +153,23 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default="walk-2d")
     parser.add_argument("--backend", default="mujoco", choices=["mujoco", "opensim"])
-    parser.add_argument("--actors", type=actor_counts, default=[1, 2],
-                        help="actor counts, one row each (default 1,2); as many worker nodes "
-                        "as the largest")  # fmt: skip
+    parser.add_argument(
+        "--actors",
+        type=actor_counts,
+        default=[1, 2],
+        help="actor counts, one row each (default 1,2); as many worker nodes as the largest",
+    )
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--envs-per-worker", type=int, default=4)
     parser.add_argument("--fragment-length", type=int, default=256)
     parser.add_argument("--out", type=Path, default=Path("bench/results/cluster"))
     args = parser.parse_args()
     cores = os.cpu_count() or 1
-    console.print(f"machine: {platform.machine()}, {cores} cores; python "
-                  f"{platform.python_version()}, ray {ray.__version__}, mujoco "
-                  f"{mujoco.__version__}\nplatform: {platform.platform()}")  # fmt: skip
+    console.print(
+        f"machine: {platform.machine()}, {cores} cores; python "
+        f"{platform.python_version()}, ray {ray.__version__}, mujoco "
+        f"{mujoco.__version__}\nplatform: {platform.platform()}"
+    )
     act_dim = MuscleEnv(args.scene, args.backend).action_space.shape[0]
     load_before = os.getloadavg()[0]
     columns = (TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn())
@@ -169,15 +179,22 @@ def main() -> None:
         time.sleep(2.0)  # let Ray's processes exit before the last raw run
         raws.append(single.raw_rate(args.scene, args.backend, args.seconds, progress))
     results = {
-        "scene": args.scene, "backend": args.backend, "cores": cores,
-        "seconds": args.seconds, "envs_per_worker": args.envs_per_worker,
-        "fragment_length": args.fragment_length, "raw_first": raws[0], "raw_last": raws[1],
-        "raw_steps_per_s": sum(raws) / 2, "rows": rows,
+        "scene": args.scene,
+        "backend": args.backend,
+        "cores": cores,
+        "seconds": args.seconds,
+        "envs_per_worker": args.envs_per_worker,
+        "fragment_length": args.fragment_length,
+        "raw_first": raws[0],
+        "raw_last": raws[1],
+        "raw_steps_per_s": sum(raws) / 2,
+        "rows": rows,
         "load_1min": {"before": load_before, "after": os.getloadavg()[0]},
         "measured_at": datetime.now(UTC).isoformat(timespec="seconds"),
-        "machine": platform.machine(), "platform": platform.platform(),
+        "machine": platform.machine(),
+        "platform": platform.platform(),
         "versions": {"ray": ray.__version__, "mujoco": mujoco.__version__},
-    }  # fmt: skip
+    }
     console.print(render(results))
     console.print(f"results: {write(results, args.out)}")
 

@@ -48,20 +48,39 @@ class BodyLog(Observer):
     def on_reset(self, env: Any, obs: np.ndarray, info: dict[str, Any]) -> None:
         self.rows: list[list[float]] = []
         sim = env.sim
-        self.names = [*SERIES, *(f"q:{n}" for n in sim.dof_names),
-                      *(f"a:{n}" for n in sim.muscle_names)]  # fmt: skip
+        self.names = [
+            *SERIES,
+            *(f"q:{n}" for n in sim.dof_names),
+            *(f"a:{n}" for n in sim.muscle_names),
+        ]
         state = env.sim.state()
         self._start = float(state.pelvis_pos[env.sim.forward_axis])
         self._weight = env.sim.report.mass * GRAVITY
 
-    def on_step(self, env: Any, action: np.ndarray, obs: np.ndarray, reward: float,
-                terminated: bool, truncated: bool, info: dict[str, Any]) -> None:  # fmt: skip
+    def on_step(
+        self,
+        env: Any,
+        action: np.ndarray,
+        obs: np.ndarray,
+        reward: float,
+        terminated: bool,
+        truncated: bool,
+        info: dict[str, Any],
+    ) -> None:
         s, up, fwd = env.sim.state(), env.sim.up_axis, env.sim.forward_axis
         pitch = -pelvis_pitch_list(s.pelvis_up, up, fwd)[0]  # OpenSim's tilt, lean forward > 0
         feet = (s.foot_forces / self._weight).tolist() + [float("nan")] * 2
-        self.rows.append([float(s.pelvis_pos[up]), float(s.pelvis_pos[fwd]) - self._start,
-                          pitch, feet[0], feet[1], *s.dof_pos.tolist(),
-                          *s.activations.tolist()])  # fmt: skip
+        self.rows.append(
+            [
+                float(s.pelvis_pos[up]),
+                float(s.pelvis_pos[fwd]) - self._start,
+                pitch,
+                feet[0],
+                feet[1],
+                *s.dof_pos.tolist(),
+                *s.activations.tolist(),
+            ]
+        )
 
 
 def run(
@@ -82,8 +101,9 @@ def run(
     return out, names
 
 
-def draw_series(ax: Any, t: np.ndarray, logs: dict[str, np.ndarray],
-                median: dict[str, np.ndarray], column: int) -> None:  # fmt: skip
+def draw_series(
+    ax: Any, t: np.ndarray, logs: dict[str, np.ndarray], median: dict[str, np.ndarray], column: int
+) -> None:
     """One series on ``ax`` per backend: every episode thin, the median thick."""
     for b, color in zip(BACKENDS, ("tab:blue", "tab:red"), strict=True):
         for episode in logs[b]:
@@ -92,13 +112,19 @@ def draw_series(ax: Any, t: np.ndarray, logs: dict[str, np.ndarray],
     ax.grid(alpha=0.3)
 
 
-def plot_grid(t: np.ndarray, logs: dict[str, np.ndarray], median: dict[str, np.ndarray],
-              columns: list[int], labels: list[str], title: str, out: Path) -> None:  # fmt: skip
+def plot_grid(
+    t: np.ndarray,
+    logs: dict[str, np.ndarray],
+    median: dict[str, np.ndarray],
+    columns: list[int],
+    labels: list[str],
+    title: str,
+    out: Path,
+) -> None:
     """One panel per series column (:func:`draw_series`), three to a row, saved to ``out``."""
     cols = 3
     rows = -(-len(columns) // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 2.4 * rows), sharex=True,
-                             squeeze=False)  # fmt: skip
+    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 2.4 * rows), sharex=True, squeeze=False)
     for ax, j, label in zip(axes.flat, columns, labels, strict=False):
         draw_series(ax, t, logs, median, j)
         ax.set_title(label, fontsize=9)
@@ -175,13 +201,24 @@ def main() -> None:
     fig.savefig(args.out, dpi=110)
     for part, prefix, unit in (("joints", "q:", "rad"), ("muscles", "a:", "activation")):
         columns = [j for j, n in enumerate(names) if n.startswith(prefix)]
-        plot_grid(t[:steps], {b: v[:, :steps] for b, v in logs.items()},
-                  {b: v[:steps] for b, v in median.items()}, columns,
-                  [f"{names[j][2:]} {unit}" for j in columns], title,
-                  args.out.with_name(f"{args.out.stem}-{part}.png"))  # fmt: skip
-    data = {b: {"series": names, "dt_s": dt, "episodes_up": up[b].tolist(),
-                "median": np.where(np.isfinite(median[b]), median[b].round(4), None).tolist()}
-            for b in BACKENDS}  # fmt: skip
+        plot_grid(
+            t[:steps],
+            {b: v[:, :steps] for b, v in logs.items()},
+            {b: v[:steps] for b, v in median.items()},
+            columns,
+            [f"{names[j][2:]} {unit}" for j in columns],
+            title,
+            args.out.with_name(f"{args.out.stem}-{part}.png"),
+        )
+    data = {
+        b: {
+            "series": names,
+            "dt_s": dt,
+            "episodes_up": up[b].tolist(),
+            "median": np.where(np.isfinite(median[b]), median[b].round(4), None).tolist(),
+        }
+        for b in BACKENDS
+    }
     args.out.with_suffix(".json").write_text(json.dumps(data))
     console.log(f"wrote {args.out} (and -joints, -muscles) and {args.out.with_suffix('.json')}")
 

@@ -77,22 +77,40 @@ def physics_steps_per_s(model: mujoco.MjModel, seconds: float, seed: int = 0) ->
 
 
 def env_table(seconds: float, repeats: int, opensim: bool) -> Table:
-    table = Table("scene", "backend", "profile", "dofs", "muscles", "env steps/s",
-                  "real-time x", "vs MuJoCo", title="Env steps/s, one core (median)")  # fmt: skip
+    table = Table(
+        "scene",
+        "backend",
+        "profile",
+        "dofs",
+        "muscles",
+        "env steps/s",
+        "real-time x",
+        "vs MuJoCo",
+        title="Env steps/s, one core (median)",
+    )
     for name in catalogue():
         scene = load_scene(name)
         runs: list[tuple[str, str, MuscleEnv]] = [("mujoco", "default", MuscleEnv(scene))]
         if opensim and "opensim" in scene.backends:
-            runs += [("opensim", p, MuscleEnv(_with_profile(scene, p), "opensim"))
-                     for p in OPENSIM_PROFILES]  # fmt: skip
+            runs += [
+                ("opensim", p, MuscleEnv(_with_profile(scene, p), "opensim"))
+                for p in OPENSIM_PROFILES
+            ]
         base = None
         for backend, profile, env in runs:
             result = median_run(env, seconds, repeats)
             base = base or result.steps_per_s
             size = env.sim.report.size
-            table.add_row(name, backend, profile, str(size["dofs"]), str(size["muscles"]),
-                          f"{result.steps_per_s:.1f}", f"{result.realtime_factor:.2f}",
-                          f"{result.steps_per_s / base:.4f}")  # fmt: skip
+            table.add_row(
+                name,
+                backend,
+                profile,
+                str(size["dofs"]),
+                str(size["muscles"]),
+                f"{result.steps_per_s:.1f}",
+                f"{result.realtime_factor:.2f}",
+                f"{result.steps_per_s / base:.4f}",
+            )
     return table
 
 
@@ -100,15 +118,24 @@ ACTION_SCENES = ("walk-2d", "imitate-walk-2d")
 
 
 def action_table(seconds: float, repeats: int, opensim: bool) -> Table:
-    table = Table("scene", "backend", "control Hz", "action", "entries", "env steps/s",
-                  "vs excitations", title="Joint targets against excitations, one core "
-                  "(median)")  # fmt: skip
+    table = Table(
+        "scene",
+        "backend",
+        "control Hz",
+        "action",
+        "entries",
+        "env steps/s",
+        "vs excitations",
+        title="Joint targets against excitations, one core (median)",
+    )
     for name in ACTION_SCENES:
         scene = load_scene(name).model_copy(update={"control_hz": 25.0})
         targets = Scene.model_validate({**scene.model_dump(), "action": {"kind": "joint_targets"}})
         for backend in ("mujoco", "opensim") if opensim else ("mujoco",):
-            envs = {"excitations": MuscleEnv(scene, backend),
-                    "joint targets": MuscleEnv(targets, backend)}  # fmt: skip
+            envs = {
+                "excitations": MuscleEnv(scene, backend),
+                "joint targets": MuscleEnv(targets, backend),
+            }
             rates: dict[str, list[float]] = {k: [] for k in envs}
             for r in range(repeats):
                 for kind, env in envs.items():
@@ -116,8 +143,15 @@ def action_table(seconds: float, repeats: int, opensim: bool) -> Table:
             base = statistics.median(rates["excitations"])
             for kind, env in envs.items():
                 rate = statistics.median(rates[kind])
-                table.add_row(name, backend, "25", kind, str(env.action_space.shape[0]),
-                              f"{rate:.1f}", f"{rate / base:.2f}")  # fmt: skip
+                table.add_row(
+                    name,
+                    backend,
+                    "25",
+                    kind,
+                    str(env.action_space.shape[0]),
+                    f"{rate:.1f}",
+                    f"{rate / base:.2f}",
+                )
     return table
 
 
@@ -140,15 +174,26 @@ def pruning_table(seconds: float, repeats: int) -> Table:
     for r in range(repeats):
         for label, (model, _) in models.items():
             rates[label].append(physics_steps_per_s(model, seconds, r))
-    table = Table("model", "dofs", "muscles", "contact pairs", "geoms", "sites",
-                  "physics steps/s", "ratio", title=f"Pruning: raw mj_step rate "
-                  f"({profile.integrator}, {profile.timestep * 1000:g} ms)")  # fmt: skip
+    table = Table(
+        "model",
+        "dofs",
+        "muscles",
+        "contact pairs",
+        "geoms",
+        "sites",
+        "physics steps/s",
+        "ratio",
+        title=f"Pruning: raw mj_step rate ({profile.integrator}, {profile.timestep * 1000:g} ms)",
+    )
     base = statistics.median(rates["MyoLeg as shipped"])
     for label, (_, size) in models.items():
         rate = statistics.median(rates[label])
-        table.add_row(label, *(str(size[k]) for k in
-                               ("dofs", "muscles", "contact_pairs", "geoms", "sites")),
-                      f"{rate:.0f}", f"{rate / base:.2f}")  # fmt: skip
+        table.add_row(
+            label,
+            *(str(size[k]) for k in ("dofs", "muscles", "contact_pairs", "geoms", "sites")),
+            f"{rate:.0f}",
+            f"{rate / base:.2f}",
+        )
     return table
 
 
@@ -166,29 +211,55 @@ LAWS = {
     "contact_model: hunt-crossley": ("mujoco", {"mujoco": {"contact_model": "hunt-crossley"}}),
     "joint_limits: opensim": ("mujoco", {"mujoco": {"joint_limits": "opensim"}}),
     "muscle_curves and muscle_passive: opensim": (
-        "mujoco", {"mujoco": {"muscle_curves": "opensim", "muscle_passive": "opensim"}}),
+        "mujoco",
+        {"mujoco": {"muscle_curves": "opensim", "muscle_passive": "opensim"}},
+    ),
     "all four": ("mujoco", ALL_LAWS),
-    "all four, semi-implicit Euler 1 ms": ("mujoco", {**ALL_LAWS, "fidelity": {
-        "mujoco": {"integrator": "euler", "timestep": 0.001}, "opensim": OPENSIM_PROFILE}}),
+    "all four, semi-implicit Euler 1 ms": (
+        "mujoco",
+        {
+            **ALL_LAWS,
+            "fidelity": {
+                "mujoco": {"integrator": "euler", "timestep": 0.001},
+                "opensim": OPENSIM_PROFILE,
+            },
+        },
+    ),
     # OpenSim's SemiExplicitEuler2 keeps the two half steps of each 1 ms step it takes
-    "all four, semi-implicit Euler 0.5 ms": ("mujoco", {**ALL_LAWS, "fidelity": {
-        "mujoco": {"integrator": "euler", "timestep": 0.0005}, "opensim": OPENSIM_PROFILE}}),
+    "all four, semi-implicit Euler 0.5 ms": (
+        "mujoco",
+        {
+            **ALL_LAWS,
+            "fidelity": {
+                "mujoco": {"integrator": "euler", "timestep": 0.0005},
+                "opensim": OPENSIM_PROFILE,
+            },
+        },
+    ),
     "OpenSim, semi-explicit Euler 1 ms": (
-        "opensim", {"fidelity": {"mujoco": "default", "opensim": OPENSIM_PROFILE}}),
-}  # fmt: skip
+        "opensim",
+        {"fidelity": {"mujoco": "default", "opensim": OPENSIM_PROFILE}},
+    ),
+}
 
 
 def laws_table(seconds: float, repeats: int, opensim: bool) -> Table:
     base = load_scene("walk-2d+clock")
-    envs = {label: MuscleEnv(Scene.model_validate({**base.model_dump(), **options}), backend)
-            for label, (backend, options) in LAWS.items()
-            if opensim or backend == "mujoco"}  # fmt: skip
+    envs = {
+        label: MuscleEnv(Scene.model_validate({**base.model_dump(), **options}), backend)
+        for label, (backend, options) in LAWS.items()
+        if opensim or backend == "mujoco"
+    }
     rates: dict[str, list[float]] = {label: [] for label in envs}
     for r in range(repeats):
         for label, env in envs.items():
             rates[label].append(random_excitations(env, seconds, seed=r).steps_per_s)
-    table = Table("walk-2d+clock", "env steps/s", "vs MuJoCo as it is",
-                  title="MuJoCo on OpenSim's laws, one core (median)")  # fmt: skip
+    table = Table(
+        "walk-2d+clock",
+        "env steps/s",
+        "vs MuJoCo as it is",
+        title="MuJoCo on OpenSim's laws, one core (median)",
+    )
     first = statistics.median(rates["MuJoCo as it is"])
     for label in envs:
         rate = statistics.median(rates[label])
@@ -201,11 +272,13 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-opensim", action="store_true")
-    parser.add_argument("--only", choices=["env", "actions", "pruning", "laws"],
-                        help="print one table only")  # fmt: skip
+    parser.add_argument(
+        "--only", choices=["env", "actions", "pruning", "laws"], help="print one table only"
+    )
     args = parser.parse_args()
-    console.print(f"machine: {platform.machine()}, {os.cpu_count()} cores, "
-                  f"mujoco {mujoco.__version__}")  # fmt: skip
+    console.print(
+        f"machine: {platform.machine()}, {os.cpu_count()} cores, mujoco {mujoco.__version__}"
+    )
     if args.only in (None, "env"):
         console.print(env_table(args.seconds, args.repeats, not args.no_opensim))
     if args.only in (None, "actions"):

@@ -23,14 +23,15 @@ def pareto(rows: list[dict]) -> list[dict]:
     stable = [r for r in rows if r["stable"]]
     return sorted(
         (
-            r for r in stable
+            r
+            for r in stable
             if not any(
                 o["steps_per_s"] > r["steps_per_s"] and _num(o["error"]) < _num(r["error"])
                 for o in stable
             )
         ),
         key=lambda r: -r["steps_per_s"],
-    )  # fmt: skip
+    )
 
 
 def _num(x: object) -> float:
@@ -67,14 +68,17 @@ def sweep_table(data: dict) -> str:
     bad = [r for r in data["rows"] if not r["stable"]]
     out.append("")
     unstable = ", ".join(f"{r['label']} ({r['health']})" for r in bad) or "none"
-    out.append(f"Pareto-optimal stable profiles shown; {len(data['rows'])} measured. "
-               f"Unstable: {unstable}.")  # fmt: skip
+    out.append(
+        f"Pareto-optimal stable profiles shown; {len(data['rows'])} measured. Unstable: {unstable}."
+    )
     if data["model"]:
         head = "| model difference | setting | RMS 0.5 s (rad) | RMS 2 s (rad) | speed ratio |"
         out += ["", head, "|---|---|---|---|---|"]
         for m in data["model"]:
-            out.append(f"| {m['what']} | {m['setting']} | {_f(m['rms_short'])} | "
-                       f"{_f(m['rms_long'])} | {m['speed_ratio']:.2f} |")  # fmt: skip
+            out.append(
+                f"| {m['what']} | {m['setting']} | {_f(m['rms_short'])} | "
+                f"{_f(m['rms_long'])} | {m['speed_ratio']:.2f} |"
+            )
     return "\n".join(out)
 
 
@@ -86,20 +90,24 @@ def main() -> None:
     osim = sweeps.get("walk-2d-opensim")
     if osim and osim.get("challenge"):
         c = osim["challenge"]
-        print(f"- OpenSim: {c['recommended']} runs {c['recommended_steps_per_s']:.0f} env steps/s "
-              f"at error {c['recommended_error']:.2g} rad against {c['challenge_steps_per_s']:.0f} "
-              f"for the 2017 setting ({c['challenge']}, error {c['challenge_error']:.2g} rad): "
-              f"**{c['speedup']:.1f}x**.")  # fmt: skip
+        print(
+            f"- OpenSim: {c['recommended']} runs {c['recommended_steps_per_s']:.0f} env steps/s "
+            f"at error {c['recommended_error']:.2g} rad against {c['challenge_steps_per_s']:.0f} "
+            f"for the 2017 setting ({c['challenge']}, error {c['challenge_error']:.2g} rad): "
+            f"**{c['speedup']:.1f}x**."
+        )
         for name in ("walk-2d-mujoco",):
             mj = sweeps.get(name)
             if mj and mj["recommended"]:
                 r = mj["recommended"]
                 model = next((m for m in mj["model"] if m["what"].startswith("opensim")), None)
                 gap = f"; the simulators differ by {_f(model['rms_long'])} rad" if model else ""
-                print(f"- MuJoCo: {r['label']} runs {r['steps_per_s']:.0f} env steps/s at error "
-                      f"{_f(r['error'])} rad against its own reference: "
-                      f"**{r['steps_per_s'] / c['challenge_steps_per_s']:.0f}x** the 2017 "
-                      f"setting on OpenSim{gap} (model error, not integration error).")  # fmt: skip
+                print(
+                    f"- MuJoCo: {r['label']} runs {r['steps_per_s']:.0f} env steps/s at error "
+                    f"{_f(r['error'])} rad against its own reference: "
+                    f"**{r['steps_per_s'] / c['challenge_steps_per_s']:.0f}x** the 2017 "
+                    f"setting on OpenSim{gap} (model error, not integration error)."
+                )
 
 
 if __name__ == "__main__":

@@ -42,8 +42,16 @@ class Frames(Observer):
         self._step = 0
         self._keep(env)
 
-    def on_step(self, env: MuscleEnv, action: np.ndarray, obs: np.ndarray, reward: float,
-                terminated: bool, truncated: bool, info: dict[str, Any]) -> None:  # fmt: skip
+    def on_step(
+        self,
+        env: MuscleEnv,
+        action: np.ndarray,
+        obs: np.ndarray,
+        reward: float,
+        terminated: bool,
+        truncated: bool,
+        info: dict[str, Any],
+    ) -> None:
         self._step += 1
         self._keep(env)
 
@@ -74,9 +82,11 @@ def main() -> None:
         ax.imshow(image)
         ax.set_title(f"{t:g} s", fontsize=9)
         ax.axis("off")
-    fig.suptitle(f"{scene.name}: {path.name}, seed {args.seed}; the episode lasted "
-                 f"{summary.steps / scene.control_hz:.1f} s, {summary.distance_m:.1f} m",
-                 fontsize=9)  # fmt: skip
+    fig.suptitle(
+        f"{scene.name}: {path.name}, seed {args.seed}; the episode lasted "
+        f"{summary.steps / scene.control_hz:.1f} s, {summary.distance_m:.1f} m",
+        fontsize=9,
+    )
     fig.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.out, dpi=90)

@@ -114,14 +114,41 @@ def run_seed(
         logger.info("training %s", where)
         limit = [] if train_minutes is None else ["--max-minutes", str(train_minutes)]
         with where.with_suffix(".log").open("w") as log:
-            subprocess.run(["gaitforge", "train", str(job_file), "--run-dir", str(where),
-                            "--log-every", "30", *limit], stdout=log, stderr=subprocess.STDOUT,
-                           check=True)  # fmt: skip
+            subprocess.run(
+                [
+                    "gaitforge",
+                    "train",
+                    str(job_file),
+                    "--run-dir",
+                    str(where),
+                    "--log-every",
+                    "30",
+                    *limit,
+                ],
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                check=True,
+            )
         logger.info("judging %s on %d episodes of %s", where, episodes, scene)
         with where.with_suffix(".txt").open("w") as table:
-            subprocess.run(["gaitforge", "evaluate", str(where), "--scene", scene, "--episodes",
-                            str(episodes), "--seed", str(judge_seed), "--json-out", str(verdict)],
-                           stdout=table, stderr=subprocess.STDOUT, check=True)  # fmt: skip
+            subprocess.run(
+                [
+                    "gaitforge",
+                    "evaluate",
+                    str(where),
+                    "--scene",
+                    scene,
+                    "--episodes",
+                    str(episodes),
+                    "--seed",
+                    str(judge_seed),
+                    "--json-out",
+                    str(verdict),
+                ],
+                stdout=table,
+                stderr=subprocess.STDOUT,
+                check=True,
+            )
     return judged(verdict)
 
 
@@ -143,18 +170,36 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("job", type=Path, help="the job file every arm changes")
     parser.add_argument("--out", type=Path, required=True)
-    parser.add_argument("--arm", nargs="+", action="append", required=True,
-                        metavar="WORD", help="an arm: NAME [KEY=VALUE ...]")  # fmt: skip
+    parser.add_argument(
+        "--arm",
+        nargs="+",
+        action="append",
+        required=True,
+        metavar="WORD",
+        help="an arm: NAME [KEY=VALUE ...]",
+    )
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--scene", default="run-2d+clock",
-                        help="the scene judged on (stage: each run's last stage's)")  # fmt: skip
+    parser.add_argument(
+        "--scene",
+        default="run-2d+clock",
+        help="the scene judged on (stage: each run's last stage's)",
+    )
     parser.add_argument("--episodes", type=int, default=200)
-    parser.add_argument("--judge-seed", type=int, default=0,
-                        help="the first episode seed judged")  # fmt: skip
-    parser.add_argument("--side-by-side", type=int, default=1, metavar="N",
-                        help="train and judge up to N runs at once")  # fmt: skip
-    parser.add_argument("--train-minutes", type=float, default=None, metavar="M",
-                        help="end each training after M minutes (default: its budget)")  # fmt: skip
+    parser.add_argument("--judge-seed", type=int, default=0, help="the first episode seed judged")
+    parser.add_argument(
+        "--side-by-side",
+        type=int,
+        default=1,
+        metavar="N",
+        help="train and judge up to N runs at once",
+    )
+    parser.add_argument(
+        "--train-minutes",
+        type=float,
+        default=None,
+        metavar="M",
+        help="end each training after M minutes (default: its budget)",
+    )
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s", handlers=[RichHandler()])
     if not args.job.is_file():
@@ -184,12 +229,19 @@ def main() -> None:
     results: dict[str, dict[int, dict[str, float]]] = {arm: {} for arm in arms}
     for (arm, seed), verdict in zip(runs, verdicts, strict=True):
         results[arm][seed] = verdict
-    (args.out / "arms.json").write_text(json.dumps(
-        {"job": str(args.job), "scene": args.scene, "episodes": args.episodes,
-         "judge_seed": args.judge_seed,
-         "train_minutes": args.train_minutes,
-         "arms": {arm: {"overrides": arms[arm], "seeds": results[arm]} for arm in arms}},
-        indent=2))  # fmt: skip
+    (args.out / "arms.json").write_text(
+        json.dumps(
+            {
+                "job": str(args.job),
+                "scene": args.scene,
+                "episodes": args.episodes,
+                "judge_seed": args.judge_seed,
+                "train_minutes": args.train_minutes,
+                "arms": {arm: {"overrides": arms[arm], "seeds": results[arm]} for arm in arms},
+            },
+            indent=2,
+        )
+    )
     Console(width=160).print(summary_table(results, args.seeds))
 
 

@@ -77,9 +77,16 @@ def run_gaitforge(
         means = {r.metric: m[r.metric] for r in rules}
         # a judged stage's deterministic evaluations (learner.evaluation.stage_judge), where one ran
         evaluated = {k: v for k, v in m.items() if k.startswith(("eval_", "kept_"))}
-        curve.append({"wall_s": time.monotonic() - start, "env_steps": m["env_steps"],
-                      "stage": m["stage"], "return": m["return"], **means,
-                      **evaluated})  # fmt: skip
+        curve.append(
+            {
+                "wall_s": time.monotonic() - start,
+                "env_steps": m["env_steps"],
+                "stage": m["stage"],
+                "return": m["return"],
+                **means,
+                **evaluated,
+            }
+        )
         console.log(f"gaitforge {job.name}: {curve[-1]}")
 
     trainer = Trainer(job, out, scenes, on_iteration=record, tensorboard=False)
@@ -144,8 +151,13 @@ def met_deterministically(rules: list[PromotionRule], evaluation: dict) -> bool 
 
 def _summary(curve: list[dict], reached: bool) -> dict:
     last = curve[-1] if curve else {}
-    return {"reached": reached, "wall_s": last.get("wall_s"), "env_steps": last.get("env_steps"),
-            "last": last, "curve": curve}  # fmt: skip
+    return {
+        "reached": reached,
+        "wall_s": last.get("wall_s"),
+        "env_steps": last.get("env_steps"),
+        "last": last,
+        "curve": curve,
+    }
 
 
 def _yes_no(value: bool | None) -> str:
@@ -170,8 +182,17 @@ def median_evaluation(runs: dict[str, dict]) -> dict[str, float]:
 
 def table(results: dict) -> Table:
     out = Table(title=f"Learning to target, same wall-clock budget ({os.cpu_count()} CPUs)")
-    for col in ("task", "run", "target", "reached (training)", "wall s", "env steps",
-                "last values", "met (deterministic)", "deterministic evaluation"):  # fmt: skip
+    for col in (
+        "task",
+        "run",
+        "target",
+        "reached (training)",
+        "wall s",
+        "env steps",
+        "last values",
+        "met (deterministic)",
+        "deterministic evaluation",
+    ):
         out.add_column(col, overflow="fold")
     for task, by_task in results.items():
         for name, r in by_task["runs"].items():
@@ -197,10 +218,17 @@ def table(results: dict) -> Table:
         if len(gaitforge) > 1:
             reached = sum(r["reached"] for r in gaitforge.values())
             judged = [r["met"] for r in gaitforge.values() if r.get("met") is not None]
-            out.add_row(task, f"gaitforge median of {len(gaitforge)}", by_task["target"],
-                        f"{reached}/{len(gaitforge)}", "", "", "",
-                        f"{sum(judged)}/{len(judged)}" if judged else "-",
-                        _cell(median_evaluation(gaitforge)))  # fmt: skip
+            out.add_row(
+                task,
+                f"gaitforge median of {len(gaitforge)}",
+                by_task["target"],
+                f"{reached}/{len(gaitforge)}",
+                "",
+                "",
+                "",
+                f"{sum(judged)}/{len(judged)}" if judged else "-",
+                _cell(median_evaluation(gaitforge)),
+            )
     return out
 
 
@@ -210,8 +238,9 @@ def plot(results: dict, path: Path) -> None:
     was judged on deterministic evaluations (``eval_<metric>``), those as dots of the run's
     colour."""
     rows = max(len(_rule_lines(by_task)) for by_task in results.values()) + 1
-    fig, axes = plt.subplots(rows, len(results), figsize=(5 * len(results), 3.2 * rows),
-                             squeeze=False)  # fmt: skip
+    fig, axes = plt.subplots(
+        rows, len(results), figsize=(5 * len(results), 3.2 * rows), squeeze=False
+    )
     for column, (task, by_task) in enumerate(results.items()):
         lines = _rule_lines(by_task)
         panels = [(axes[i][column], metric) for i, (metric, _) in enumerate(lines)]
@@ -220,11 +249,19 @@ def plot(results: dict, path: Path) -> None:
             xs = [p["wall_s"] / 60 for p in r["curve"]]
             for ax, key in panels:
                 (line,) = ax.plot(xs, [p.get(key, float("nan")) for p in r["curve"]], label=name)
-                judged = [(x, p[f"eval_{key}"]) for x, p in zip(xs, r["curve"], strict=True)
-                          if f"eval_{key}" in p]  # fmt: skip
+                judged = [
+                    (x, p[f"eval_{key}"])
+                    for x, p in zip(xs, r["curve"], strict=True)
+                    if f"eval_{key}" in p
+                ]
                 if judged:
-                    ax.plot(*zip(*judged, strict=True), "o", color=line.get_color(),
-                            markersize=3, label=f"{name}, deterministic")  # fmt: skip
+                    ax.plot(
+                        *zip(*judged, strict=True),
+                        "o",
+                        color=line.get_color(),
+                        markersize=3,
+                        label=f"{name}, deterministic",
+                    )
         for (ax, metric), (_, threshold) in zip(panels, lines, strict=False):
             ax.axhline(threshold, color="grey", linestyle="--", linewidth=1)
             ax.set_ylabel(metric)
@@ -265,8 +302,7 @@ def main() -> None:
         help="deterministic episodes per run at the end (0: none)",
     )
     parser.add_argument("--no-rllib", action="store_true")
-    parser.add_argument("--no-gaitforge", action="store_true",
-                        help="RLlib only")  # fmt: skip
+    parser.add_argument("--no-gaitforge", action="store_true", help="RLlib only")
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--out", type=Path, default=Path("bench/results/learning"))
     parser.add_argument(

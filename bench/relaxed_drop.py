@@ -30,8 +30,15 @@ console = Console(width=180)
 SERIES = ("heel m", "toe m", "toe slide m", "foot BW", "ankle deg", "knee deg", "pelvis m")
 
 
-def drop(scene: Scene, backend: str, excitation: float, every_s: float, steps: int,
-         seed: int, lift_m: float = 0.0) -> np.ndarray:  # fmt: skip
+def drop(
+    scene: Scene,
+    backend: str,
+    excitation: float,
+    every_s: float,
+    steps: int,
+    seed: int,
+    lift_m: float = 0.0,
+) -> np.ndarray:
     """[steps, len(SERIES)]: the right foot's heel and toe sphere depths, the toe's forward
     travel, the foot's normal force, the right ankle and knee angles and the pelvis height
     after each ``every_s`` step; the body first raised ``lift_m`` above its reset (a drop
@@ -51,10 +58,17 @@ def drop(scene: Scene, backend: str, excitation: float, every_s: float, steps: i
         state = sim.state()
         spheres = sim.contact_spheres()["foot_right"]  # heel first, then toe: [n, 4]
         depth = spheres[:, up] - spheres[:, 3]
-        rows.append([depth[0], depth[-1], spheres[-1, forward] - toe_start,
-                     state.foot_forces[foot] / weight,
-                     np.degrees(state.dof_pos[ankle]), np.degrees(state.dof_pos[knee]),
-                     state.pelvis_pos[up]])  # fmt: skip
+        rows.append(
+            [
+                depth[0],
+                depth[-1],
+                spheres[-1, forward] - toe_start,
+                state.foot_forces[foot] / weight,
+                np.degrees(state.dof_pos[ankle]),
+                np.degrees(state.dof_pos[knee]),
+                state.pelvis_pos[up],
+            ]
+        )
         if not health.ok:
             console.log(f"{backend}: {health} at {state.time:.3f} s")
             break
@@ -94,8 +108,12 @@ def main() -> None:
     parser.add_argument("--every-s", type=float, default=0.01)
     parser.add_argument("--until-s", type=float, default=0.06)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--lift-m", type=float, default=0.0,
-                        help="drop the body from this high above its reset (m, 0-0.2)")  # fmt: skip
+    parser.add_argument(
+        "--lift-m",
+        type=float,
+        default=0.0,
+        help="drop the body from this high above its reset (m, 0-0.2)",
+    )
     parser.add_argument("--json-out", type=Path, default=None)
     args = parser.parse_args()
     if not 0.0 <= args.excitation <= 1.0:
@@ -116,10 +134,12 @@ def main() -> None:
         name: drop(s, backend, args.excitation, args.every_s, steps, args.seed, args.lift_m)
         for name, (s, backend) in variants.items()
     }
-    title = (f"{scene.name}: every muscle at excitation {args.excitation:g}, let go "
-             f"{args.lift_m * 100:g} cm above the reset pose "
-             f"(seed {args.seed}); right foot: heel / toe depth m, toe's forward travel, force BW; "
-             "right ankle / knee deg; pelvis m")  # fmt: skip
+    title = (
+        f"{scene.name}: every muscle at excitation {args.excitation:g}, let go "
+        f"{args.lift_m * 100:g} cm above the reset pose "
+        f"(seed {args.seed}); right foot: heel / toe depth m, toe's forward travel, force BW; "
+        "right ankle / knee deg; pelvis m"
+    )
     table = Table(title=title)
     table.add_column("t s", justify="right")
     for name in logs:
@@ -128,15 +148,22 @@ def main() -> None:
         cells = [f"{(k + 1) * args.every_s:.3f}"]
         for log in logs.values():
             heel, toe, slide, force, ankle, knee, pelvis = log[k]
-            cells.append(f"{heel:+.3f}/{toe:+.3f} {slide * 1000:+.0f}mm {force:.2f} "
-                         f"{ankle:+.0f}/{knee:+.0f} {pelvis:.3f}")  # fmt: skip
+            cells.append(
+                f"{heel:+.3f}/{toe:+.3f} {slide * 1000:+.0f}mm {force:.2f} "
+                f"{ankle:+.0f}/{knee:+.0f} {pelvis:.3f}"
+            )
         table.add_row(*cells)
     console.print(table)
     if args.json_out is not None:
-        data = {"series": list(SERIES), "every_s": args.every_s, "excitation": args.excitation,
-                "scene": scene.name,
-                "runs": {n: np.where(np.isfinite(v), v.round(5), None).tolist()
-                         for n, v in logs.items()}}  # fmt: skip
+        data = {
+            "series": list(SERIES),
+            "every_s": args.every_s,
+            "excitation": args.excitation,
+            "scene": scene.name,
+            "runs": {
+                n: np.where(np.isfinite(v), v.round(5), None).tolist() for n, v in logs.items()
+            },
+        }
         args.json_out.write_text(json.dumps(data))
 
 

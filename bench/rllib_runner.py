@@ -73,8 +73,9 @@ def run_rllib(
     from ray.tune.registry import register_env
 
     logging.getLogger("ray.rllib").setLevel(logging.ERROR)
-    register_env(RLLIB_ENV, lambda cfg: MuscleEnv(Scene.model_validate(cfg["scene"]),
-                                                   cfg["backend"]))  # fmt: skip
+    register_env(
+        RLLIB_ENV, lambda cfg: MuscleEnv(Scene.model_validate(cfg["scene"]), cfg["backend"])
+    )
     last = len(job.stages) - 1
     rules = job.stages[last].promote
     window = max(rule.window for rule in rules)
@@ -88,10 +89,12 @@ def run_rllib(
             length = len(episode)
             cfg = env_runner.config.env_config
             stats = EpisodeStats(
-                float(episode.get_return()), float(info.get("distance", 0.0)),
-                length / cfg["control_hz"], bool(info.get("fell", False)),
+                float(episode.get_return()),
+                float(info.get("distance", 0.0)),
+                length / cfg["control_hz"],
+                bool(info.get("fell", False)),
                 length >= cfg["steps_per_episode"],
-            )  # fmt: skip
+            )
             for metric in METRICS:
                 metrics_logger.log_value(f"gf_{metric}", stats.metric(metric), window=window)
 
@@ -99,16 +102,22 @@ def run_rllib(
     config = (
         PPOConfig()
         .environment(RLLIB_ENV, env_config=env_config(job, scenes, 0))
-        .env_runners(num_env_runners=workers,
-                     num_envs_per_env_runner=job.workers.envs_per_worker)
-        .training(train_batch_size_per_learner=ppo.batch_env_steps,
-                  minibatch_size=ppo.minibatch_size, num_epochs=ppo.epochs, lr=ppo.lr,
-                  gamma=ppo.gamma, lambda_=ppo.lam, clip_param=ppo.clip)
-        .rl_module(model_config={"fcnet_hiddens": list(job.network.hidden),
-                                 "fcnet_activation": "tanh"})
+        .env_runners(num_env_runners=workers, num_envs_per_env_runner=job.workers.envs_per_worker)
+        .training(
+            train_batch_size_per_learner=ppo.batch_env_steps,
+            minibatch_size=ppo.minibatch_size,
+            num_epochs=ppo.epochs,
+            lr=ppo.lr,
+            gamma=ppo.gamma,
+            lambda_=ppo.lam,
+            clip_param=ppo.clip,
+        )
+        .rl_module(
+            model_config={"fcnet_hiddens": list(job.network.hidden), "fcnet_activation": "tanh"}
+        )
         .callbacks(EpisodeLog)
         .debugging(seed=job.seed)
-    )  # fmt: skip
+    )
     start = time.monotonic()  # set-up counts, as it does for gaitforge
     algo = config.build_algo()
     curve: list[dict] = []
@@ -118,8 +127,10 @@ def run_rllib(
         while time.monotonic() - start < minutes * 60:
             result = algo.train()
             runners = result.get("env_runners", {})
-            steps = int(runners.get("num_env_steps_sampled_lifetime") or result.get(
-                "num_env_steps_sampled_lifetime", 0))  # fmt: skip
+            steps = int(
+                runners.get("num_env_steps_sampled_lifetime")
+                or result.get("num_env_steps_sampled_lifetime", 0)
+            )
             means = {r.metric: float(runners.get(f"gf_{r.metric}", float("nan"))) for r in rules}
             reached = (
                 stage == last
@@ -127,8 +138,15 @@ def run_rllib(
                 and all(r.passes(means[r.metric]) for r in rules)
             )
             returns = float(runners.get("episode_return_mean", float("nan")))
-            curve.append({"wall_s": time.monotonic() - start, "env_steps": steps,
-                          "stage": stage, "return": returns, **means})  # fmt: skip
+            curve.append(
+                {
+                    "wall_s": time.monotonic() - start,
+                    "env_steps": steps,
+                    "stage": stage,
+                    "return": returns,
+                    **means,
+                }
+            )
             console.log(f"rllib {job.name}: {curve[-1]}")
             if reached:
                 break
@@ -160,8 +178,14 @@ def _evaluate(algo, job: Job, scene: Scene, stage: int, episodes: int) -> dict:
     backend = job.stage_backend(stage)
     policy = RLlibMeanPolicy(algo.get_module())
     result = evaluate_policy(policy, scene, backend, episodes=episodes)  # type: ignore[arg-type]
-    report = EvaluationReport(checkpoint=None, env_steps=None, scene=scene.name, backend=backend,
-                              seed=0, results={"deterministic": result})  # fmt: skip
+    report = EvaluationReport(
+        checkpoint=None,
+        env_steps=None,
+        scene=scene.name,
+        backend=backend,
+        seed=0,
+        results={"deterministic": result},
+    )
     out = report.to_dict()["results"]["deterministic"]
     out.pop("episodes", None)
     return out

@@ -56,10 +56,16 @@ def opensim_muscle_moments(sim) -> np.ndarray:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="walk-2d+clock", help="a catalogue name or a file")
-    parser.add_argument("--at-s", type=float, nargs="+", default=[0.03],
-                        help="OpenSim's times compared, s from the reset")  # fmt: skip
-    parser.add_argument("--policy", type=Path, default=None,
-                        help="a checkpoint driving OpenSim (else relaxed)")  # fmt: skip
+    parser.add_argument(
+        "--at-s",
+        type=float,
+        nargs="+",
+        default=[0.03],
+        help="OpenSim's times compared, s from the reset",
+    )
+    parser.add_argument(
+        "--policy", type=Path, default=None, help="a checkpoint driving OpenSim (else relaxed)"
+    )
     parser.add_argument("--seed", type=int, default=0, help="the episode's reset seed")
     parser.add_argument("--mujoco-scene", default=None, help="MuJoCo's scene (else --scene)")
     args = parser.parse_args()
@@ -192,13 +198,17 @@ def _put_in_state(mj, op) -> None:
     activations set to OpenSim's."""
     st, coords = op.osim_state, op._coords
     own = {n: c for n, c in coords.items() if not n.startswith("pelvis")}
-    mj.set_pose(Pose(coordinates={n: c.getValue(st) for n, c in own.items()},
-                     speeds={n: c.getSpeedValue(st) for n, c in own.items()},
-                     pelvis_height=float(op.state().pelvis_pos[op.up_axis]),
-                     pelvis_pitch=coords["pelvis_tilt"].getValue(st),
-                     pelvis_angular_speed=(coords["pelvis_tilt"].getSpeedValue(st), 0.0, 0.0),
-                     forward_speed=coords["pelvis_tx"].getSpeedValue(st),
-                     vertical_speed=coords["pelvis_ty"].getSpeedValue(st)))  # fmt: skip
+    mj.set_pose(
+        Pose(
+            coordinates={n: c.getValue(st) for n, c in own.items()},
+            speeds={n: c.getSpeedValue(st) for n, c in own.items()},
+            pelvis_height=float(op.state().pelvis_pos[op.up_axis]),
+            pelvis_pitch=coords["pelvis_tilt"].getValue(st),
+            pelvis_angular_speed=(coords["pelvis_tilt"].getSpeedValue(st), 0.0, 0.0),
+            forward_speed=coords["pelvis_tx"].getSpeedValue(st),
+            vertical_speed=coords["pelvis_ty"].getSpeedValue(st),
+        )
+    )
     m, d = mj.model, mj.data
     # set_pose keeps angles in MuJoCo's ranges; OpenSim's limits are springs a knee goes past
     for name, c in own.items():

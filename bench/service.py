@@ -52,12 +52,13 @@ WARM_LIMIT_S = 300.0
 def tiny_job(i: int) -> dict:
     """An in-process job that iterates about once a second and outlasts the bench."""
     return {
-        "name": f"bench-{i}", "seed": i,
+        "name": f"bench-{i}",
+        "seed": i,
         "ppo": {"batch_env_steps": 256, "minibatch_size": 128, "epochs": 1},
         "workers": {"num_workers": 0, "envs_per_worker": 2, "fragment_length": 128},
         "checkpoint": {"every_iters": 100000, "keep_last": 1},
         "stages": [{"scene": "elbow-reach", "env_steps": 100_000_000}],
-    }  # fmt: skip
+    }
 
 
 def wait_running(http: httpx.Client, ids: list[str]) -> None:
@@ -88,8 +89,9 @@ def freshness(http: httpx.Client, ids: list[str], seconds: float) -> dict:
     return summary(ages, "iterations seen")
 
 
-def throughput(server: str, token: str, ids: list[str], clients: int, seconds: float,
-               limit: int) -> dict:  # fmt: skip
+def throughput(
+    server: str, token: str, ids: list[str], clients: int, seconds: float, limit: int
+) -> dict:
     """``clients`` threads reading statuses for ``seconds`` or ``limit`` answers."""
     latencies: list[list[float]] = [[] for _ in range(clients)]
     errors = [0] * clients
@@ -120,8 +122,9 @@ def throughput(server: str, token: str, ids: list[str], clients: int, seconds: f
     elapsed = time.perf_counter() - t0
     flat = [x for per in latencies for x in per]
     result = summary(flat, "requests")
-    result.update(clients=clients, seconds=elapsed, errors=sum(errors),
-                  requests_per_s=len(flat) / elapsed)  # fmt: skip
+    result.update(
+        clients=clients, seconds=elapsed, errors=sum(errors), requests_per_s=len(flat) / elapsed
+    )
     return result
 
 
@@ -131,9 +134,11 @@ def summary(values: list[float], label: str) -> dict:
         return {label: 0}
     ranked = sorted(values)
     return {
-        label: len(ranked), "median_s": statistics.median(ranked),
-        "p95_s": ranked[min(len(ranked) - 1, int(0.95 * len(ranked)))], "max_s": ranked[-1],
-    }  # fmt: skip
+        label: len(ranked),
+        "median_s": statistics.median(ranked),
+        "p95_s": ranked[min(len(ranked) - 1, int(0.95 * len(ranked)))],
+        "max_s": ranked[-1],
+    }
 
 
 def render(results: dict) -> Table:
@@ -141,11 +146,17 @@ def render(results: dict) -> Table:
     for column in ("measure", "clients", "count", "rate /s", "median ms", "p95 ms", "max ms"):
         table.add_column(column, justify="left" if column == "measure" else "right")
     fresh = results["freshness"]
-    table.add_row("iteration -> GET /v1/jobs/{id}", "1", str(fresh.get("iterations seen", 0)),
-                  "", *_ms(fresh))  # fmt: skip
+    table.add_row(
+        "iteration -> GET /v1/jobs/{id}", "1", str(fresh.get("iterations seen", 0)), "", *_ms(fresh)
+    )
     for row in results["throughput"]:
-        table.add_row("GET /v1/jobs/{id}", str(row["clients"]), str(row.get("requests", 0)),
-                      f"{row['requests_per_s']:.0f}", *_ms(row))  # fmt: skip
+        table.add_row(
+            "GET /v1/jobs/{id}",
+            str(row["clients"]),
+            str(row.get("requests", 0)),
+            f"{row['requests_per_s']:.0f}",
+            *_ms(row),
+        )
     return table
 
 
@@ -166,26 +177,37 @@ def main() -> None:
     port = free_port()
     server = f"http://127.0.0.1:{port}"
     env = {
-        **os.environ, "GAITFORGE_HOME": str(home), "GAITFORGE_PORT": str(port),
-        "GAITFORGE_HOST": "127.0.0.1", "GAITFORGE_SERVER": server,
-        "GAITFORGE_MAX_RUNNING_JOBS": str(JOBS), "GAITFORGE_MAX_JOBS_PER_OWNER": str(JOBS),
+        **os.environ,
+        "GAITFORGE_HOME": str(home),
+        "GAITFORGE_PORT": str(port),
+        "GAITFORGE_HOST": "127.0.0.1",
+        "GAITFORGE_SERVER": server,
+        "GAITFORGE_MAX_RUNNING_JOBS": str(JOBS),
+        "GAITFORGE_MAX_JOBS_PER_OWNER": str(JOBS),
         "GAITFORGE_POLL_INTERVAL_S": str(args.poll_interval),
-    }  # fmt: skip
+    }
     for name in ("GAITFORGE_TOKENS", "GAITFORGE_TOKENS_FILE", "GAITFORGE_RAY_ADDRESS"):
         env.pop(name, None)
     service, ids = None, []
     results: dict = {
-        "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
-                    "python": platform.python_version()},
-        "jobs": JOBS, "poll_interval_s": args.poll_interval, "seconds": seconds,
-    }  # fmt: skip
+        "machine": {
+            "cpus": os.cpu_count(),
+            "platform": platform.platform(),
+            "python": platform.python_version(),
+        },
+        "jobs": JOBS,
+        "poll_interval_s": args.poll_interval,
+        "seconds": seconds,
+    }
     try:
         service = start_service(env, home / "serve.log")
         token = (home / "token").read_text().strip()
         auth = {"Authorization": f"Bearer {token}"}
         with httpx.Client(base_url=server, headers=auth, timeout=30.0) as http:
-            ids = [http.post("/v1/jobs", json=tiny_job(i)).raise_for_status().json()["id"]
-                   for i in range(JOBS)]  # fmt: skip
+            ids = [
+                http.post("/v1/jobs", json=tiny_job(i)).raise_for_status().json()["id"]
+                for i in range(JOBS)
+            ]
             console.print(f"jobs {ids}: waiting until each runs an iteration")
             wait_running(http, ids)
             console.print(f"freshness: reading statuses every {READ_EVERY_S * 1000:.0f} ms")
@@ -200,8 +222,11 @@ def main() -> None:
     finally:
         if service is not None:
             stop_service(service)
-        subprocess.run([sys.executable, "-m", "gaitforge.service.cli", "serve", "--stop-ray"],
-                       env=env, check=False)  # fmt: skip
+        subprocess.run(
+            [sys.executable, "-m", "gaitforge.service.cli", "serve", "--stop-ray"],
+            env=env,
+            check=False,
+        )
         shutil.rmtree(home, ignore_errors=True)
     console.print(render(results))
     args.out.mkdir(parents=True, exist_ok=True)

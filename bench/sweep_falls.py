@@ -46,19 +46,24 @@ def falls_table(runs: list[dict[float, dict[str, Any]]], labels: list[str]) -> T
     for target in targets:
         table.add_column(f"{target:.2f} m/s", justify="right")
     for label, points in zip(labels, runs, strict=True):
-        table.add_row(label, *(
-            f"{points[t]['fall_rate']['count']} ({points[t]['mean_speed_m_s']['mean']:.2f} m/s)"
-            for t in targets
-        ))  # fmt: skip
+        table.add_row(
+            label,
+            *(
+                f"{points[t]['fall_rate']['count']} ({points[t]['mean_speed_m_s']['mean']:.2f} m/s)"
+                for t in targets
+            ),
+        )
     counts = {t: [points[t]["fall_rate"]["count"] for points in runs] for t in targets}
     table.add_row(
-        f"median of {len(runs)}", *(f"{statistics.median(counts[t]):g}" for t in targets),
+        f"median of {len(runs)}",
+        *(f"{statistics.median(counts[t]):g}" for t in targets),
         style="bold",
-    )  # fmt: skip
+    )
     pooled = len(runs) * episodes
-    table.add_row(f"all (of {pooled})", *(
-        f"{sum(counts[t])} ({100 * sum(counts[t]) / pooled:.1f} %)" for t in targets
-    ))  # fmt: skip
+    table.add_row(
+        f"all (of {pooled})",
+        *(f"{sum(counts[t])} ({100 * sum(counts[t]) / pooled:.1f} %)" for t in targets),
+    )
     return table
 
 
@@ -76,9 +81,13 @@ def fallen_episodes_table(
             for e in (e for e in point["episodes"] if e["fell"]):
                 touch = e.get("first_obstacle_touch_s")
                 table.add_row(
-                    label, f"{target:.2f}", str(e["seed"]), f"{e['time_s']:.2f}",
-                    f"{e['distance_m']:.1f}", "-" if touch is None else f"{touch:.2f}",
-                )  # fmt: skip
+                    label,
+                    f"{target:.2f}",
+                    str(e["seed"]),
+                    f"{e['time_s']:.2f}",
+                    f"{e['distance_m']:.1f}",
+                    "-" if touch is None else f"{touch:.2f}",
+                )
     return table
 
 
@@ -94,11 +103,17 @@ def plot(runs: list[dict[float, dict[str, Any]]], labels: list[str], out: Path) 
     counts = [[points[t]["fall_rate"]["count"] for t in targets] for points in runs]
     fig, ax = plt.subplots(figsize=(6, 4))
     for label, run_counts in zip(labels, counts, strict=True):
-        ax.plot(targets, [100 * c / episodes for c in run_counts], "o-", lw=1, alpha=0.6,
-                label=label)  # fmt: skip
+        ax.plot(
+            targets, [100 * c / episodes for c in run_counts], "o-", lw=1, alpha=0.6, label=label
+        )
     total = episodes * len(runs)
-    ax.plot(targets, [100 * sum(c) / total for c in zip(*counts, strict=True)], "k-s", lw=2.5,
-            label=f"all {len(runs)} ({total} episodes per point)")  # fmt: skip
+    ax.plot(
+        targets,
+        [100 * sum(c) / total for c in zip(*counts, strict=True)],
+        "k-s",
+        lw=2.5,
+        label=f"all {len(runs)} ({total} episodes per point)",
+    )
     ax.set_xlabel("target speed (m/s)")
     ax.set_ylabel("falls (% of episodes)")
     ax.set_title("Speed against safety")
@@ -113,8 +128,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("sweeps", nargs="+", type=Path, help="gaitforge evaluate --sweep JSONs")
     parser.add_argument("--labels", nargs="+", help="one per file (default: the file names)")
-    parser.add_argument("--episodes-at", nargs="*", type=float, default=[],
-                        help="target speeds (m/s) whose falls to list")  # fmt: skip
+    parser.add_argument(
+        "--episodes-at",
+        nargs="*",
+        type=float,
+        default=[],
+        help="target speeds (m/s) whose falls to list",
+    )
     parser.add_argument("--out", type=Path, help="a PNG of falls against target speed")
     args = parser.parse_args()
     labels = args.labels or [path.stem for path in args.sweeps]

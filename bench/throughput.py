@@ -210,16 +210,23 @@ def main() -> None:
         except ImportError:
             sys.exit(RLLIB_MISSING)
     n = args.max_actors or os.cpu_count() or 1
-    console.print(f"machine: {platform.machine()}, {os.cpu_count()} cores; "
-                  f"python {platform.python_version()}, ray {ray.__version__}, "
-                  f"mujoco {mujoco.__version__}\nplatform: {platform.platform()}")  # fmt: skip
+    console.print(
+        f"machine: {platform.machine()}, {os.cpu_count()} cores; "
+        f"python {platform.python_version()}, ray {ray.__version__}, "
+        f"mujoco {mujoco.__version__}\nplatform: {platform.platform()}"
+    )
     act_dim = MuscleEnv(args.scene, args.backend).action_space.shape[0]
     rows: list[tuple[str, int, float]] = []
     columns = (TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True) as progress:
         raws = [raw_rate(args.scene, args.backend, args.seconds, progress)]
-        ray.init(address="local", num_cpus=n, include_dashboard=False,
-                 logging_level=logging.ERROR, log_to_driver=False)  # fmt: skip
+        ray.init(
+            address="local",
+            num_cpus=n,
+            include_dashboard=False,
+            logging_level=logging.ERROR,
+            log_to_driver=False,
+        )
         try:
             for actors in range(1, n + 1):
                 rows.append(("pool", actors, pool_rate(args, actors, act_dim, progress)))
@@ -231,12 +238,15 @@ def main() -> None:
         raws.append(raw_rate(args.scene, args.backend, args.seconds, progress))
     raw = sum(raws) / 2
     table = Table(
-        "row", "actors", "env steps/s", "efficiency",
+        "row",
+        "actors",
+        "env steps/s",
+        "efficiency",
         title=f"{args.scene} on {args.backend}: env steps/s",
         caption=f"{args.seconds:g} s per row, {args.envs_per_worker} envs per actor, "
         f"{args.fragment_length}-step fragments; raw = mean of {raws[0]:.1f} (first) "
         f"and {raws[1]:.1f} (last)",
-    )  # fmt: skip
+    )
     table.add_row("raw, one process", "1", f"{raw:.1f}", "1.00")
     for label, actors, rate in rows:
         table.add_row(label, str(actors), f"{rate:.1f}", f"{rate / (actors * raw):.2f}")

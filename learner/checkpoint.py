@@ -79,8 +79,12 @@ def source_commit() -> str:
     try:
         found = subprocess.run(
             ["git", "describe", "--always", "--dirty", "--abbrev=40"],
-            cwd=here, capture_output=True, text=True, timeout=10, check=True,
-        )  # fmt: skip
+            cwd=here,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        )
     except (OSError, subprocess.SubprocessError):
         return "unknown"
     return found.stdout.strip() or "unknown"
@@ -129,8 +133,9 @@ def save_checkpoint(
     tmp = Path(tempfile.mkdtemp(prefix=".tmp-", dir=root))
     try:
         tensors = {k: v.detach().contiguous().cpu() for k, v in state.items()}
-        save_file({k: v for k, v in tensors.items() if not k.startswith(NORM_PREFIX)},
-                  tmp / FILES[0])  # fmt: skip
+        save_file(
+            {k: v for k, v in tensors.items() if not k.startswith(NORM_PREFIX)}, tmp / FILES[0]
+        )
         save_file({k: v for k, v in tensors.items() if k.startswith(NORM_PREFIX)}, tmp / FILES[1])
         update: dict[str, Any] = {"env_steps": env_steps, "versions": _versions()}
         files = list(FILES)

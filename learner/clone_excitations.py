@@ -155,8 +155,11 @@ class SideGuess:
         """[N, obs_dim] -> [N] squared distance (rad^2) of the observed joint angles to the
         reference minus that to the mirrored reference: > 0 looks mirrored (0 where no joint
         angle of the motion is observed)."""
-        cols = [(i, obs_names.index(JOINT_PREFIX + j)) for i, j in enumerate(self.joints)
-                if JOINT_PREFIX + j in obs_names]  # fmt: skip
+        cols = [
+            (i, obs_names.index(JOINT_PREFIX + j))
+            for i, j in enumerate(self.joints)
+            if JOINT_PREFIX + j in obs_names
+        ]
         if not cols:
             return np.zeros(len(obs))
         ref_cols, obs_cols = (np.array(c) for c in zip(*cols, strict=True))
@@ -271,8 +274,9 @@ def clone_excitations(
             report["action_mse_before"] = action_error(policy, obs_all, labels_all)
         fit = fit_student(policy, obs_all, None, labels_all, epochs=epochs, lr=lr, seed=seed + r)
         if r == rounds - 1:
-            value = fit_student(policy, obs, batch["return"], None, epochs=epochs, lr=lr,
-                                seed=seed + r)  # fmt: skip
+            value = fit_student(
+                policy, obs, batch["return"], None, epochs=epochs, lr=lr, seed=seed + r
+            )
             report["value_mse"] = value["value_mse"]
         report["action_mse"] = action_error(policy, obs_all, labels_all)
         logger.info("warm start round %d: %d observations, %s", r + 1, len(obs_all), fit)

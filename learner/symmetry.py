@@ -91,6 +91,10 @@ def add_mirrored(
     policy's (the one about to be updated), so their first PPO ratio is 1."""
     obs, action = mirror.obs(batch["obs"]), mirror.action(batch["action"])
     logp, _, value = policy.evaluate(obs, action)
-    extra = {"obs": obs, "action": action, "logp": logp.to(batch["logp"].dtype),
-             "value": value.to(batch["value"].dtype)}  # fmt: skip
+    extra = {
+        "obs": obs,
+        "action": action,
+        "logp": logp.to(batch["logp"].dtype),
+        "value": value.to(batch["value"].dtype),
+    }
     return {key: torch.cat([tensor, extra.get(key, tensor)]) for key, tensor in batch.items()}

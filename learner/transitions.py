@@ -109,8 +109,11 @@ def continued(
         policy = widen_inputs(collapsed(policy), obs_names, io.obs_names)
     released = release_constant_inputs(policy) if isinstance(policy, GaussianPolicy) else []
     if released:
-        logger.info("stage %d: inputs constant so far, released: %s", index,
-                    [io.obs_names[i] for i in released])  # fmt: skip
+        logger.info(
+            "stage %d: inputs constant so far, released: %s",
+            index,
+            [io.obs_names[i] for i in released],
+        )
     if action_std is not None:
         reset_action_std(policy, action_std)
         logger.info("stage %d: action noise started anew at std %g", index, action_std)
@@ -196,10 +199,13 @@ def warm_start(
         student.log_std.copy_(blended.distribution(batch["obs"][:1]).stddev.log()[0])
         teacher_mean = blended.distribution(batch["obs"]).mean
     fit = fit_student(
-        student, batch["obs"], batch["return"],
+        student,
+        batch["obs"],
+        batch["return"],
         teacher_mean if stage.transition == "distil" or stage.blend.clone_actor else None,
-        epochs=stage.blend.fit_epochs, seed=seed,
-    )  # fmt: skip
+        epochs=stage.blend.fit_epochs,
+        seed=seed,
+    )
     logger.info("warm start (%s): %s", stage.transition, fit)
     if stage.transition == "distil":
         return student
@@ -238,13 +244,24 @@ def excitation_warm_start(
     student = collapsed(policy)
     sides = SideGuess(load_motion(scene.body, spec.excitations))
     report = clone_excitations(
-        student, io.obs_names, io.act_names, excitation_table(scene.body, spec.excitations),
-        rollout, ppo, sides, env_steps=spec.env_steps, rounds=spec.rounds, epochs=spec.epochs,
-        lr=spec.lr, seed=seed,
-    )  # fmt: skip
+        student,
+        io.obs_names,
+        io.act_names,
+        excitation_table(scene.body, spec.excitations),
+        rollout,
+        ppo,
+        sides,
+        env_steps=spec.env_steps,
+        rounds=spec.rounds,
+        epochs=spec.epochs,
+        lr=spec.lr,
+        seed=seed,
+    )
     logger.info(
         "warm start from the %s excitations: action mse %.4f -> %.4f over %d observations",
-        spec.excitations, report["action_mse_before"], report["action_mse"],
+        spec.excitations,
+        report["action_mse_before"],
+        report["action_mse"],
         int(report["observations"]),
-    )  # fmt: skip
+    )
     return student

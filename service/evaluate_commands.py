@@ -76,17 +76,31 @@ def evaluate(
     try:
         reductions = ops.parse_percentages(sweep_percent) if sweep else None
         request = validate_request(
-            ops.EvaluateRequest, checkpoint=checkpoint, scene=scene,
-            backend=backend.value if backend else None, episodes=episodes, modes=modes,
-            seed=seed, sweep=reductions, pick=pick.value, record=record, video=video, gait=gait,
+            ops.EvaluateRequest,
+            checkpoint=checkpoint,
+            scene=scene,
+            backend=backend.value if backend else None,
+            episodes=episodes,
+            modes=modes,
+            seed=seed,
+            sweep=reductions,
+            pick=pick.value,
+            record=record,
+            video=video,
+            gait=gait,
             scene_set=assignments(set_fields),
-        )  # fmt: skip
+        )
     except InputError as exc:
         raise fail(exc) from None
     with Progress(
-        TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-        TimeElapsedColumn(), console=err, transient=True, disable=not err.is_terminal,
-    ) as progress:  # fmt: skip
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=err,
+        transient=True,
+        disable=not err.is_terminal,
+    ) as progress:
         tasks: dict[str, Any] = {}
 
         def on_episode(label: str, done: int, total: int) -> None:

@@ -88,15 +88,30 @@ def render_episodes(report: Any) -> list[Table]:
     extra += ["first touch\ns"] if obstacles else []
     for mode, r in report.results.items():
         episodes = table(
-            "seed", "steps", "time\ns", "distance\nm", "speed\nm/s", "fell", "health",
-            "effort", "return", *extra, title=f"Episodes ({mode})",
-        )  # fmt: skip
+            "seed",
+            "steps",
+            "time\ns",
+            "distance\nm",
+            "speed\nm/s",
+            "fell",
+            "health",
+            "effort",
+            "return",
+            *extra,
+            title=f"Episodes ({mode})",
+        )
         for e in r.episodes:
             cells = [
-                str(e.seed), str(e.steps), f"{e.time_s:.2f}", f"{e.distance_m:.2f}",
-                f"{e.mean_speed_m_s:.2f}", "yes" if e.fell else "no", e.health,
-                f"{e.effort:.3f}", f"{e.return_:.1f}",
-            ]  # fmt: skip
+                str(e.seed),
+                str(e.steps),
+                f"{e.time_s:.2f}",
+                f"{e.distance_m:.2f}",
+                f"{e.mean_speed_m_s:.2f}",
+                "yes" if e.fell else "no",
+                e.health,
+                f"{e.effort:.3f}",
+                f"{e.return_:.1f}",
+            ]
             if imitating:
                 error = "-" if e.tracking_error_rad is None else f"{e.tracking_error_rad:.3f}"
                 cells += [error, "-" if e.kept_gait is None else "yes" if e.kept_gait else "no"]
@@ -120,30 +135,66 @@ def render(report: Any, console: Console) -> Group:
     imitating, obstacles = _imitating(report), _with_obstacles(report)
     extra = ["tracking rad", "kept gait"] if imitating else []
     extra += OBSTACLE_HEADERS if obstacles else []
-    headers = ["mode", "target m/s", "distance m", "speed m/s", "fall rate", "survival",
-               "time s", "effort", "return", "health failures", *extra]  # fmt: skip
+    headers = [
+        "mode",
+        "target m/s",
+        "distance m",
+        "speed m/s",
+        "fall rate",
+        "survival",
+        "time s",
+        "effort",
+        "return",
+        "health failures",
+        *extra,
+    ]
     rows = []
     for mode, r in report.results.items():
         target = "-" if r.target_speed_m_s is None else f"{r.target_speed_m_s:.2f}"
-        rows.append([
-            mode, target, _ci(r.distance_m), _ci(r.mean_speed_m_s), _rate(r.fall_rate),
-            _rate(r.survival_rate), _ci(r.time_s), _ci(r.effort, ".3f"), _ci(r.return_, ".1f"),
-            _health(r.health), *(_tracking(r) if imitating else []),
-            *(_obstacles(r) if obstacles else []),
-        ])  # fmt: skip
+        rows.append(
+            [
+                mode,
+                target,
+                _ci(r.distance_m),
+                _ci(r.mean_speed_m_s),
+                _rate(r.fall_rate),
+                _rate(r.survival_rate),
+                _ci(r.time_s),
+                _ci(r.effort, ".3f"),
+                _ci(r.return_, ".1f"),
+                _health(r.health),
+                *(_tracking(r) if imitating else []),
+                *(_obstacles(r) if obstacles else []),
+            ]
+        )
     parts: list[Any] = [head, _oriented("Evaluation", headers, rows, console)]
     if report.sweep:
-        headers = ["slower by", "target m/s", "fall rate", "distance m", "speed m/s", "return",
-                   "health failures", *extra]  # fmt: skip
+        headers = [
+            "slower by",
+            "target m/s",
+            "fall rate",
+            "distance m",
+            "speed m/s",
+            "return",
+            "health failures",
+            *extra,
+        ]
         rows = []
         for point in report.sweep:
             r = point.result
-            rows.append([
-                f"{100 * point.reduction:.0f} %", f"{point.target_speed_m_s:.2f}",
-                _rate(r.fall_rate), _ci(r.distance_m), _ci(r.mean_speed_m_s),
-                _ci(r.return_, ".1f"), _health(r.health), *(_tracking(r) if imitating else []),
-                *(_obstacles(r) if obstacles else []),
-            ])  # fmt: skip
+            rows.append(
+                [
+                    f"{100 * point.reduction:.0f} %",
+                    f"{point.target_speed_m_s:.2f}",
+                    _rate(r.fall_rate),
+                    _ci(r.distance_m),
+                    _ci(r.mean_speed_m_s),
+                    _ci(r.return_, ".1f"),
+                    _health(r.health),
+                    *(_tracking(r) if imitating else []),
+                    *(_obstacles(r) if obstacles else []),
+                ]
+            )
         title = f"Speed against safety ({report.sweep_mode})"
         parts.append(_oriented(title, headers, rows, console))
     if getattr(report, "gait", None) is not None:

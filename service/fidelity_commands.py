@@ -27,10 +27,15 @@ MAX_STRESS_S = 600.0
 def _progress() -> Iterator[ops.ProgressFn]:
     """A progress bar per label on stderr (a terminal only), fed as an ops ``ProgressFn``."""
     with Progress(
-        TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-        TextColumn("{task.fields[last]}"), TimeElapsedColumn(),
-        console=err, transient=True, disable=not err.is_terminal,
-    ) as progress:  # fmt: skip
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[last]}"),
+        TimeElapsedColumn(),
+        console=err,
+        transient=True,
+        disable=not err.is_terminal,
+    ) as progress:
         tasks: dict[str, object] = {}
 
         def update(label: str, last: str, done: int, total: int | None) -> None:
@@ -67,10 +72,17 @@ def sweep(
     keep = None if integrators is None else [i.strip() for i in integrators.split(",")]
     try:
         request = validate_request(
-            ops.SweepRequest, scene=scene_name, backend=backend, tolerance=tolerance, quick=quick,
+            ops.SweepRequest,
+            scene=scene_name,
+            backend=backend,
+            tolerance=tolerance,
+            quick=quick,
             integrators=[i for i in keep if i] if keep is not None else None,
-            model_checks=not no_model, task_tolerance=task_tolerance, save=save, out=out_dir,
-        )  # fmt: skip
+            model_checks=not no_model,
+            task_tolerance=task_tolerance,
+            save=save,
+            out=out_dir,
+        )
         with _progress() as progress:
             outcome = ops.sweep(request, progress)
     except SpecError as exc:
@@ -91,18 +103,35 @@ def sweep(
     for r in sorted(result.rows, key=lambda r: -r.steps_per_s):
         t = r.task
         rows.add_row(
-            r.label, f"{r.steps_per_s:.0f}", f"{r.realtime:.2f}", _num(r.err_short),
-            _num(r.err_long), f"{t['distance_vs_ref']:+.3f} ± {t['distance_vs_ref_ci']:.3f}",
-            f"{t['fall_rate']:.2f}", "yes" if r.stable else f"[red]{r.health}[/red]",
+            r.label,
+            f"{r.steps_per_s:.0f}",
+            f"{r.realtime:.2f}",
+            _num(r.err_short),
+            _num(r.err_long),
+            f"{t['distance_vs_ref']:+.3f} ± {t['distance_vs_ref_ci']:.3f}",
+            f"{t['fall_rate']:.2f}",
+            "yes" if r.stable else f"[red]{r.health}[/red]",
             "[green]yes[/green]" if r.within else "no",
-        )  # fmt: skip
+        )
     out.print(rows)
     if result.model:
-        mt = table("model difference", "setting", f"rms {size.short:g}s", f"rms {size.long:g}s",
-                   "speed ratio", "note")  # fmt: skip
+        mt = table(
+            "model difference",
+            "setting",
+            f"rms {size.short:g}s",
+            f"rms {size.long:g}s",
+            "speed ratio",
+            "note",
+        )
         for m in result.model:
-            mt.add_row(m["what"], m["setting"], _num(m["rms_short"]), _num(m["rms_long"]),
-                       f"{m['speed_ratio']:.2f}", m["note"])  # fmt: skip
+            mt.add_row(
+                m["what"],
+                m["setting"],
+                _num(m["rms_short"]),
+                _num(m["rms_long"]),
+                f"{m['speed_ratio']:.2f}",
+                m["note"],
+            )
         out.print(mt)
     best = result.recommended
     if best is None:
@@ -140,9 +169,13 @@ def stress(
     or loosest stable accuracy (OpenSim) per integrator."""
     try:
         request = validate_request(
-            ops.StressRequest, scene=scene_name, backend=backend, seconds=seconds, quick=quick,
+            ops.StressRequest,
+            scene=scene_name,
+            backend=backend,
+            seconds=seconds,
+            quick=quick,
             bisect=bisect,
-        )  # fmt: skip
+        )
         with _progress() as progress:
             outcome = ops.stress(request, progress)
     except SpecError as exc:
@@ -151,12 +184,14 @@ def stress(
         print_json(outcome.to_dict())
         return
     scenarios = outcome.scenarios
-    stability = table("profile", *scenarios,
-                      title=f"stability map: {outcome.scene} on {outcome.backend}")  # fmt: skip
+    stability = table(
+        "profile", *scenarios, title=f"stability map: {outcome.scene} on {outcome.backend}"
+    )
     for row in outcome.rows:
-        stability.add_row(row["profile"], *(
-            "[green]ok[/green]" if row[s] == "ok" else f"[red]{row[s]}[/red]" for s in scenarios
-        ))  # fmt: skip
+        stability.add_row(
+            row["profile"],
+            *("[green]ok[/green]" if row[s] == "ok" else f"[red]{row[s]}[/red]" for s in scenarios),
+        )
     out.print(stability)
     if not bisect:
         return

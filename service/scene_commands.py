@@ -108,10 +108,14 @@ def check(
     results = []
     for scene in scenes:
         with Progress(
-            TextColumn(f"{scene.name} [{backend.value}]"), BarColumn(),
-            TextColumn("{task.fields[rate]}"), TimeElapsedColumn(),
-            console=err, transient=True, disable=not err.is_terminal,
-        ) as progress:  # fmt: skip
+            TextColumn(f"{scene.name} [{backend.value}]"),
+            BarColumn(),
+            TextColumn("{task.fields[rate]}"),
+            TimeElapsedColumn(),
+            console=err,
+            transient=True,
+            disable=not err.is_terminal,
+        ) as progress:
             task = progress.add_task("check", total=seconds, rate="")
 
             def update(r, task=task, progress=progress) -> None:
@@ -122,12 +126,25 @@ def check(
         print_json(results)
         return
     title = f"random excitations on {backend.value}, {seconds:g} s per scene"
-    listing = table("scene", "steps", "steps/s", "real time x", "episodes", "falls",
-                    "health failures", title=title)  # fmt: skip
+    listing = table(
+        "scene",
+        "steps",
+        "steps/s",
+        "real time x",
+        "episodes",
+        "falls",
+        "health failures",
+        title=title,
+    )
     for r in results:
         failures = ", ".join(f"{k}: {v}" for k, v in r.health.items()) or "none"
         listing.add_row(
-            r.scene, str(r.steps), f"{r.steps_per_s:.0f}", f"{r.realtime_factor:.2f}",
-            str(r.episodes), str(r.falls), failures,
-        )  # fmt: skip
+            r.scene,
+            str(r.steps),
+            f"{r.steps_per_s:.0f}",
+            f"{r.realtime_factor:.2f}",
+            str(r.episodes),
+            str(r.falls),
+            failures,
+        )
     out.print(listing)

@@ -96,13 +96,20 @@ def serve(
     except ValueError as exc:
         raise fail(str(exc)) from None
     where = f"http://{settings.host}:{settings.port}"
-    err.print(f"gaitforge service on {where} (API docs {where}/docs), home {settings.home}",
-              soft_wrap=True, highlight=False)  # fmt: skip
+    err.print(
+        f"gaitforge service on {where} (API docs {where}/docs), home {settings.home}",
+        soft_wrap=True,
+        highlight=False,
+    )
     if settings.configured_tokens():
         err.print("tokens: from GAITFORGE_TOKENS / GAITFORGE_TOKENS_FILE", highlight=False)
     else:
-        err.print(f"token file: {settings.token_file} (owner 'local'; the CLI reads it: "
-                  f"GAITFORGE_HOME={settings.home})", soft_wrap=True, highlight=False)  # fmt: skip
+        err.print(
+            f"token file: {settings.token_file} (owner 'local'; the CLI reads it: "
+            f"GAITFORGE_HOME={settings.home})",
+            soft_wrap=True,
+            highlight=False,
+        )
     uvicorn.run(app, host=settings.host, port=settings.port, log_level=log_level)
 
 
@@ -111,5 +118,7 @@ def _stop_ray(settings: ServiceSettings) -> None:
     from gaitforge.service.jobs.ray_cluster import stop_local_ray
 
     stopped = stop_local_ray(settings.home)
-    err.print(f"local Ray head of {settings.home}: {'stopped' if stopped else 'none running'}",
-              highlight=False)  # fmt: skip
+    err.print(
+        f"local Ray head of {settings.home}: {'stopped' if stopped else 'none running'}",
+        highlight=False,
+    )

@@ -38,9 +38,13 @@ class TrainDisplay:
     def __init__(self, job: Job, done_steps: list[int]) -> None:
         self.job = job
         self.progress = Progress(
-            TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed:,.0f}"),
-            TextColumn("/ {task.total:,.0f} env steps"), TimeElapsedColumn(), console=err,
-        )  # fmt: skip
+            TextColumn("{task.description}"),
+            BarColumn(),
+            TextColumn("{task.completed:,.0f}"),
+            TextColumn("/ {task.total:,.0f} env steps"),
+            TimeElapsedColumn(),
+            console=err,
+        )
         self.tasks = [
             self.progress.add_task(
                 f"stage {i} {s.name or s.scene}", total=s.env_steps, completed=done_steps[i]
@@ -55,9 +59,10 @@ class TrainDisplay:
         self.progress.update(self.tasks[stage], completed=metrics["stage_env_steps"])
         if metrics["verdict"]:
             self.progress.update(
-                self.tasks[stage], description=f"stage {stage} {metrics['stage_name']} "
+                self.tasks[stage],
+                description=f"stage {stage} {metrics['stage_name']} "
                 f"[green]{metrics['verdict']}[/green]",
-            )  # fmt: skip
+            )
 
     def __rich__(self) -> Group:
         return Group(self.progress, self._table())
@@ -80,8 +85,11 @@ class TrainDisplay:
             f"{m['speed']:.2f} m/s   falls {100 * m['fall_rate']:.0f} %   survival "
             f"{100 * m['survival']:.0f} %",
         )
-        table.add_row("ppo", f"kl {m['approx_kl']:.4f}   entropy {m['entropy']:.2f}   "
-                      f"value loss {m['value_loss']:.3g}   lr {m['lr']:.2e}")  # fmt: skip
+        table.add_row(
+            "ppo",
+            f"kl {m['approx_kl']:.4f}   entropy {m['entropy']:.2f}   "
+            f"value loss {m['value_loss']:.3g}   lr {m['lr']:.2e}",
+        )
         table.add_row("health (this batch)", health)
         return table
 
@@ -163,8 +171,11 @@ def train(
     except KeyboardInterrupt:  # a second signal, or Ctrl-C before the handlers were in
         sig = signals.received[-1] if signals.received else signal.SIGINT
         newest = None if training is None else ops.newest_checkpoint(training.run_dir)
-        err.print(f"{sig.name}: stopped at once; newest checkpoint: {newest or 'none'}",
-                  soft_wrap=True, highlight=False)  # fmt: skip
+        err.print(
+            f"{sig.name}: stopped at once; newest checkpoint: {newest or 'none'}",
+            soft_wrap=True,
+            highlight=False,
+        )
         raise typer.Exit(128 + sig.value) from None
     if json_out:
         print_json(result)
@@ -175,10 +186,14 @@ def train(
             f"{signals.first.name if signals.first else 'stop'}: stopped after iteration "
             f"{result.iteration} ({result.env_steps:,} env steps); checkpoint: {where} "
             f"(resume: gaitforge train {job_file} --run-dir {result.run_dir})",
-            soft_wrap=True, highlight=False,
-        )  # fmt: skip
-    out.print(f"run directory: {result.run_dir} (tensorboard --logdir {result.run_dir / 'tb'})",
-              soft_wrap=True, highlight=False)  # fmt: skip
+            soft_wrap=True,
+            highlight=False,
+        )
+    out.print(
+        f"run directory: {result.run_dir} (tensorboard --logdir {result.run_dir / 'tb'})",
+        soft_wrap=True,
+        highlight=False,
+    )
 
 
 def _actor_failure() -> type[Exception]:

@@ -132,8 +132,9 @@ def _is_package(module: str, modules: dict[str, Path]) -> bool:
     return modules[module].name == "__init__.py"
 
 
-def _targets(node: ast.Import | ast.ImportFrom, source: str, modules: dict[str, Path]
-             ) -> Iterator[str]:  # fmt: skip
+def _targets(
+    node: ast.Import | ast.ImportFrom, source: str, modules: dict[str, Path]
+) -> Iterator[str]:
     """The gaitforge modules one import statement imports."""
     if isinstance(node, ast.Import):
         for alias in node.names:
@@ -398,10 +399,22 @@ def test_wheel_holds_every_module_and_data_file(tmp_path: Path) -> None:
         else:
             shutil.copy(path, src / name)
     build = subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
-         "-w", str(tmp_path / "dist"), str(src)],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            "-w",
+            str(tmp_path / "dist"),
+            str(src),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert build.returncode == 0, build.stdout + build.stderr
     (wheel,) = (tmp_path / "dist").glob("*.whl")
     with zipfile.ZipFile(wheel) as zf:

@@ -82,9 +82,16 @@ class Fragment:
     pid: int = 0
 
     STEP_ARRAYS = (
-        "obs", "action", "logp", "value", "reward", "terminated", "truncated", "unhealthy",
+        "obs",
+        "action",
+        "logp",
+        "value",
+        "reward",
+        "terminated",
+        "truncated",
+        "unhealthy",
         "bootstrap_value",
-    )  # fmt: skip
+    )
     """the ``[T, K, ...]`` arrays"""
     EPISODE_ARRAYS = ("episode_return", "episode_length", "episode_distance", "episode_fell")
     """the ``[E]`` arrays"""

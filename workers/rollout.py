@@ -146,17 +146,31 @@ class RolloutWorker:
         stats = np.array(episodes, dtype=float).reshape(-1, 4)
         self.steps_total += t_len * k
         return Fragment(
-            obs=obs_out, action=action_out, logp=logp_out, value=value_out, reward=reward_out,
-            terminated=terminated_out, truncated=truncated_out, unhealthy=unhealthy_out,
-            bootstrap_value=bootstrap_out, last_obs=self._obs.copy(), last_value=last_value,
-            episode_return=stats[:, 0], episode_length=stats[:, 1].astype(np.int64),
-            episode_distance=stats[:, 2], episode_fell=stats[:, 3].astype(bool),
+            obs=obs_out,
+            action=action_out,
+            logp=logp_out,
+            value=value_out,
+            reward=reward_out,
+            terminated=terminated_out,
+            truncated=truncated_out,
+            unhealthy=unhealthy_out,
+            bootstrap_value=bootstrap_out,
+            last_obs=self._obs.copy(),
+            last_value=last_value,
+            episode_return=stats[:, 0],
+            episode_length=stats[:, 1].astype(np.int64),
+            episode_distance=stats[:, 2],
+            episode_fell=stats[:, 3].astype(bool),
             health=dict(health),
             reward_terms={name: total / (t_len * k) for name, total in term_sums.items()},
-            policy_version=self.policy_version, worker=self.worker_id, steps=t_len * k,
-            wall_s=time.perf_counter() - start, worker_steps_total=self.steps_total,
-            rss_mib=process_rss_mib(), pid=os.getpid(),
-        )  # fmt: skip
+            policy_version=self.policy_version,
+            worker=self.worker_id,
+            steps=t_len * k,
+            wall_s=time.perf_counter() - start,
+            worker_steps_total=self.steps_total,
+            rss_mib=process_rss_mib(),
+            pid=os.getpid(),
+        )
 
     def sim_profile(self) -> FidelityProfile:
         """The fidelity profile this worker's simulators integrate with."""

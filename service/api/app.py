@@ -106,10 +106,16 @@ def create_app(settings: ServiceSettings | None = None, runner: JobRunner | None
             started.store.close()
 
     app = FastAPI(
-        title="gaitforge", version=_version(), description=DESCRIPTION,
-        openapi_tags=TAGS, lifespan=lifespan, dependencies=[Depends(known_query)],
-        redoc_url=None, swagger_ui_oauth2_redirect_url=None, redirect_slashes=False,
-    )  # fmt: skip
+        title="gaitforge",
+        version=_version(),
+        description=DESCRIPTION,
+        openapi_tags=TAGS,
+        lifespan=lifespan,
+        dependencies=[Depends(known_query)],
+        redoc_url=None,
+        swagger_ui_oauth2_redirect_url=None,
+        redirect_slashes=False,
+    )
     app.state.settings, app.state.tokens = settings, tokens
     app.state.csrf_key = new_csrf_key()
     if runner is not None:

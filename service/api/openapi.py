@@ -32,9 +32,12 @@ def build_openapi(app: FastAPI) -> dict[str, Any]:
     if app.openapi_schema:
         return app.openapi_schema
     doc = get_openapi(
-        title=app.title, version=app.version, description=app.description,
-        routes=app.routes, tags=app.openapi_tags,
-    )  # fmt: skip
+        title=app.title,
+        version=app.version,
+        description=app.description,
+        routes=app.routes,
+        tags=app.openapi_tags,
+    )
     schemas = doc.setdefault("components", {}).setdefault("schemas", {})
     for model in (Problem, Job, Scene):
         _add_model(schemas, model)

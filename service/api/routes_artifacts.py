@@ -43,8 +43,12 @@ logger = logging.getLogger(__name__)
 
 Kind = Literal["checkpoints", "recordings", "reports"]
 SHA_HEADER = "X-Content-SHA256"
-MEDIA_TYPES = {".zip": "application/zip", ".mcap": "application/x-mcap", ".mp4": "video/mp4",
-               ".json": "application/json"}  # fmt: skip
+MEDIA_TYPES = {
+    ".zip": "application/zip",
+    ".mcap": "application/x-mcap",
+    ".mp4": "video/mp4",
+    ".json": "application/json",
+}
 Name = Annotated[str, PathParam(max_length=255, description="a name the listing gives")]
 
 router = APIRouter(prefix="/v1/jobs/{job_id}", tags=["artifacts"], responses=problem_responses(401))
@@ -254,15 +258,23 @@ def _add_routes(kind: Kind) -> None:
     listing.__doc__ = f"The job's {kind}, oldest first."
     fetch.__doc__ = f"Download a {_WHAT[kind]}; HTTP Range; sha256 in {SHA_HEADER}."
     router.add_api_route(
-        f"/{kind}", listing, methods=["GET"], response_model=ArtifactList,
-        summary=f"List {kind}", operation_id=f"list_{kind}",
+        f"/{kind}",
+        listing,
+        methods=["GET"],
+        response_model=ArtifactList,
+        summary=f"List {kind}",
+        operation_id=f"list_{kind}",
         responses=problem_responses(404, 422),
-    )  # fmt: skip
+    )
     router.add_api_route(
-        f"/{kind}/{{name}}", fetch, methods=["GET"], response_class=FileResponse,
-        summary=f"Download a {kind[:-1]}", operation_id=f"download_{kind[:-1]}",
+        f"/{kind}/{{name}}",
+        fetch,
+        methods=["GET"],
+        response_class=FileResponse,
+        summary=f"Download a {kind[:-1]}",
+        operation_id=f"download_{kind[:-1]}",
         responses=_download_doc(kind),
-    )  # fmt: skip
+    )
 
 
 for _kind in ("checkpoints", "recordings", "reports"):

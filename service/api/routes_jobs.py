@@ -128,9 +128,11 @@ def get_job(job: OwnedJob) -> JobStatus:
 
 
 @router.get(
-    "/{job_id}/metrics", response_model=MetricsSeries, summary="Metrics per iteration",
+    "/{job_id}/metrics",
+    response_model=MetricsSeries,
+    summary="Metrics per iteration",
     responses=JOB_ERRORS,
-)  # fmt: skip
+)
 def get_metrics(
     job: OwnedJob,
     layout: Layout,
@@ -173,9 +175,11 @@ def _not_served(job_id: str, what: str, exc: NotServed) -> ProblemError:
 
 
 @router.post(
-    "/{job_id}/cancel", response_model=JobStatus, summary="Cancel a job",
+    "/{job_id}/cancel",
+    response_model=JobStatus,
+    summary="Cancel a job",
     responses=problem_responses(404, 409, 422),
-)  # fmt: skip
+)
 def cancel_job(job: OwnedJob, owner: Owner, request: Request) -> JobStatus:
     """A queued job is cancelled at once; a running one stops cleanly after its iteration,
     keeping a final checkpoint (state ``cancelled`` once it has)."""
@@ -183,9 +187,11 @@ def cancel_job(job: OwnedJob, owner: Owner, request: Request) -> JobStatus:
 
 
 @router.post(
-    "/{job_id}/resume", response_model=JobStatus, summary="Resume a job",
+    "/{job_id}/resume",
+    response_model=JobStatus,
+    summary="Resume a job",
     responses=problem_responses(404, 409, 422),
-)  # fmt: skip
+)
 def resume_job(job: OwnedJob, owner: Owner, request: Request) -> JobStatus:
     """A failed or cancelled job with a checkpoint is queued again, to go on from it."""
     return job_status(_act(request, "resume", job.id, owner))

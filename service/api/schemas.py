@@ -244,19 +244,28 @@ def job_status(record: JobRecord, now: datetime | None = None) -> JobStatus:
         now = now or datetime.now(UTC)
         age = max(0.0, (now - progress.updated_at).total_seconds())
     return JobStatus(
-        id=record.id, name=record.name, state=record.state,  # type: ignore[arg-type]
+        id=record.id,
+        name=record.name,
+        state=record.state,  # type: ignore[arg-type]
         phase=progress.phase if progress else None,
         stage=progress.stage if progress else None,
         iteration=progress.iteration if progress else None,
         env_steps=progress.env_steps if progress else 0,
         steps_per_s=progress.steps_per_s if progress else None,
-        metrics=metrics, health=health if isinstance(health, dict) else {},
+        metrics=metrics,
+        health=health if isinstance(health, dict) else {},
         error=record.error or (progress.error if progress else None),
-        cancel_requested=record.cancel_requested, attempt=record.attempt,
-        latest_checkpoint=checkpoint, created_at=record.created_at,
-        started_at=record.started_at, finished_at=record.finished_at,
-        updated_at=record.updated_at, progress_age_s=age, links=links, actions=actions,
-    )  # fmt: skip
+        cancel_requested=record.cancel_requested,
+        attempt=record.attempt,
+        latest_checkpoint=checkpoint,
+        created_at=record.created_at,
+        started_at=record.started_at,
+        finished_at=record.finished_at,
+        updated_at=record.updated_at,
+        progress_age_s=age,
+        links=links,
+        actions=actions,
+    )
 
 
 def status_json(status: JobStatus) -> str:

@@ -40,10 +40,11 @@ Token = Annotated[
 TokenFile = Annotated[
     Path | None,
     typer.Option(
-        "--token-file", envvar="GAITFORGE_TOKEN_FILE",
+        "--token-file",
+        envvar="GAITFORGE_TOKEN_FILE",
         help="file holding the token [default: $GAITFORGE_HOME/token]",
     ),
-]  # fmt: skip
+]
 JobId = Annotated[str, typer.Argument(help="the job's id (j-...)")]
 LogEvery = Annotated[
     float, typer.Option(min=0.5, help="s between status lines when not on a terminal")
@@ -217,8 +218,12 @@ def download_command(
         print_json({"job": job_id, "files": done})
         return
     for item in done:
-        out.print(f"{item.kind} {item.name}: {item.path} ({item.bytes:,} bytes, sha256 "
-                  f"{item.sha256[:12]}... verified)", soft_wrap=True, highlight=False)  # fmt: skip
+        out.print(
+            f"{item.kind} {item.name}: {item.path} ({item.bytes:,} bytes, sha256 "
+            f"{item.sha256[:12]}... verified)",
+            soft_wrap=True,
+            highlight=False,
+        )
 
 
 def _follow(client: GaitforgeClient, job_id: str, log_every: float) -> dict:
@@ -227,9 +232,10 @@ def _follow(client: GaitforgeClient, job_id: str, log_every: float) -> dict:
         line = Text("waiting for the first status ...")
         with Live(line, console=err, refresh_per_second=4, transient=True) as live:
             return follow_events(
-                client, job_id,
+                client,
+                job_id,
                 lambda s: live.update(Text(status_line(s), no_wrap=True, overflow="ellipsis")),
-            )  # fmt: skip
+            )
     if logger.getEffectiveLevel() > logging.INFO:
         logger.setLevel(logging.INFO)
     last = [0.0, ""]
@@ -256,7 +262,12 @@ def _finish(final: dict, json_out: bool) -> None:
 def register(app: typer.Typer) -> None:
     """Add the client commands to the ``gaitforge`` app."""
     for name, command in (
-        ("submit", submit), ("jobs", jobs), ("status", status), ("logs", logs),
-        ("cancel", cancel), ("resume", resume), ("download", download_command),
-    ):  # fmt: skip
+        ("submit", submit),
+        ("jobs", jobs),
+        ("status", status),
+        ("logs", logs),
+        ("cancel", cancel),
+        ("resume", resume),
+        ("download", download_command),
+    ):
         app.command(name)(command)

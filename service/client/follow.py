@@ -40,9 +40,11 @@ def status_line(status: dict) -> str:
         parts.append(f"{status['steps_per_s']:,.0f} steps/s")
     metrics = status.get("metrics") or {}
     for key, label, fmt in (
-        ("return", "return", "{:.1f}"), ("speed", "speed", "{:.2f} m/s"),
-        ("fall_rate", "falls", "{:.0%}"), ("survival", "survival", "{:.0%}"),
-    ):  # fmt: skip
+        ("return", "return", "{:.1f}"),
+        ("speed", "speed", "{:.2f} m/s"),
+        ("fall_rate", "falls", "{:.0%}"),
+        ("survival", "survival", "{:.0%}"),
+    ):
         if isinstance(metrics.get(key), int | float):
             parts.append(f"{label} {fmt.format(metrics[key])}")
     if status.get("error"):

@@ -70,9 +70,11 @@ class ApiError(ClientError):
         if not isinstance(detail, str):  # FastAPI's own {"detail": [...]}
             detail = json.dumps(detail)[:300]
         return cls(
-            response.status_code, str(body.get("title") or f"HTTP {response.status_code}"),
-            detail, body.get("errors") if isinstance(body.get("errors"), list) else None,
-        )  # fmt: skip
+            response.status_code,
+            str(body.get("title") or f"HTTP {response.status_code}"),
+            detail,
+            body.get("errors") if isinstance(body.get("errors"), list) else None,
+        )
 
 
 class DigestMismatch(ClientError):

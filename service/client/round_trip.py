@@ -65,9 +65,12 @@ def start_service(env: dict[str, str], log: Path) -> subprocess.Popen:
     err.print(f"[bold]$ gaitforge serve &[/bold]  (log: {log})", highlight=False)
     with log.open("ab") as sink:
         process = subprocess.Popen(
-            [sys.executable, "-m", "gaitforge.service.cli", "serve"], env=env,
-            stdout=sink, stderr=subprocess.STDOUT, start_new_session=True,
-        )  # fmt: skip
+            [sys.executable, "-m", "gaitforge.service.cli", "serve"],
+            env=env,
+            stdout=sink,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
     deadline = time.monotonic() + START_LIMIT_S
     while time.monotonic() < deadline:
         if process.poll() is not None:
@@ -102,9 +105,11 @@ def round_trip(job: Path, budget_scale: float, out_dir: Path, episodes: int) -> 
     shutil.rmtree(downloads, ignore_errors=True)
     port = free_port()
     env = {
-        **os.environ, "GAITFORGE_HOME": str(home), "GAITFORGE_PORT": str(port),
+        **os.environ,
+        "GAITFORGE_HOME": str(home),
+        "GAITFORGE_PORT": str(port),
         "GAITFORGE_SERVER": f"http://127.0.0.1:{port}",
-    }  # fmt: skip
+    }
     for name in ("GAITFORGE_TOKEN", "GAITFORGE_TOKEN_FILE", "GAITFORGE_TOKENS"):
         env.pop(name, None)  # the service's generated token in home/token
     service = None
@@ -112,21 +117,46 @@ def round_trip(job: Path, budget_scale: float, out_dir: Path, episodes: int) -> 
         service = start_service(env, home / "serve.log")
         submitted = gaitforge(
             ["submit", str(job), "--budget-scale", str(budget_scale), "--follow", "--json"],
-            env, capture=True,
-        )  # fmt: skip
+            env,
+            capture=True,
+        )
         job_id = json.loads(submitted)["id"]
         fetched = gaitforge(
-            ["download", job_id, "--checkpoint", "latest", "--recording", "latest",
-             "--report", "latest", "--out", str(downloads), "--json"], env, capture=True,
-        )  # fmt: skip
+            [
+                "download",
+                job_id,
+                "--checkpoint",
+                "latest",
+                "--recording",
+                "latest",
+                "--report",
+                "latest",
+                "--out",
+                str(downloads),
+                "--json",
+            ],
+            env,
+            capture=True,
+        )
         files = json.loads(fetched)["files"]
         checkpoint = Path(next(f["path"] for f in files if f["kind"] == "checkpoints"))
         evaluation = out_dir / "evaluate"
         gaitforge(
-            ["evaluate", str(checkpoint), "--episodes", str(episodes),
-             "--sweep", "--record", f"{evaluation}.mcap", "--video", f"{evaluation}.mp4",
-             "--json-out", f"{evaluation}.json"], env,
-        )  # fmt: skip
+            [
+                "evaluate",
+                str(checkpoint),
+                "--episodes",
+                str(episodes),
+                "--sweep",
+                "--record",
+                f"{evaluation}.mcap",
+                "--video",
+                f"{evaluation}.mp4",
+                "--json-out",
+                f"{evaluation}.json",
+            ],
+            env,
+        )
     finally:
         if service is not None:
             err.print("[bold]stopping the service[/bold]", highlight=False)

@@ -20,10 +20,13 @@ def jobs_table(page: dict) -> Table:
         stage = job.get("stage") or {}
         where = f"{stage.get('index', 0) + 1}/{stage.get('count', '?')} " if stage else ""
         rows.add_row(
-            job.get("id", ""), job.get("name", ""), job.get("state", ""),
+            job.get("id", ""),
+            job.get("name", ""),
+            job.get("state", ""),
             where + str(stage.get("name") or stage.get("scene") or ""),
-            f"{job.get('env_steps') or 0:,}", _time(job.get("updated_at")),
-        )  # fmt: skip
+            f"{job.get('env_steps') or 0:,}",
+            _time(job.get("updated_at")),
+        )
     return rows
 
 

@@ -61,9 +61,12 @@ class Reporter:
         self.layout = layout
         names = layout.checkpoint_names()
         self.progress = JobProgress(
-            phase="starting", pid=os.getpid(), host=socket.gethostname(), updated_at=now(),
+            phase="starting",
+            pid=os.getpid(),
+            host=socket.gethostname(),
+            updated_at=now(),
             checkpoint=names[-1] if names else None,
-        )  # fmt: skip
+        )
         self._lock = threading.Lock()
         self._done = threading.Event()
         self.update()
@@ -102,10 +105,14 @@ class IterationReport:
         append_metrics(self.layout.metrics_file, metrics)
         names = self.layout.checkpoint_names()
         self.reporter.update(
-            phase="training", iteration=metrics["iteration"], env_steps=metrics["env_steps"],
-            steps_per_s=jsonable(metrics["steps_per_s"]), stage=self.stage(metrics),
-            metrics=jsonable(metrics), checkpoint=names[-1] if names else None,
-        )  # fmt: skip
+            phase="training",
+            iteration=metrics["iteration"],
+            env_steps=metrics["env_steps"],
+            steps_per_s=jsonable(metrics["steps_per_s"]),
+            stage=self.stage(metrics),
+            metrics=jsonable(metrics),
+            checkpoint=names[-1] if names else None,
+        )
         self.log(metrics)
         if not self.cancelled and self.layout.cancel_file.exists():
             self.cancelled = True
@@ -123,16 +130,27 @@ class IterationReport:
         for rule in stage.promote:
             value = jsonable(curriculum.window_mean(rule.metric, rule.window))
             full = episodes >= rule.window
-            rules.append(RuleProgress(
-                rule=str(rule), metric=rule.metric, op=rule.op, target=rule.value,
-                window=rule.window, episodes=min(episodes, rule.window), value=value,
-                passing=full and value is not None and rule.passes(value),
-            ))  # fmt: skip
+            rules.append(
+                RuleProgress(
+                    rule=str(rule),
+                    metric=rule.metric,
+                    op=rule.op,
+                    target=rule.value,
+                    window=rule.window,
+                    episodes=min(episodes, rule.window),
+                    value=value,
+                    passing=full and value is not None and rule.passes(value),
+                )
+            )
         return StageProgress(
-            index=index, name=metrics["stage_name"], scene=metrics["scene"],
-            count=len(job.stages), env_steps=metrics["stage_env_steps"],
-            budget_env_steps=stage.env_steps, promote=rules,
-        )  # fmt: skip
+            index=index,
+            name=metrics["stage_name"],
+            scene=metrics["scene"],
+            count=len(job.stages),
+            env_steps=metrics["stage_env_steps"],
+            budget_env_steps=stage.env_steps,
+            promote=rules,
+        )
 
 
 def within_job(report: EvaluationReport, job_dir: Path) -> EvaluationReport:
@@ -145,9 +163,11 @@ def within_job(report: EvaluationReport, job_dir: Path) -> EvaluationReport:
         return str(Path(name).relative_to(job_dir))
 
     return dataclasses.replace(
-        report, checkpoint=relative(report.checkpoint), recording=relative(report.recording),
+        report,
+        checkpoint=relative(report.checkpoint),
+        recording=relative(report.recording),
         video=relative(report.video),
-    )  # fmt: skip
+    )
 
 
 def evaluate_final(layout: JobLayout, reporter: Reporter, episodes: int, video: bool) -> None:
@@ -168,9 +188,12 @@ def evaluate_final(layout: JobLayout, reporter: Reporter, episodes: int, video: 
 
     def request(movie: Path | None) -> ops.EvaluateRequest:
         return ops.EvaluateRequest(
-            checkpoint=checkpoint, episodes=episodes, modes=["deterministic"],
-            record=record, video=movie,
-        )  # fmt: skip
+            checkpoint=checkpoint,
+            episodes=episodes,
+            modes=["deterministic"],
+            record=record,
+            video=movie,
+        )
 
     try:
         report = ops.evaluate(request(movie))
@@ -207,9 +230,10 @@ def train(layout: JobLayout, reporter: Reporter, signals: SignalStop) -> bool:
         training.close()
     names = layout.checkpoint_names()
     reporter.update(
-        iteration=result.iteration, env_steps=result.env_steps,
+        iteration=result.iteration,
+        env_steps=result.env_steps,
         checkpoint=names[-1] if names else None,
-    )  # fmt: skip
+    )
     return result.finished
 
 
@@ -242,9 +266,12 @@ def main(argv: list[str] | None = None) -> int:
     reporter = Reporter(layout)
     configure_logging(layout.log_file)
     logger.info(
-        "trainer process %d on %s: job %s (%s)", os.getpid(), reporter.progress.host,
-        os.environ.get("GAITFORGE_JOB_ID", layout.job_id), layout.dir,
-    )  # fmt: skip
+        "trainer process %d on %s: job %s (%s)",
+        os.getpid(),
+        reporter.progress.host,
+        os.environ.get("GAITFORGE_JOB_ID", layout.job_id),
+        layout.dir,
+    )
     try:
         finished = train(layout, reporter, signals)
         if finished and not signals.received:

@@ -94,9 +94,11 @@ class LocalCluster:
         return env
 
     def start_head(
-        self, num_cpus: int = 0, resources: dict[str, float] | None = None,
+        self,
+        num_cpus: int = 0,
+        resources: dict[str, float] | None = None,
         env: dict[str, str] | None = None,
-    ) -> RayNode:  # fmt: skip
+    ) -> RayNode:
         """``ray start --head`` (no CPUs for actors by default: it runs the drivers) with
         ``env`` added to its environment (its drivers and workers inherit it); returns once
         its dashboard answers (about 7 s).
@@ -107,15 +109,30 @@ class LocalCluster:
         gcs, dashboard, client = free_ports(3)
         health = str(round(HEALTH_CHECK_S * 1000))
         head_env = {
-            "RAY_health_check_period_ms": health, "RAY_health_check_timeout_ms": health,
-            "RAY_health_check_failure_threshold": "3", **(env or {}),
-        }  # fmt: skip
+            "RAY_health_check_period_ms": health,
+            "RAY_health_check_timeout_ms": health,
+            "RAY_health_check_failure_threshold": "3",
+            **(env or {}),
+        }
         node = self._launch(
-            "head", num_cpus, resources or {}, head_env,
-            ["--head", "--port", str(gcs), "--dashboard-host", "127.0.0.1", "--dashboard-port",
-             str(dashboard), "--include-dashboard", "true", "--ray-client-server-port",
-             str(client)],
-        )  # fmt: skip
+            "head",
+            num_cpus,
+            resources or {},
+            head_env,
+            [
+                "--head",
+                "--port",
+                str(gcs),
+                "--dashboard-host",
+                "127.0.0.1",
+                "--dashboard-port",
+                str(dashboard),
+                "--include-dashboard",
+                "true",
+                "--ray-client-server-port",
+                str(client),
+            ],
+        )
         self._finish_start(node)
         current = Path(node.temp_dir) / "ray_current_cluster"
         self.address = (current.read_text().strip() if current.exists() else "") or (
@@ -131,37 +148,70 @@ class LocalCluster:
         return node
 
     def add_node(
-        self, name: str, num_cpus: int = 1, resources: dict[str, float] | None = None,
+        self,
+        name: str,
+        num_cpus: int = 1,
+        resources: dict[str, float] | None = None,
         env: dict[str, str] | None = None,
-    ) -> RayNode:  # fmt: skip
+    ) -> RayNode:
         """Start a worker node (``ray start --address``) with ``num_cpus`` CPUs, the custom
         resource ``{name: 1}`` and ``resources``, and ``env`` added to its environment (its
         actors inherit it). Returns at once: :meth:`wait_for_nodes` waits for it."""
         if self.address is None:
             raise RayError("start the head first")
-        return self._launch(name, num_cpus, {name: 1.0, **(resources or {})}, env or {},
-                            ["--address", self.address])  # fmt: skip
+        return self._launch(
+            name, num_cpus, {name: 1.0, **(resources or {})}, env or {}, ["--address", self.address]
+        )
 
     def _launch(
-        self, name: str, num_cpus: int, resources: dict[str, float], env: dict[str, str],
+        self,
+        name: str,
+        num_cpus: int,
+        resources: dict[str, float],
+        env: dict[str, str],
         role: list[str],
-    ) -> RayNode:  # fmt: skip
+    ) -> RayNode:
         temp_dir = tempfile.mkdtemp(prefix="gf-n-", dir="/tmp")
         agent, agent_grpc, metrics, env_agent = free_ports(4)
         ray = shutil.which("ray", path=str(Path(sys.executable).parent)) or "ray"
         command = [
-            ray, "start", *role, "--node-ip-address", "127.0.0.1", "--num-cpus", str(num_cpus),
-            "--resources", json.dumps(resources), "--temp-dir", temp_dir,
-            "--object-store-memory", str(self.object_store_bytes), "--disable-usage-stats",
-            "--dashboard-agent-listen-port", str(agent), "--dashboard-agent-grpc-port",
-            str(agent_grpc), "--metrics-export-port", str(metrics), "--runtime-env-agent-port",
-            str(env_agent), "--min-worker-port", "0", "--max-worker-port", "0",
-        ]  # fmt: skip
+            ray,
+            "start",
+            *role,
+            "--node-ip-address",
+            "127.0.0.1",
+            "--num-cpus",
+            str(num_cpus),
+            "--resources",
+            json.dumps(resources),
+            "--temp-dir",
+            temp_dir,
+            "--object-store-memory",
+            str(self.object_store_bytes),
+            "--disable-usage-stats",
+            "--dashboard-agent-listen-port",
+            str(agent),
+            "--dashboard-agent-grpc-port",
+            str(agent_grpc),
+            "--metrics-export-port",
+            str(metrics),
+            "--runtime-env-agent-port",
+            str(env_agent),
+            "--min-worker-port",
+            "0",
+            "--max-worker-port",
+            "0",
+        ]
         logger.info("starting Ray node %s (%d CPUs, %s)", name, num_cpus, resources)
         process = subprocess.Popen(
-            command, env=self.env(env), start_new_session=True, stdin=subprocess.DEVNULL,
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        )  # fmt: skip
+            command,
+            env=self.env(env),
+            start_new_session=True,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
         node = RayNode(name, temp_dir, num_cpus, resources, process=process)
         self.nodes.append(node)
         return node
@@ -227,8 +277,9 @@ class LocalCluster:
         """Ray's ``NodeState`` of every node the head knows (alive and dead)."""
         from ray.util.state.common import ListApiOptions, StateResource
 
-        return self.state_client().list(StateResource.NODES, options=ListApiOptions(),
-                                        raise_on_missing_output=False)  # fmt: skip
+        return self.state_client().list(
+            StateResource.NODES, options=ListApiOptions(), raise_on_missing_output=False
+        )
 
     def actors(self, class_name: str, state: str | None = "ALIVE") -> list[Any]:
         """Ray's ``ActorState`` of the actors of ``class_name`` (in ``state``; None: any),
@@ -239,8 +290,9 @@ class LocalCluster:
         if state is not None:
             filters.append(("state", "=", state))
         options = ListApiOptions(filters=filters, detail=True)
-        return self.state_client().list(StateResource.ACTORS, options=options,
-                                        raise_on_missing_output=False)  # fmt: skip
+        return self.state_client().list(
+            StateResource.ACTORS, options=options, raise_on_missing_output=False
+        )
 
     def kill_node(self, node: RayNode) -> int:
         """SIGKILL every process of ``node`` at once (raylet, agents, workers and actors),

@@ -203,24 +203,54 @@ def _start(home: Path, num_cpus: int | None = None) -> LocalHead:
     num_cpus = num_cpus or os.cpu_count() or 1
     ray = shutil.which("ray", path=str(Path(sys.executable).parent)) or "ray"
     command = [
-        ray, "start", "--head", "--node-ip-address", "127.0.0.1", "--port", str(gcs),
-        "--dashboard-host", "127.0.0.1", "--dashboard-port", str(dashboard),
-        "--include-dashboard", "true", "--disable-usage-stats", "--num-cpus", str(num_cpus),
-        "--temp-dir", temp_dir, "--ray-client-server-port", str(client),
-        "--dashboard-agent-listen-port", str(agent), "--dashboard-agent-grpc-port",
-        str(agent_grpc), "--metrics-export-port", str(metrics), "--runtime-env-agent-port",
+        ray,
+        "start",
+        "--head",
+        "--node-ip-address",
+        "127.0.0.1",
+        "--port",
+        str(gcs),
+        "--dashboard-host",
+        "127.0.0.1",
+        "--dashboard-port",
+        str(dashboard),
+        "--include-dashboard",
+        "true",
+        "--disable-usage-stats",
+        "--num-cpus",
+        str(num_cpus),
+        "--temp-dir",
+        temp_dir,
+        "--ray-client-server-port",
+        str(client),
+        "--dashboard-agent-listen-port",
+        str(agent),
+        "--dashboard-agent-grpc-port",
+        str(agent_grpc),
+        "--metrics-export-port",
+        str(metrics),
+        "--runtime-env-agent-port",
         str(env_agent),
-    ]  # fmt: skip
+    ]
     env = head_environment(token, temp_dir)
     logger.info("starting a local Ray head (%d CPUs, temp dir %s)", num_cpus, temp_dir)
     proc = subprocess.Popen(
-        command, env=env, start_new_session=True, stdin=subprocess.DEVNULL,
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-    )  # fmt: skip
+        command,
+        env=env,
+        start_new_session=True,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     head = LocalHead(
-        address=f"127.0.0.1:{gcs}", dashboard_url=f"http://127.0.0.1:{dashboard}",
-        temp_dir=temp_dir, pgid=proc.pid, num_cpus=num_cpus, started_at=time.time(),
-    )  # fmt: skip
+        address=f"127.0.0.1:{gcs}",
+        dashboard_url=f"http://127.0.0.1:{dashboard}",
+        temp_dir=temp_dir,
+        pgid=proc.pid,
+        num_cpus=num_cpus,
+        started_at=time.time(),
+    )
     make_private_dir(home)
     _write_head(home, head)  # first, so that stop_local_ray finds a head that half started
     try:

@@ -139,8 +139,9 @@ class JobRunner:
             except Exception as exc:  # keep following: the next pass may go through
                 error = first_line(exc)
                 if error != self.last_error:  # once per new error, not every pass
-                    logger.warning("runner pass failed: %s", error,
-                                   exc_info=logger.isEnabledFor(logging.DEBUG))  # fmt: skip
+                    logger.warning(
+                        "runner pass failed: %s", error, exc_info=logger.isEnabledFor(logging.DEBUG)
+                    )
                 self.last_error = error
             self._wake.wait(self.settings.poll_interval_s)
             self._wake.clear()
@@ -171,8 +172,9 @@ class JobRunner:
                 layout.create()  # the owner's only (0700), before anything is written in it
                 write_job_files(layout, job)
             except Exception as exc:
-                self.store.update(record.id, state="failed", error=f"job files: {exc}",
-                                  finished_at=utcnow())  # fmt: skip
+                self.store.update(
+                    record.id, state="failed", error=f"job files: {exc}", finished_at=utcnow()
+                )
                 raise
         logger.info("job %s (%s) of %s queued", record.id, record.name, owner)
         self.wake()
@@ -191,8 +193,9 @@ class JobRunner:
             if record is None or record.state == "cancelled":
                 return record
             if record.state == "queued":
-                record = self.store.update(job_id, state="cancelled", cancel_requested=True,
-                                           finished_at=utcnow())  # fmt: skip
+                record = self.store.update(
+                    job_id, state="cancelled", cancel_requested=True, finished_at=utcnow()
+                )
             elif record.state == "running":
                 cancel_file = self.layout(job_id).cancel_file
                 if not cancel_file.exists():
@@ -218,12 +221,14 @@ class JobRunner:
             if record is None:
                 return None
             if record.state not in ("failed", "cancelled"):
-                raise JobStateError(f"job {job_id} is {record.state}: only a failed or "
-                                    "cancelled job resumes")  # fmt: skip
+                raise JobStateError(
+                    f"job {job_id} is {record.state}: only a failed or cancelled job resumes"
+                )
             self._check_limit(record.owner)
             self.layout(job_id).cancel_file.unlink(missing_ok=True)
-            record = self.store.update(job_id, state="queued", error=None,
-                                       cancel_requested=False, finished_at=None)  # fmt: skip
+            record = self.store.update(
+                job_id, state="queued", error=None, cancel_requested=False, finished_at=None
+            )
         logger.info("job %s queued again (resume)", job_id)
         self.wake()
         return record
@@ -231,8 +236,10 @@ class JobRunner:
     def _check_limit(self, owner: str) -> None:
         limit = self.settings.max_jobs_per_owner
         if self.store.count_active(owner) >= limit:
-            raise LimitError(f"{owner} has {limit} queued or running jobs (the limit); "
-                             "wait for one to end or cancel one")  # fmt: skip
+            raise LimitError(
+                f"{owner} has {limit} queued or running jobs (the limit); "
+                "wait for one to end or cancel one"
+            )
 
     # reconciling
 
@@ -351,8 +358,12 @@ class JobRunner:
         if progress is not None:
             fields["progress_json"] = progress.model_dump_json()
         self.store.update_if(record.id, ["running"], finished_at=utcnow(), **fields)
-        logger.info("job %s %s%s", record.id, fields["state"],
-                    f": {fields['error']}" if fields.get("error") else "")  # fmt: skip
+        logger.info(
+            "job %s %s%s",
+            record.id,
+            fields["state"],
+            f": {fields['error']}" if fields.get("error") else "",
+        )
         return False
 
     def _stop_after_grace(self, layout: JobLayout, sid: str) -> None:
@@ -384,13 +395,20 @@ class JobRunner:
             layout.progress_file.unlink(missing_ok=True)  # the last attempt's: stale now
             layout.cancel_file.unlink(missing_ok=True)
             self.connection.client.submit_job(
-                entrypoint=self.entrypoint(layout), submission_id=sid,
-                runtime_env={"env_vars": {"GAITFORGE_JOB_ID": record.id,
-                                          "PYTHONUNBUFFERED": "1"}},
+                entrypoint=self.entrypoint(layout),
+                submission_id=sid,
+                runtime_env={"env_vars": {"GAITFORGE_JOB_ID": record.id, "PYTHONUNBUFFERED": "1"}},
                 metadata={"gaitforge_job": record.id, "owner": record.owner},
-            )  # fmt: skip
-        self.store.update(record.id, state="running", attempt=attempt, ray_submission_id=sid,
-                          started_at=utcnow(), finished_at=None, error=None)  # fmt: skip
+            )
+        self.store.update(
+            record.id,
+            state="running",
+            attempt=attempt,
+            ray_submission_id=sid,
+            started_at=utcnow(),
+            finished_at=None,
+            error=None,
+        )
         logger.info("job %s started (attempt %d, Ray job %s)", record.id, attempt, sid)
 
     def _still_runs(self, sid: str) -> bool:

@@ -185,8 +185,13 @@ def _check_data_only(raw: dict, errors: list[tuple[str, str]]) -> dict[int, Scen
     if isinstance(workers, dict) and workers.pop("ray_address", None) is not None:
         errors.append(("workers.ray_address", "not accepted: the service decides where jobs run"))
     if raw.pop("init_from", None) is not None:
-        errors.append(("init_from", "not accepted: a checkpoint path on the server's disk "
-                       "(file paths are not accepted); start from scratch"))  # fmt: skip
+        errors.append(
+            (
+                "init_from",
+                "not accepted: a checkpoint path on the server's disk "
+                "(file paths are not accepted); start from scratch",
+            )
+        )
     stages = raw.get("stages")
     if not isinstance(stages, list):
         return {}
@@ -223,8 +228,13 @@ def _check_data_only(raw: dict, errors: list[tuple[str, str]]) -> dict[int, Scen
     for i, scene in inline.items():
         first = seen.setdefault(scene.name, (i, scene))
         if first[1] != scene:
-            errors.append((f"stages.{i}.scene.name", f"{scene.name!r}: stage {first[0]}'s "
-                           "inline scene has this name and other content; rename one"))  # fmt: skip
+            errors.append(
+                (
+                    f"stages.{i}.scene.name",
+                    f"{scene.name!r}: stage {first[0]}'s "
+                    "inline scene has this name and other content; rename one",
+                )
+            )
     return inline
 
 

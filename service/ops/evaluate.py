@@ -27,9 +27,10 @@ class EvaluateRequest(BaseModel):
 
     checkpoint: Path = Field(description="a checkpoint directory, or a run directory")
     scene: str | None = Field(
-        default=None, description="evaluate on this scene (name or YAML) instead of the "
+        default=None,
+        description="evaluate on this scene (name or YAML) instead of the "
         "checkpoint's; its observation and action sizes must match the policy's",
-    )  # fmt: skip
+    )
     backend: Literal["mujoco", "opensim"] | None = Field(
         default=None, description="simulator (default: the checkpoint's)"
     )
@@ -42,9 +43,10 @@ class EvaluateRequest(BaseModel):
         "or on the checkpoint's own",
     )
     sweep: list[float] | None = Field(
-        default=None, description="target-speed reductions, fractions in [0, 1), for the "
+        default=None,
+        description="target-speed reductions, fractions in [0, 1), for the "
         "speed-against-safety sweep (in the first mode); None: no sweep",
-    )  # fmt: skip
+    )
     pick: Literal["latest", "best"] = Field(
         default="latest", description="from a run directory: the latest or the best (return)"
     )

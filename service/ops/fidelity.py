@@ -39,9 +39,9 @@ class SweepRequest(BaseModel):
     )
     model_checks: bool = Field(default=True, description="measure the model-error checks")
     task_tolerance: float | None = Field(
-        default=None, description="m: also require the mean distance covered within this of "
-        "the reference's",
-    )  # fmt: skip
+        default=None,
+        description="m: also require the mean distance covered within this of the reference's",
+    )
     save: bool = Field(default=True, description="save the recommendation as a named profile")
     out: Path | None = Field(default=None, description="write CSV, JSON and a Pareto plot here")
 
@@ -101,8 +101,10 @@ def sweep(request: SweepRequest, progress: ProgressFn | None = None) -> SweepOut
         keep = set(request.integrators)
         grid = [p for p in grid if p.integrator in keep]
         if not grid:
-            raise InputError("integrators", f"no profile left to sweep for {scene.name!r} on "
-                             f"{backend} (kept {sorted(keep)})")  # fmt: skip
+            raise InputError(
+                "integrators",
+                f"no profile left to sweep for {scene.name!r} on {backend} (kept {sorted(keep)})",
+            )
     size = SweepSize.for_run(backend, request.quick)
     model_checks = request.model_checks and not request.quick
     label, total, done = f"{scene.name} [{backend}]", len(grid) + 2 + 3 * model_checks, 0
@@ -114,9 +116,15 @@ def sweep(request: SweepRequest, progress: ProgressFn | None = None) -> SweepOut
             progress(label, text, done, total)
 
     result = run_sweep(
-        scene, backend, request.tolerance, grid, size, advance, model_checks,
+        scene,
+        backend,
+        request.tolerance,
+        grid,
+        size,
+        advance,
+        model_checks,
         request.task_tolerance,
-    )  # fmt: skip
+    )
     outcome = SweepOutcome(result)
     if request.save and (written := save_recommendation(result)) is not None:
         outcome.saved, outcome.saved_path = written

@@ -18,9 +18,16 @@ if TYPE_CHECKING:
 Backend = Literal["mujoco", "opensim"]
 BACKENDS: tuple[Backend, ...] = ("mujoco", "opensim")
 SIZE_KEYS = (
-    "dofs", "joints", "bodies", "muscles", "tendons", "wrap_objects", "geoms", "sites",
+    "dofs",
+    "joints",
+    "bodies",
+    "muscles",
+    "tendons",
+    "wrap_objects",
+    "geoms",
+    "sites",
     "contact_pairs",
-)  # fmt: skip
+)
 """model size counts of a compile report, in display order"""
 
 
@@ -65,13 +72,23 @@ class SceneReport(BaseModel):
     def of(cls, report: CompileReport) -> SceneReport:
         plan = report.plan
         return cls(
-            scene=report.scene, backend=report.backend, body=report.body,
-            profile=report.profile, mass_kg=report.mass, size_full=report.size_full,
-            size=report.size, saved=report.saved(), kept_dofs=plan.kept_dofs,
-            locked_dofs=plan.locked_dofs, dropped_joints=report.dropped_joints,
-            kept_muscles=plan.kept_muscles, removed_muscles=plan.removed_muscles,
-            contact_geoms=plan.contact_geoms, obstacles=plan.obstacles, notes=plan.notes,
-        )  # fmt: skip
+            scene=report.scene,
+            backend=report.backend,
+            body=report.body,
+            profile=report.profile,
+            mass_kg=report.mass,
+            size_full=report.size_full,
+            size=report.size,
+            saved=report.saved(),
+            kept_dofs=plan.kept_dofs,
+            locked_dofs=plan.locked_dofs,
+            dropped_joints=report.dropped_joints,
+            kept_muscles=plan.kept_muscles,
+            removed_muscles=plan.removed_muscles,
+            contact_geoms=plan.contact_geoms,
+            obstacles=plan.obstacles,
+            notes=plan.notes,
+        )
 
 
 class CheckResult(BaseModel):
@@ -146,11 +163,18 @@ def list_scenes() -> list[SceneSummary]:
     out = []
     for name in catalogue():
         s = load_scene(name)
-        out.append(SceneSummary(
-            name=s.name, body=s.body, backends=list(s.backends), task=s.task.kind,
-            target_speed_m_s=s.task.target_speed, control_hz=s.control_hz,
-            episode_s=s.episode_s, description=" ".join(s.description.split()),
-        ))  # fmt: skip
+        out.append(
+            SceneSummary(
+                name=s.name,
+                body=s.body,
+                backends=list(s.backends),
+                task=s.task.kind,
+                target_speed_m_s=s.task.target_speed,
+                control_hz=s.control_hz,
+                episode_s=s.episode_s,
+                description=" ".join(s.description.split()),
+            )
+        )
     return out
 
 
@@ -209,10 +233,18 @@ def check_scene(
     finally:
         env.close()
     return CheckResult(
-        scene=scene.name, backend=backend, seconds=seconds, steps=r.steps, wall_s=r.wall_s,
-        sim_s=r.sim_s, steps_per_s=r.steps_per_s, realtime_factor=r.realtime_factor,
-        episodes=r.episodes, falls=r.falls, health=dict(sorted(r.health.items())),
-    )  # fmt: skip
+        scene=scene.name,
+        backend=backend,
+        seconds=seconds,
+        steps=r.steps,
+        wall_s=r.wall_s,
+        sim_s=r.sim_s,
+        steps_per_s=r.steps_per_s,
+        realtime_factor=r.realtime_factor,
+        episodes=r.episodes,
+        falls=r.falls,
+        health=dict(sorted(r.health.items())),
+    )
 
 
 def check_scenes(

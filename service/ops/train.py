@@ -35,14 +35,15 @@ class TrainRequest(BaseModel):
 
     job_file: Path | None = Field(default=None, description="a job YAML file")
     job: dict[str, Any] | None = Field(
-        default=None, description="a job spec (as in a job file); scene paths relative to "
-        "``base_dir``",
-    )  # fmt: skip
+        default=None,
+        description="a job spec (as in a job file); scene paths relative to ``base_dir``",
+    )
     base_dir: Path = Field(default=Path("."), description="where ``job``'s scene paths start")
     run_dir: Path | None = Field(
-        default=None, description="checkpoints, TensorBoard and recordings; resumes from its "
+        default=None,
+        description="checkpoints, TensorBoard and recordings; resumes from its "
         "latest checkpoint (default: runs/<job name>)",
-    )  # fmt: skip
+    )
     workers: int | None = Field(
         default=None, ge=0, description="Ray rollout actors (0: in-process); overrides the job"
     )
@@ -193,11 +194,15 @@ class Training:
         start = trainer.iteration
         trainer.run(max_iterations=max_iterations, max_seconds=max_seconds)
         return TrainResult(
-            run_dir=self.run_dir, checkpoint=newest_checkpoint(self.run_dir),
-            iterations=trainer.iteration - start, iteration=trainer.iteration,
-            env_steps=trainer.env_steps, stage=trainer.curriculum.stage,
-            finished=trainer.done, stopped=self._stopped and not trainer.done,
-        )  # fmt: skip
+            run_dir=self.run_dir,
+            checkpoint=newest_checkpoint(self.run_dir),
+            iterations=trainer.iteration - start,
+            iteration=trainer.iteration,
+            env_steps=trainer.env_steps,
+            stage=trainer.curriculum.stage,
+            finished=trainer.done,
+            stopped=self._stopped and not trainer.done,
+        )
 
     def close(self) -> None:
         """Shut Ray down if :meth:`start_ray` started it."""

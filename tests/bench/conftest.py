@@ -26,8 +26,10 @@ def run_bench() -> RunBench:
     ) -> subprocess.CompletedProcess[str]:
         return subprocess.run(
             [sys.executable, str(REPO / "bench" / script), *args],
-            capture_output=True, text=True, timeout=timeout_s,
+            capture_output=True,
+            text=True,
+            timeout=timeout_s,
             env={**os.environ, "COLUMNS": str(columns)},
-        )  # fmt: skip
+        )
 
     return run

@@ -22,9 +22,17 @@ def test_the_walker_on_both_simulators_gives_a_table_a_plot_and_medians(
         "name: short\nbase: walk-2d\noptions: [clock]\nset: {episode_s: 1.0}\n"
     )  # walk-2d+clock, 1-s episodes
     done = run_bench(
-        "cross_sim.py", str(REPO / "examples/policies/walk-2d"), "--scene", str(scene),
-        "--episodes", "2", "--every-s", "0.4", "--out", str(out),
-    )  # fmt: skip
+        "cross_sim.py",
+        str(REPO / "examples/policies/walk-2d"),
+        "--scene",
+        str(scene),
+        "--episodes",
+        "2",
+        "--every-s",
+        "0.4",
+        "--out",
+        str(out),
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     assert "mu height m" in done.stdout and "op height m" in done.stdout
     assert "knee_angle_r" in done.stdout  # the joint-angle table

@@ -90,11 +90,33 @@ def test_arms_run_side_by_side_for_minutes_and_are_judged(tmp_path, monkeypatch)
         "workers: {num_workers: 0}\nstages:\n  - scene: elbow-reach\n    env_steps: 1000000\n"
     )
     monkeypatch.setenv("PATH", f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
-    monkeypatch.setattr(sys, "argv", [
-        "job_arms", str(job), "--out", str(tmp_path / "out"), "--seeds", "0",
-        "--scene", "stage", "--judge-seed", "5", "--episodes", "2", "--side-by-side", "2",
-        "--train-minutes", "0.001", "--arm", "control", "--arm", "lr", "ppo.lr=0.0001",
-    ])  # fmt: skip
+    monkeypatch.setattr(
+        sys,
+        "argv",
+        [
+            "job_arms",
+            str(job),
+            "--out",
+            str(tmp_path / "out"),
+            "--seeds",
+            "0",
+            "--scene",
+            "stage",
+            "--judge-seed",
+            "5",
+            "--episodes",
+            "2",
+            "--side-by-side",
+            "2",
+            "--train-minutes",
+            "0.001",
+            "--arm",
+            "control",
+            "--arm",
+            "lr",
+            "ppo.lr=0.0001",
+        ],
+    )
     job_arms.main()
     report = json.loads((tmp_path / "out" / "arms.json").read_text())
     assert report["train_minutes"] == 0.001 and set(report["arms"]) == {"control", "lr"}
@@ -107,8 +129,11 @@ def test_arms_run_side_by_side_for_minutes_and_are_judged(tmp_path, monkeypatch)
         log = run.with_suffix(".log").read_text()
         assert "iteration 1," in log
         assert len(list((run / "checkpoints").iterdir())) == 1, "stopped after one update"
-        stamps = [datetime.strptime(line[:23], "%Y-%m-%d %H:%M:%S,%f")
-                  for line in log.splitlines() if line[:4].isdigit()]  # fmt: skip
+        stamps = [
+            datetime.strptime(line[:23], "%Y-%m-%d %H:%M:%S,%f")
+            for line in log.splitlines()
+            if line[:4].isdigit()
+        ]
         spans.append((min(stamps), max(stamps)))
     (first_start, first_end), (second_start, second_end) = spans
     assert first_start < second_end and second_start < first_end, "trained one after the other"

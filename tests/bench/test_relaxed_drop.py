@@ -17,9 +17,19 @@ def test_the_relaxed_drop_gives_a_table_and_series_per_variant(
 ) -> None:
     out = tmp_path / "drop.json"
     done = run_bench(
-        "relaxed_drop.py", "--scene", "walk-2d+clock", "--timeconst", "0.02", "0.12",
-        "--every-s", "0.01", "--until-s", "0.03", "--json-out", str(out),
-    )  # fmt: skip
+        "relaxed_drop.py",
+        "--scene",
+        "walk-2d+clock",
+        "--timeconst",
+        "0.02",
+        "0.12",
+        "--every-s",
+        "0.01",
+        "--until-s",
+        "0.03",
+        "--json-out",
+        str(out),
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     assert "mujoco 0.12 s" in done.stdout and "opensim" in done.stdout
     data = json.loads(out.read_text())

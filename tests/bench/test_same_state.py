@@ -39,9 +39,15 @@ def test_under_the_walker_mujoco_on_opensims_laws_pushes_and_pulls_as_opensim(
         "  mujoco.muscle_curves: opensim\n  mujoco.muscle_passive: opensim\n"
     )
     done = run_bench(
-        "same_state.py", "--policy", str(REPO / "examples/policies/walk-2d"), "--at-s", "0.2",
-        "--mujoco-scene", str(scene), columns=250,
-    )  # fmt: skip
+        "same_state.py",
+        "--policy",
+        str(REPO / "examples/policies/walk-2d"),
+        "--at-s",
+        "0.2",
+        "--mujoco-scene",
+        str(scene),
+        columns=250,
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     assert "driven by" in done.stdout and "force left, N m" in done.stdout
     rows = re.findall(

@@ -36,21 +36,40 @@ from deploy_support import (
 from gaitforge.service.settings import ServiceSettings
 
 RAY_UP_FILES = [DEPLOY / "cluster.yaml", DEPLOY / "cluster-onprem.yaml"]
-RAY_UP_KEYS = {"cluster_name", "max_workers", "provider", "head_start_ray_commands",
-               "worker_start_ray_commands"}  # fmt: skip
-COMMAND_KEYS = ("initialization_commands", "setup_commands", "head_setup_commands",
-                "worker_setup_commands", "head_start_ray_commands",
-                "worker_start_ray_commands")  # fmt: skip
+RAY_UP_KEYS = {
+    "cluster_name",
+    "max_workers",
+    "provider",
+    "head_start_ray_commands",
+    "worker_start_ray_commands",
+}
+COMMAND_KEYS = (
+    "initialization_commands",
+    "setup_commands",
+    "head_setup_commands",
+    "worker_setup_commands",
+    "head_start_ray_commands",
+    "worker_start_ray_commands",
+)
 DOCKERFILE = DEPLOY / "Dockerfile"
-EXTRA_GAITFORGE_ENV = {"GAITFORGE_RAY_DASHBOARD", "GAITFORGE_JOB_PYTHON", "GAITFORGE_HEALTHCHECK",
-                       "GAITFORGE_START_WAIT_S"}  # fmt: skip
+EXTRA_GAITFORGE_ENV = {
+    "GAITFORGE_RAY_DASHBOARD",
+    "GAITFORGE_JOB_PYTHON",
+    "GAITFORGE_HEALTHCHECK",
+    "GAITFORGE_START_WAIT_S",
+}
 """GAITFORGE_* variables read outside ServiceSettings (runner, image scripts)"""
 
 
 def test_every_yaml_file_parses_into_mappings() -> None:
     files = yaml_files()
-    assert {p.name for p in files} >= {"cluster.yaml", "cluster-onprem.yaml", "raycluster.yaml",
-                                       "api.yaml", "kustomization.yaml"}  # fmt: skip
+    assert {p.name for p in files} >= {
+        "cluster.yaml",
+        "cluster-onprem.yaml",
+        "raycluster.yaml",
+        "api.yaml",
+        "kustomization.yaml",
+    }
     for path in files:
         docs = load_docs(path)
         assert docs, f"{path}: no document"
@@ -113,8 +132,11 @@ def test_ray_up_starts_ray_with_token_auth_and_a_loopback_dashboard(path: Path) 
 def test_ray_up_opens_only_the_api_port(path: Path) -> None:
     config = load_one(path)
     docker = config["docker"]
-    for option in [*docker.get("run_options", []), *docker.get("head_run_options", []),
-                   *docker.get("worker_run_options", [])]:  # fmt: skip
+    for option in [
+        *docker.get("run_options", []),
+        *docker.get("head_run_options", []),
+        *docker.get("worker_run_options", []),
+    ]:
         assert not re.match(r"(-p|--publish)\b", option), f"{path.name}: publishes {option}"
     rules = config["provider"].get("security_group", {}).get("IpPermissions", [])
     for rule in rules:
@@ -194,8 +216,10 @@ def test_docker_build_check() -> None:
         pytest.skip("docker build --check needs BuildKit (buildx) and a daemon: neither is here")
     result = subprocess.run(
         [docker, "build", "--check", "-f", str(DOCKERFILE), str(ROOT)],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     if "Cannot connect to the Docker daemon" in result.stderr:
         pytest.skip("docker build --check needs a Docker daemon: none runs here")
     assert result.returncode == 0, result.stderr
@@ -221,8 +245,13 @@ class Healthz(http.server.BaseHTTPRequestHandler):
 
 def healthcheck(env: dict[str, str]) -> subprocess.CompletedProcess[str]:
     script = DEPLOY / "healthcheck.py"
-    return subprocess.run([sys.executable, str(script)], env={**os.environ, **env},
-                          capture_output=True, text=True, timeout=30)  # fmt: skip
+    return subprocess.run(
+        [sys.executable, str(script)],
+        env={**os.environ, **env},
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
 
 
 def test_healthcheck_follows_the_api() -> None:

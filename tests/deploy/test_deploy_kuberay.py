@@ -58,8 +58,9 @@ def test_every_ray_container_runs_with_token_auth(objects: list[dict[str, Any]])
         assert_token_auth(where, env_of(container))
     assert cluster["spec"]["enableInTreeAutoscaling"] is True
     autoscaler = cluster["spec"]["autoscalerOptions"]
-    assert_token_auth("autoscaler", {e["name"]: e.get("value", e.get("valueFrom"))
-                                     for e in autoscaler["env"]})  # fmt: skip
+    assert_token_auth(
+        "autoscaler", {e["name"]: e.get("value", e.get("valueFrom")) for e in autoscaler["env"]}
+    )
 
 
 def test_head_and_autoscaling_cpu_workers(objects: list[dict[str, Any]]) -> None:
@@ -98,8 +99,11 @@ def test_head_dashboard_on_all_interfaces_only_behind_a_network_policy(
     if host in ("127.0.0.1", "localhost"):
         return
     selector = {"ray.io/cluster": cluster["metadata"]["name"]}
-    policies = [p for p in by_kind(objects, "NetworkPolicy")
-                if p["spec"]["podSelector"].get("matchLabels") == selector]  # fmt: skip
+    policies = [
+        p
+        for p in by_kind(objects, "NetworkPolicy")
+        if p["spec"]["podSelector"].get("matchLabels") == selector
+    ]
     assert policies, "the head's dashboard listens on all interfaces with no NetworkPolicy"
     api_labels = by_kind(objects, "Deployment")[0]["spec"]["template"]["metadata"]["labels"]
     for policy in policies:
@@ -139,9 +143,12 @@ def test_api_points_at_the_head_with_valid_settings(objects: list[dict[str, Any]
     env = env_of(container)
     assert env["GAITFORGE_RAY_ADDRESS"] == f"{name}-head-svc:6379"
     assert env["GAITFORGE_RAY_DASHBOARD"] == f"http://{name}-head-svc:8265"
-    fields = {k.removeprefix("GAITFORGE_").lower(): v for k, v in env.items()
-              if k.startswith("GAITFORGE_") and k not in ("GAITFORGE_RAY_DASHBOARD",
-                                                          "GAITFORGE_JOB_PYTHON")}  # fmt: skip
+    fields = {
+        k.removeprefix("GAITFORGE_").lower(): v
+        for k, v in env.items()
+        if k.startswith("GAITFORGE_")
+        and k not in ("GAITFORGE_RAY_DASHBOARD", "GAITFORGE_JOB_PYTHON")
+    }
     assert fields.keys() <= ServiceSettings.model_fields.keys(), fields.keys()
     settings = ServiceSettings(**fields)
     assert settings.tokens_file is not None, "beyond loopback the service needs tokens"
@@ -184,22 +191,27 @@ def test_kubectl_renders_and_reads_the_manifests() -> None:
     kubectl = shutil.which("kubectl")
     if kubectl is None:
         pytest.skip("kubectl is not installed here")
-    rendered = subprocess.run([kubectl, "kustomize", str(KUBERAY)], capture_output=True,
-                              text=True, timeout=60)  # fmt: skip
+    rendered = subprocess.run(
+        [kubectl, "kustomize", str(KUBERAY)], capture_output=True, text=True, timeout=60
+    )
     assert rendered.returncode == 0, rendered.stderr
     docs = [d for d in yaml.safe_load_all(rendered.stdout) if d]
     kustomization = load_one(KUBERAY / "kustomization.yaml")
     (image,) = kustomization["images"]
     wanted = f"{image['newName']}:{image['newTag']}"
     assert {c["image"] for _, c in containers(docs)} == {wanted}
-    assert all(d["metadata"].get("namespace") == "gaitforge" for d in docs
-               if d["kind"] != "Namespace")  # fmt: skip
+    assert all(
+        d["metadata"].get("namespace") == "gaitforge" for d in docs if d["kind"] != "Namespace"
+    )
     # `kubectl apply --dry-run=client` needs an API server (discovery); `label --local` parses
     # every object the same way without one.
     read = subprocess.run(
         [kubectl, "label", "--local", "--dry-run=client", "-o", "name", "-f", "-", "checked=1"],
-        input=rendered.stdout, capture_output=True, text=True, timeout=60,
-    )  # fmt: skip
+        input=rendered.stdout,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert read.returncode == 0, read.stderr
     names = set(read.stdout.split())
     for doc in docs:

@@ -73,8 +73,17 @@ def cluster_service(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator
     driver_dir, node_dir = tmp_path / "driver-profiles", tmp_path / "node-profiles"
     node_dir.mkdir()
     monkeypatch.setenv(ENV_DIR, str(driver_dir))
-    save(SavedProfile(name=SAVED, scene="stand-2d", backend="mujoco", tolerance=0.05,
-                      profile=PROFILE, error=0.01, steps_per_s=1000.0))  # fmt: skip
+    save(
+        SavedProfile(
+            name=SAVED,
+            scene="stand-2d",
+            backend="mujoco",
+            tolerance=0.05,
+            profile=PROFILE,
+            error=0.01,
+            steps_per_s=1000.0,
+        )
+    )
     home = tmp_path / "home"
     cluster = LocalCluster()
     process = None
@@ -88,12 +97,17 @@ def cluster_service(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator
         port = free_port()
         env = {k: v for k, v in os.environ.items() if not k.startswith(("GAITFORGE_", "RAY_"))}
         env.update(
-            GAITFORGE_HOME=str(home), GAITFORGE_PORT=str(port),
-            GAITFORGE_SERVER=f"http://127.0.0.1:{port}", GAITFORGE_POLL_INTERVAL_S="0.2",
-            GAITFORGE_TOKENS=f"alice:{API_TOKEN}", GAITFORGE_RAY_ADDRESS=str(cluster.address),
-            GAITFORGE_RAY_DASHBOARD=str(cluster.dashboard_url), RAY_AUTH_TOKEN=cluster.token,
-            GAITFORGE_JOB_PYTHON=sys.executable, **{ENV_DIR: str(driver_dir)},
-        )  # fmt: skip
+            GAITFORGE_HOME=str(home),
+            GAITFORGE_PORT=str(port),
+            GAITFORGE_SERVER=f"http://127.0.0.1:{port}",
+            GAITFORGE_POLL_INTERVAL_S="0.2",
+            GAITFORGE_TOKENS=f"alice:{API_TOKEN}",
+            GAITFORGE_RAY_ADDRESS=str(cluster.address),
+            GAITFORGE_RAY_DASHBOARD=str(cluster.dashboard_url),
+            RAY_AUTH_TOKEN=cluster.token,
+            GAITFORGE_JOB_PYTHON=sys.executable,
+            **{ENV_DIR: str(driver_dir)},
+        )
         home.mkdir()
         process = start_service(env, home / "serve.log")
         with GaitforgeClient(env["GAITFORGE_SERVER"], token=API_TOKEN) as client:
@@ -137,8 +151,9 @@ def test_a_job_spans_two_worker_nodes_and_survives_losing_one(
         if by_node == Counter({"node_a": 1, "node_b": 1}) and (status["iteration"] or 0) >= 1:
             break
         if status["state"] not in ("queued", "running") or time.monotonic() > deadline:
-            pytest.fail(f"actors by node {dict(by_node)}; job {status['state']}: "
-                        f"{status.get('error')}")  # fmt: skip
+            pytest.fail(
+                f"actors by node {dict(by_node)}; job {status['state']}: {status.get('error')}"
+            )
         time.sleep(0.3)
     for actor in actors:  # they see the worker nodes' empty profiles directory
         environ = Path(f"/proc/{actor.pid}/environ").read_bytes().split(b"\0")
@@ -146,8 +161,11 @@ def test_a_job_spans_two_worker_nodes_and_survives_losing_one(
     assert not any(cluster_service.node_profiles.iterdir())
     at_kill = client.status(job_id)
     assert at_kill["state"] == "running" and at_kill["phase"] in ("starting", "training"), at_kill
-    logger.info("actors up on both nodes after %.1f s, env steps %s", time.monotonic() - t0,
-                at_kill["env_steps"])  # fmt: skip
+    logger.info(
+        "actors up on both nodes after %.1f s, env steps %s",
+        time.monotonic() - t0,
+        at_kill["env_steps"],
+    )
 
     lost = cluster_service.workers["node_a"]
     assert cluster.kill_node(lost) > 0

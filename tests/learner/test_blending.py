@@ -23,8 +23,9 @@ def _trained_like(policy: GaussianPolicy, seed: int) -> GaussianPolicy:
     return policy
 
 
-def _blend(obs_dim_old: int = 6, obs_dim_new: int = 6) -> tuple[BlendedPolicy, GaussianPolicy,
-                                                                   GaussianPolicy]:  # fmt: skip
+def _blend(
+    obs_dim_old: int = 6, obs_dim_new: int = 6
+) -> tuple[BlendedPolicy, GaussianPolicy, GaussianPolicy]:
     old = _trained_like(GaussianPolicy(obs_dim_old, 4, (16,)), 1)
     new = _trained_like(GaussianPolicy(obs_dim_new, 4, (32, 32)), 2)
     blended = BlendedPolicy(old.describe(), new.describe(), list(range(obs_dim_old)))
@@ -85,18 +86,28 @@ def test_a_blended_checkpoint_round_trips_with_its_structure(tmp_path: Path) -> 
 
 
 def _two_stage_job(transition: str) -> Job:
-    return Job.model_validate({
-        "name": f"elbow-{transition}",
-        "workers": {"num_workers": 0, "envs_per_worker": 4, "fragment_length": 32},
-        "ppo": {"batch_env_steps": 256, "minibatch_size": 128, "epochs": 2},
-        "network": {"hidden": [16]},
-        "stages": [
-            {"scene": "elbow-reach", "env_steps": 256},
-            {"scene": "elbow-reach", "env_steps": 1024, "transition": transition,
-             "network": {"hidden": [32, 32]},
-             "blend": {"ramp_env_steps": 512, "critic_warmup_env_steps": 128, "fit_epochs": 3}},
-        ],
-    })  # fmt: skip
+    return Job.model_validate(
+        {
+            "name": f"elbow-{transition}",
+            "workers": {"num_workers": 0, "envs_per_worker": 4, "fragment_length": 32},
+            "ppo": {"batch_env_steps": 256, "minibatch_size": 128, "epochs": 2},
+            "network": {"hidden": [16]},
+            "stages": [
+                {"scene": "elbow-reach", "env_steps": 256},
+                {
+                    "scene": "elbow-reach",
+                    "env_steps": 1024,
+                    "transition": transition,
+                    "network": {"hidden": [32, 32]},
+                    "blend": {
+                        "ramp_env_steps": 512,
+                        "critic_warmup_env_steps": 128,
+                        "fit_epochs": 3,
+                    },
+                },
+            ],
+        }
+    )
 
 
 @pytest.mark.parametrize("transition", ["blend", "distil", "scratch"])
@@ -121,16 +132,21 @@ def _blend_only_job(clone_actor: bool) -> Job:
     with pi_old after the warm start (its rollouts are the stage's budget)."""
     raw = _two_stage_job("blend").model_dump()
     raw["stages"][1].update(env_steps=512)
-    raw["stages"][1]["blend"] = {"ramp_env_steps": 10**6, "critic_warmup_env_steps": 512,
-                                 "fit_epochs": 200, "clone_actor": clone_actor}  # fmt: skip
+    raw["stages"][1]["blend"] = {
+        "ramp_env_steps": 10**6,
+        "critic_warmup_env_steps": 512,
+        "fit_epochs": 200,
+        "clone_actor": clone_actor,
+    }
     return Job.model_validate(raw)
 
 
 def test_clone_actor_starts_pi_new_near_pi_old(tmp_path: Path) -> None:
     distance = {}
     for clone_actor in (False, True):
-        trainer = Trainer(_blend_only_job(clone_actor), tmp_path / str(clone_actor),
-                          tensorboard=False)  # fmt: skip
+        trainer = Trainer(
+            _blend_only_job(clone_actor), tmp_path / str(clone_actor), tensorboard=False
+        )
         trainer.run()
         blended = trainer.policy
         assert isinstance(blended, BlendedPolicy) and float(blended.alpha) < 0.01

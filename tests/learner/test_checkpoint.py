@@ -57,11 +57,14 @@ def test_round_trip_gives_identical_actions(tmp_path: Path) -> None:
 def test_last_k_and_the_best_are_kept(tmp_path: Path) -> None:
     state = _policy().state_dict()
     for step, score in [(1, 5.0), (2, 9.0), (3, 1.0), (4, 2.0), (5, 3.0)]:
-        save_checkpoint(tmp_path, step, state, {"metrics": {"return": score}}, keep_last=2,
-                        best_metric="return")  # fmt: skip
+        save_checkpoint(
+            tmp_path, step, state, {"metrics": {"return": score}}, keep_last=2, best_metric="return"
+        )
     assert [p.name for p in checkpoints(tmp_path)] == [
-        "ckpt-000000000002", "ckpt-000000000004", "ckpt-000000000005",
-    ]  # fmt: skip
+        "ckpt-000000000002",
+        "ckpt-000000000004",
+        "ckpt-000000000005",
+    ]
     assert latest_checkpoint(tmp_path).name == "ckpt-000000000005"
     assert select_checkpoint(tmp_path, "latest") == latest_checkpoint(tmp_path)
     assert select_checkpoint(tmp_path, "best").name == "ckpt-000000000002"

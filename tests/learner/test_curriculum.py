@@ -39,9 +39,12 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
     state.stage_env_steps = 1000
     assert state.verdict(stage) == "budget spent"
     both = Stage.model_validate(
-        {"scene": "walk-2d", "env_steps": 10**6,
-         "promote": ["speed >= 0.2 over 2", "fall_rate <= 0.5 over 2"]}
-    )  # fmt: skip
+        {
+            "scene": "walk-2d",
+            "env_steps": 10**6,
+            "promote": ["speed >= 0.2 over 2", "fall_rate <= 0.5 over 2"],
+        }
+    )
     assert both.promote[1].metric == "fall_rate"
     assert state.verdict(both) is None, "speed passes, falls 2 of 2 do not"
     state.episodes.append(EpisodeStats(1.0, 3.0, 10.0, False, True))
@@ -54,33 +57,56 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
     [
         ("stages: []", "stages: List should have at least 1 item"),
         ("stages: [{scene: walk-2d, env_steps: 0}]", "stages.0.env_steps: Input should be"),
-        ("stages: [{scene: walk-2d, env_steps: 9, promote: 'speed > 1'}]",
-         "stages.0.promote: expected '<metric> >=|<= <value> [over <episodes>]'"),
-        ("stages: [{scene: walk-2d, env_steps: 9, promote: ['speed >= 1', 'height >= 1']}]",
-         "stages.0.promote.1.metric: Input should be"),
-        ("stages: [{scene: walk-2d, env_steps: 9, control_hz: 30}]",
-         "does not divide the control period 1/30.0 s"),
+        (
+            "stages: [{scene: walk-2d, env_steps: 9, promote: 'speed > 1'}]",
+            "stages.0.promote: expected '<metric> >=|<= <value> [over <episodes>]'",
+        ),
+        (
+            "stages: [{scene: walk-2d, env_steps: 9, promote: ['speed >= 1', 'height >= 1']}]",
+            "stages.0.promote.1.metric: Input should be",
+        ),
+        (
+            "stages: [{scene: walk-2d, env_steps: 9, control_hz: 30}]",
+            "does not divide the control period 1/30.0 s",
+        ),
         ("stages: [{scene: nowhere, env_steps: 9}]", "stages.0.scene: scene 'nowhere': unknown"),
-        ("stages: [{scene: walk-3d, env_steps: 9}]\nbackend: opensim",
-         "stages.0.scene: 'walk-3d' runs on ['mujoco'], not on the job's backend 'opensim'"),
-        ("stages: [{scene: walk-2d, env_steps: 9}, {scene: run-2d, env_steps: 9, "
-         "network: {hidden: [8]}}]", "a new network needs transition blend, distil or scratch"),
-        ("stages: [{scene: walk-2d, env_steps: 9, fidelity: warp}]",
-         "stages.0: fidelity: unknown profile 'warp'"),
+        (
+            "stages: [{scene: walk-3d, env_steps: 9}]\nbackend: opensim",
+            "stages.0.scene: 'walk-3d' runs on ['mujoco'], not on the job's backend 'opensim'",
+        ),
+        (
+            "stages: [{scene: walk-2d, env_steps: 9}, {scene: run-2d, env_steps: 9, "
+            "network: {hidden: [8]}}]",
+            "a new network needs transition blend, distil or scratch",
+        ),
+        (
+            "stages: [{scene: walk-2d, env_steps: 9, fidelity: warp}]",
+            "stages.0: fidelity: unknown profile 'warp'",
+        ),
         ("stages: [{scene: walk-2d, env_steps: 9}]\nppo: {lr: -1}", "ppo.lr: Input should be"),
-        ("stages: [{scene: walk-2d, env_steps: 9, ppo: {lr: 0}}]",
-         "stages.0.ppo.lr: Input should be greater than 0"),
-        ("stages: [{scene: walk-2d, env_steps: 9, ppo: {epochs: 3}}]",
-         "stages.0.ppo.epochs: Extra inputs are not permitted"),
-        ("stages: [{scene: walk-2d, env_steps: 9}, {scene: run-2d, env_steps: 9, "
-         "transition: scratch, action_std: 0.3}]", "stages.1: action_std: only with transition "
-         "continue"),
-        ("stages: [{scene: walk-2d, env_steps: 9, action_std: 0.3}]",
-         "stages.0.action_std: the first stage starts at network.init_std"),
-        ("stages: [{scene: walk-2d, env_steps: 9}]\nworkers: {threads: 3}",
-         "workers.threads: Extra inputs are not permitted"),
+        (
+            "stages: [{scene: walk-2d, env_steps: 9, ppo: {lr: 0}}]",
+            "stages.0.ppo.lr: Input should be greater than 0",
+        ),
+        (
+            "stages: [{scene: walk-2d, env_steps: 9, ppo: {epochs: 3}}]",
+            "stages.0.ppo.epochs: Extra inputs are not permitted",
+        ),
+        (
+            "stages: [{scene: walk-2d, env_steps: 9}, {scene: run-2d, env_steps: 9, "
+            "transition: scratch, action_std: 0.3}]",
+            "stages.1: action_std: only with transition continue",
+        ),
+        (
+            "stages: [{scene: walk-2d, env_steps: 9, action_std: 0.3}]",
+            "stages.0.action_std: the first stage starts at network.init_std",
+        ),
+        (
+            "stages: [{scene: walk-2d, env_steps: 9}]\nworkers: {threads: 3}",
+            "workers.threads: Extra inputs are not permitted",
+        ),
     ],
-)  # fmt: skip
+)
 def test_bad_job_files_fail_early_in_one_line(tmp_path: Path, body: str, message: str) -> None:
     path = tmp_path / "job.yaml"
     path.write_text(f"name: j\n{body}\n")
@@ -94,18 +120,34 @@ def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> 
     """Stand for one fast stage, promote on a rule that any episode passes, then the same
     scene at the accurate profile (a fidelity curriculum) with its own learning rate, batch
     and its action noise started anew."""
-    job = Job.model_validate({
-        "name": "fidelity-curriculum",
-        "workers": {"num_workers": 0, "envs_per_worker": 4, "fragment_length": 100},
-        "ppo": {"batch_env_steps": 400, "minibatch_size": 200, "epochs": 1, "lr": 1e-3},
-        "stages": [
-            {"scene": "stand-2d", "fidelity": "fast", "env_steps": 100_000,
-             "promote": "length >= 0 over 2"},
-            {"scene": "stand-2d", "fidelity": "accurate", "env_steps": 400,
-             "ppo": {"lr": 1e-4, "lr_end": 5e-5, "decoupled": True, "batch_env_steps": 800,
-                     "minibatch_size": 400}, "action_std": 0.6},
-        ],
-    })  # fmt: skip
+    job = Job.model_validate(
+        {
+            "name": "fidelity-curriculum",
+            "workers": {"num_workers": 0, "envs_per_worker": 4, "fragment_length": 100},
+            "ppo": {"batch_env_steps": 400, "minibatch_size": 200, "epochs": 1, "lr": 1e-3},
+            "stages": [
+                {
+                    "scene": "stand-2d",
+                    "fidelity": "fast",
+                    "env_steps": 100_000,
+                    "promote": "length >= 0 over 2",
+                },
+                {
+                    "scene": "stand-2d",
+                    "fidelity": "accurate",
+                    "env_steps": 400,
+                    "ppo": {
+                        "lr": 1e-4,
+                        "lr_end": 5e-5,
+                        "decoupled": True,
+                        "batch_env_steps": 800,
+                        "minibatch_size": 400,
+                    },
+                    "action_std": 0.6,
+                },
+            ],
+        }
+    )
     assert [job.stage_ppo(i).decoupled for i in (0, 1)] == [False, True]
     assert [job.stage_ppo(i).batch_env_steps for i in (0, 1)] == [400, 800]
     assert [job.stage_ppo(i).minibatch_size for i in (0, 1)] == [200, 400]

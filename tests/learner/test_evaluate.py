@@ -177,10 +177,22 @@ def test_json_is_complete(walk: tuple[Path, Scene], tmp_path: Path) -> None:
     out = tmp_path / "eval.json"
     result = runner.invoke(
         app,
-        ["evaluate", str(run), "--episodes", "2", "--mode", "both", "--sweep",
-         "--sweep-percent", "0,20", "--per-episode", "--json-out", str(out)],
+        [
+            "evaluate",
+            str(run),
+            "--episodes",
+            "2",
+            "--mode",
+            "both",
+            "--sweep",
+            "--sweep-percent",
+            "0,20",
+            "--per-episode",
+            "--json-out",
+            str(out),
+        ],
         env={"COLUMNS": "200"},
-    )  # fmt: skip
+    )
     assert result.exit_code == 0, result.output
     assert "Speed against safety" in result.output and "fall rate" in result.output
     assert "Episodes (stochastic)" in result.output
@@ -327,17 +339,29 @@ def test_a_checkpoint_the_trainer_wrote_mid_blend(tmp_path: Path) -> None:
     from gaitforge.learner.job import Job
     from gaitforge.learner.trainer import Trainer
 
-    job = Job.model_validate({
-        "name": "walk-blend", "network": {"hidden": [8]}, "checkpoint": {"every_iters": 1},
-        "workers": {"num_workers": 0, "envs_per_worker": 2, "fragment_length": 16},
-        "ppo": {"batch_env_steps": 32, "minibatch_size": 32, "epochs": 1},
-        "stages": [
-            {"scene": "walk-2d", "env_steps": 32},
-            {"scene": "walk-2d", "env_steps": 32, "transition": "blend",
-             "network": {"hidden": [16]},
-             "blend": {"ramp_env_steps": 1024, "critic_warmup_env_steps": 32, "fit_epochs": 1}},
-        ],
-    })  # fmt: skip
+    job = Job.model_validate(
+        {
+            "name": "walk-blend",
+            "network": {"hidden": [8]},
+            "checkpoint": {"every_iters": 1},
+            "workers": {"num_workers": 0, "envs_per_worker": 2, "fragment_length": 16},
+            "ppo": {"batch_env_steps": 32, "minibatch_size": 32, "epochs": 1},
+            "stages": [
+                {"scene": "walk-2d", "env_steps": 32},
+                {
+                    "scene": "walk-2d",
+                    "env_steps": 32,
+                    "transition": "blend",
+                    "network": {"hidden": [16]},
+                    "blend": {
+                        "ramp_env_steps": 1024,
+                        "critic_warmup_env_steps": 32,
+                        "fit_epochs": 1,
+                    },
+                },
+            ],
+        }
+    )
     Trainer(job, tmp_path, tensorboard=False).run()
     policy, _ = load_policy(resolve_checkpoint(tmp_path))
     assert isinstance(policy, BlendedPolicy)  # alpha still ramping: pi_old and pi_new both act

@@ -15,9 +15,15 @@ LAST = np.array([2.0])
 def _gae(terminated=(0, 0, 0), truncated=(0, 0, 0), bootstrap=(0, 0, 0)):
     as_col = lambda x, dtype=float: np.array(x, dtype=dtype)[:, None]  # noqa: E731
     return compute_gae(
-        REWARD, VALUE, as_col(terminated, bool), as_col(truncated, bool), as_col(bootstrap),
-        LAST, gamma=0.9, lam=0.5,
-    )  # fmt: skip
+        REWARD,
+        VALUE,
+        as_col(terminated, bool),
+        as_col(truncated, bool),
+        as_col(bootstrap),
+        LAST,
+        gamma=0.9,
+        lam=0.5,
+    )
 
 
 def test_no_episode_end_bootstraps_from_the_last_value() -> None:

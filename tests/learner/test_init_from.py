@@ -70,10 +70,13 @@ def test_the_first_stage_may_grow_a_network_from_the_checkpoint(
     source = _trained(tmp_path)
     loaded, _ = load_policy(source)
     job = _job(source)
-    job.stages[0] = job.stages[0].model_copy(update={
-        "transition": transition, "network": NetworkSpec(hidden=[32, 16]),
-        "blend": BlendSpec(ramp_env_steps=400, critic_warmup_env_steps=200, fit_epochs=2),
-    })  # fmt: skip
+    job.stages[0] = job.stages[0].model_copy(
+        update={
+            "transition": transition,
+            "network": NetworkSpec(hidden=[32, 16]),
+            "blend": BlendSpec(ramp_env_steps=400, critic_warmup_env_steps=200, fit_epochs=2),
+        }
+    )
     trainer = Trainer(Job.model_validate(job.model_dump()), tmp_path / "grown", tensorboard=False)
     trainer.run(max_iterations=1)
     assert [entry["transition"] for entry in trainer.lineage] == ["init_from", transition]

@@ -48,8 +48,9 @@ def test_policy_acts_in_batches_and_evaluates_its_own_samples() -> None:
 
 
 def test_a_nan_in_the_batch_is_refused_naming_the_tensor() -> None:
-    worker = RolloutWorker(load_scene("elbow-reach").resolved(), _elbow_factory(), num_envs=2,
-                           fragment_length=10)  # fmt: skip
+    worker = RolloutWorker(
+        load_scene("elbow-reach").resolved(), _elbow_factory(), num_envs=2, fragment_length=10
+    )
     fragment = worker.sample()
     fragment.reward[3, 1] = np.nan
     with pytest.raises(FloatingPointError, match=r"^reward: contains NaN"):
@@ -103,8 +104,9 @@ def test_the_decoupled_objective_clips_around_the_policy_at_the_updates_start() 
     sampled, the two are the same update."""
     torch.manual_seed(0)
     factory = _elbow_factory()
-    worker = RolloutWorker(load_scene("elbow-reach").resolved(), factory, num_envs=4,
-                           fragment_length=50)  # fmt: skip
+    worker = RolloutWorker(
+        load_scene("elbow-reach").resolved(), factory, num_envs=4, fragment_length=50
+    )
     policy, stale = factory(), factory()
     stale.load_state_dict(policy.state_dict())
     with torch.no_grad():
@@ -129,9 +131,9 @@ def test_the_decoupled_objective_clips_around_the_policy_at_the_updates_start() 
     for (name, a), b in zip(one.state_dict().items(), two.state_dict().values(), strict=True):
         torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-5, msg=name)
     assert any(
-        not torch.equal(a, b) for a, b in zip(one.state_dict().values(),
-                                              policy.state_dict().values(), strict=True)
-    ), "the update moved the weights"  # fmt: skip
+        not torch.equal(a, b)
+        for a, b in zip(one.state_dict().values(), policy.state_dict().values(), strict=True)
+    ), "the update moved the weights"
 
 
 def test_schedules_are_applied_by_the_settings() -> None:
@@ -151,8 +153,9 @@ def test_the_critic_may_learn_at_a_rate_of_its_own() -> None:
     critic rate of 1e-2, one update moves the critic's weights and barely the actor's."""
     torch.manual_seed(0)
     factory = _elbow_factory()
-    worker = RolloutWorker(load_scene("elbow-reach").resolved(), factory, num_envs=4,
-                           fragment_length=50)  # fmt: skip
+    worker = RolloutWorker(
+        load_scene("elbow-reach").resolved(), factory, num_envs=4, fragment_length=50
+    )
     policy = factory()
     cfg = PPOSettings(lr=1e-7, critic_lr=1e-2, epochs=2, minibatch_size=100, target_kl=None)
     single = torch.optim.Adam(optimizer_groups(policy, critic_apart=False))

@@ -19,15 +19,38 @@ from tests.learner.test_init_from import _job, _trained
 def test_a_shipped_policy_keeps_the_weights_and_names_its_origin(tmp_path: Path) -> None:
     source = _trained(tmp_path)
     report = tmp_path / "eval.json"
-    report.write_text(json.dumps({"results": {"deterministic": {
-        "scene": "elbow-reach", "backend": "mujoco", "fall_rate": {"value": 0.0, "n": 10},
-        "mean_speed_m_s": {"mean": 0.0, "n": 10}}}}))  # fmt: skip
+    report.write_text(
+        json.dumps(
+            {
+                "results": {
+                    "deterministic": {
+                        "scene": "elbow-reach",
+                        "backend": "mujoco",
+                        "fall_rate": {"value": 0.0, "n": 10},
+                        "mean_speed_m_s": {"mean": 0.0, "n": 10},
+                    }
+                }
+            }
+        )
+    )
     dest = tmp_path / "policies" / "elbow-reach"
     done = subprocess.run(
-        [sys.executable, "-m", "gaitforge.service.cli", "ship", str(source), str(dest),
-         "--command", "gaitforge train elbow.yaml", "--evaluation", str(report)],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "gaitforge.service.cli",
+            "ship",
+            str(source),
+            str(dest),
+            "--command",
+            "gaitforge train elbow.yaml",
+            "--evaluation",
+            str(report),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert done.returncode == 0, done.stderr
     assert not (dest / "optimizer.safetensors").exists()
     umask = os.umask(0)
@@ -51,9 +74,19 @@ def test_a_shipped_policy_keeps_the_weights_and_names_its_origin(tmp_path: Path)
 
 def test_shipping_a_non_checkpoint_fails_with_one_line(tmp_path: Path) -> None:
     done = subprocess.run(
-        [sys.executable, "-m", "gaitforge.service.cli", "ship", str(tmp_path), str(tmp_path / "x"),
-         "--command", "c"],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "gaitforge.service.cli",
+            "ship",
+            str(tmp_path),
+            str(tmp_path / "x"),
+            "--command",
+            "c",
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert done.returncode == 2 and "manifest.json: missing" in done.stderr
     assert not (tmp_path / "x").exists()

@@ -23,14 +23,21 @@ EPISODES = 3
 
 
 def _job(env_steps: int = 4 * BATCH, **evaluate: object) -> Job:
-    return Job.model_validate({
-        "name": "elbow-judged",
-        "workers": {"num_workers": 0, "envs_per_worker": 4, "fragment_length": 32},
-        "ppo": {"batch_env_steps": BATCH, "minibatch_size": 128, "epochs": 2, "lr": 3e-3},
-        "network": {"hidden": [16]},
-        "stages": [{"scene": "elbow-reach", "env_steps": env_steps,
-                    "evaluate": {"episodes": EPISODES, "every_env_steps": EVERY, **evaluate}}],
-    })  # fmt: skip
+    return Job.model_validate(
+        {
+            "name": "elbow-judged",
+            "workers": {"num_workers": 0, "envs_per_worker": 4, "fragment_length": 32},
+            "ppo": {"batch_env_steps": BATCH, "minibatch_size": 128, "epochs": 2, "lr": 3e-3},
+            "network": {"hidden": [16]},
+            "stages": [
+                {
+                    "scene": "elbow-reach",
+                    "env_steps": env_steps,
+                    "evaluate": {"episodes": EPISODES, "every_env_steps": EVERY, **evaluate},
+                }
+            ],
+        }
+    )
 
 
 def _evaluated(history: list[dict]) -> list[dict]:
@@ -68,9 +75,14 @@ def test_the_stage_ends_with_the_best_network_evaluated(tmp_path: Path) -> None:
         assert torch.equal(final_state[key], value), key
     assert any(not torch.equal(final_state[k], wrecked[k]) for k in wrecked)
     # and it is as good as any evaluated: evaluated again on the same seeds, it scores the best
-    again = evaluation_metrics(evaluate_policy(
-        trainer.policy, load_scene("elbow-reach"), episodes=EPISODES, seed=EVALUATION_SEED,
-    ))  # fmt: skip
+    again = evaluation_metrics(
+        evaluate_policy(
+            trainer.policy,
+            load_scene("elbow-reach"),
+            episodes=EPISODES,
+            seed=EVALUATION_SEED,
+        )
+    )
     scores = [score(h, []) for h in _evaluated(trainer.history)]
     assert score(again, []) == pytest.approx(max(scores))
     # the last network's own evaluation stays in eval_*, the kept one's in kept_eval_*

@@ -70,11 +70,16 @@ def test_the_mirrored_batch_doubles_and_keeps_advantages() -> None:
 
 def test_a_stage_may_turn_mirroring_off(tmp_path: Path) -> None:
     """``stages[i].ppo.mirror`` in place of the job's: a fine-tune stage without mirror images."""
-    job = Job.model_validate({
-        "name": "stand-then-fine-tune", "ppo": {"mirror": True},
-        "workers": {"num_workers": 0},
-        "stages": [{"scene": "stand-2d", "env_steps": 1000},
-                   {"scene": "stand-2d", "env_steps": 1000, "ppo": {"mirror": False}}],
-    })  # fmt: skip
+    job = Job.model_validate(
+        {
+            "name": "stand-then-fine-tune",
+            "ppo": {"mirror": True},
+            "workers": {"num_workers": 0},
+            "stages": [
+                {"scene": "stand-2d", "env_steps": 1000},
+                {"scene": "stand-2d", "env_steps": 1000, "ppo": {"mirror": False}},
+            ],
+        }
+    )
     trainer = Trainer(job, tmp_path, tensorboard=False)
     assert trainer.mirrors[0] is not None and trainer.mirrors[1] is None

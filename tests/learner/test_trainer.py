@@ -18,12 +18,15 @@ from gaitforge.learner.trainer import Trainer
 
 def elbow_job(num_workers: int = 0, envs: int = 4, batch: int = 200) -> Job:
     """elbow-reach for ever (budget 10^9 steps), a checkpoint every 2 iterations."""
-    return Job.model_validate({
-        "name": "elbow", "stages": [{"scene": "elbow-reach", "env_steps": 10**9}],
-        "workers": {"num_workers": num_workers, "envs_per_worker": envs, "fragment_length": 50},
-        "ppo": {"batch_env_steps": batch, "minibatch_size": 50},
-        "checkpoint": {"every_iters": 2},
-    })  # fmt: skip
+    return Job.model_validate(
+        {
+            "name": "elbow",
+            "stages": [{"scene": "elbow-reach", "env_steps": 10**9}],
+            "workers": {"num_workers": num_workers, "envs_per_worker": envs, "fragment_length": 50},
+            "ppo": {"batch_env_steps": batch, "minibatch_size": 50},
+            "checkpoint": {"every_iters": 2},
+        }
+    )
 
 
 TRAIN_FOREVER = """

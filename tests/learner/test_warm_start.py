@@ -34,9 +34,16 @@ SCENE = "imitate-walk-2d"
 def test_the_table_is_periodic_and_linear_between_samples() -> None:
     values = np.array([[0.0, 1.0], [1.0, 0.0], [0.5, 0.5], [0.0, 0.0]])
     table = ExcitationTable(["a_r", "a_l"], values)
-    np.testing.assert_allclose(table.at(np.array([0.0, 0.25, 0.125, 0.875, 1.125])), [
-        [0.0, 1.0], [1.0, 0.0], [0.5, 0.5], [0.0, 0.5], [0.5, 0.5],
-    ])  # fmt: skip
+    np.testing.assert_allclose(
+        table.at(np.array([0.0, 0.25, 0.125, 0.875, 1.125])),
+        [
+            [0.0, 1.0],
+            [1.0, 0.0],
+            [0.5, 0.5],
+            [0.0, 0.5],
+            [0.5, 0.5],
+        ],
+    )
     assert list(table.columns(["a_l", "a_r"])) == [1, 0]
     assert list(table.columns(["a_l", "a_r"], mirrored=True)) == [0, 1]
     assert mirror_name("vasti_r") == "vasti_l" and mirror_name("lumbar") == "lumbar"
@@ -84,17 +91,22 @@ def one_line(path: Path) -> str:
 
 
 def test_bad_warm_start_options_are_one_line(tmp_path: Path) -> None:
-    line = one_line(job_file(tmp_path, {"scene": "walk-2d", "env_steps": 10,
-                                        "warm_start": {"excitations": "walk"}}))  # fmt: skip
+    line = one_line(
+        job_file(
+            tmp_path, {"scene": "walk-2d", "env_steps": 10, "warm_start": {"excitations": "walk"}}
+        )
+    )
     assert "stages.0.warm_start" in line and "imitates no motion" in line
-    line = one_line(job_file(tmp_path, {"scene": SCENE, "env_steps": 10,
-                                        "warm_start": {"excitations": "run"}}))  # fmt: skip
+    line = one_line(
+        job_file(tmp_path, {"scene": SCENE, "env_steps": 10, "warm_start": {"excitations": "run"}})
+    )
     assert "stages.0.warm_start.excitations" in line and "run" in line
     bad = {"excitations": "walk", "rounds": 0}
     line = one_line(job_file(tmp_path, {"scene": SCENE, "env_steps": 10, "warm_start": bad}))
     assert "stages.0.warm_start.rounds" in line
-    job, _ = load_job(job_file(tmp_path, {"scene": SCENE, "env_steps": 10,
-                                          "warm_start": {"excitations": "walk"}}))  # fmt: skip
+    job, _ = load_job(
+        job_file(tmp_path, {"scene": SCENE, "env_steps": 10, "warm_start": {"excitations": "walk"}})
+    )
     assert job.stages[0].warm_start is not None
 
 
@@ -152,14 +164,21 @@ def test_the_warm_start_clones_the_recorded_excitations(tmp_path: Path) -> None:
         "env_steps": 256,
         "warm_start": {"excitations": "walk", "env_steps": 1024, "rounds": 2, "epochs": 40},
     }
-    job = Job.model_validate({
-        "name": "warm", "seed": 3, "network": {"hidden": [64, 64]},
-        "workers": {"num_workers": 0, "envs_per_worker": 4, "fragment_length": 64},
-        "ppo": {"batch_env_steps": 256, "minibatch_size": 256, "epochs": 1, "lr": 1e-6},
-        "stages": [stage],
-    })  # fmt: skip
-    cold = Trainer(job.model_copy(update={"stages": [job.stages[0].model_copy(
-        update={"warm_start": None})]}), tmp_path / "cold", tensorboard=False)  # fmt: skip
+    job = Job.model_validate(
+        {
+            "name": "warm",
+            "seed": 3,
+            "network": {"hidden": [64, 64]},
+            "workers": {"num_workers": 0, "envs_per_worker": 4, "fragment_length": 64},
+            "ppo": {"batch_env_steps": 256, "minibatch_size": 256, "epochs": 1, "lr": 1e-6},
+            "stages": [stage],
+        }
+    )
+    cold = Trainer(
+        job.model_copy(update={"stages": [job.stages[0].model_copy(update={"warm_start": None})]}),
+        tmp_path / "cold",
+        tensorboard=False,
+    )
     before = action_error(cold, range(6))
     torch.manual_seed(0)
     warm = Trainer(job, tmp_path / "warm", tensorboard=False)

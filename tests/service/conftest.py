@@ -106,8 +106,10 @@ def wait_for(
         if done(record):
             return record
         time.sleep(0.1)
-    pytest.fail(f"job {job_id}: still {record.state if record else None} after {timeout_s} s "
-                f"(error: {record.error if record else None})")  # fmt: skip
+    pytest.fail(
+        f"job {job_id}: still {record.state if record else None} after {timeout_s} s "
+        f"(error: {record.error if record else None})"
+    )
 
 
 @pytest.fixture

@@ -92,20 +92,29 @@ def test_submit_json_and_yaml_then_the_limit(api: Api) -> None:
 @pytest.mark.parametrize(
     ("body", "media", "field"),
     [
-        ({**make_tiny_job(), "stages": [{"scene": "walk-9d", "env_steps": 10}]}, None,
-         "stages.0.scene"),
-        ({**make_tiny_job(), "stages": [{"scene": "../../etc/x.yaml", "env_steps": 10}]}, None,
-         "stages.0.scene"),
+        (
+            {**make_tiny_job(), "stages": [{"scene": "walk-9d", "env_steps": 10}]},
+            None,
+            "stages.0.scene",
+        ),
+        (
+            {**make_tiny_job(), "stages": [{"scene": "../../etc/x.yaml", "env_steps": 10}]},
+            None,
+            "stages.0.scene",
+        ),
         ({**make_tiny_job(), "entrypoint": "rm -rf /"}, None, "entrypoint"),
-        ({**make_tiny_job(), "workers": {"ray_address": "ray://evil:10001"}}, None,
-         "workers.ray_address"),
+        (
+            {**make_tiny_job(), "workers": {"ray_address": "ray://evil:10001"}},
+            None,
+            "workers.ray_address",
+        ),
         ({**make_tiny_job(), "ppo": {"lr": -1}}, None, "ppo.lr"),
         ("[1, 2]", "application/json", "body"),
         ("{not json", "application/json", "body"),
         ("a: &x [1]\nb: *x\n", "application/yaml", "body"),
         ("name: [unclosed", "text/yaml", "body"),
     ],
-)  # fmt: skip
+)
 def test_bad_specs_are_422_naming_the_field(api: Api, body, media: str | None, field) -> None:
     if media is None:
         r = api.client.post("/v1/jobs", json=body, headers=auth())
@@ -125,11 +134,21 @@ def test_status_logs_and_metrics_from_the_job_files(api: Api) -> None:
     job = seed_job(api.store, api.settings)
     layout = JobLayout(api.settings.artifacts, job.id)
     progress = JobProgress(
-        phase="training", pid=1, host="h", updated_at=now() - timedelta(seconds=3),
-        iteration=2, env_steps=512, steps_per_s=900.0, checkpoint="ckpt-000000000256",
-        metrics={"return": 1.5, "survival": 0.5, "reward_terms": {"alive": 1.0},
-                 "health": {"nan_state": 2}},
-    )  # fmt: skip
+        phase="training",
+        pid=1,
+        host="h",
+        updated_at=now() - timedelta(seconds=3),
+        iteration=2,
+        env_steps=512,
+        steps_per_s=900.0,
+        checkpoint="ckpt-000000000256",
+        metrics={
+            "return": 1.5,
+            "survival": 0.5,
+            "reward_terms": {"alive": 1.0},
+            "health": {"nan_state": 2},
+        },
+    )
     api.store.update(job.id, state="running", attempt=1, progress_json=progress.model_dump_json())
     base = f"/v1/jobs/{job.id}"
     status = api.client.get(base, headers=auth()).json()
@@ -175,8 +194,9 @@ def test_checkpoint_zip_is_built_once_with_its_sha256(api: Api) -> None:
     assert part.status_code == 206 and part.content == first.content[10:20]
     assert part.headers["x-content-sha256"] == first.headers["x-content-sha256"]
     _problem(api.client.get(url, headers={**auth(), "Range": "bytes=999999-"}), 416)
-    report = api.client.get(f"/v1/jobs/{job.id}/reports/evaluate-ckpt-000000000256.json",
-                            headers=auth())  # fmt: skip
+    report = api.client.get(
+        f"/v1/jobs/{job.id}/reports/evaluate-ckpt-000000000256.json", headers=auth()
+    )
     assert report.json() == {"return": 1.5}
 
 
@@ -228,8 +248,9 @@ def test_openapi_documents_every_response(api: Api) -> None:
     assert {"413", "415", "422", "429"} <= set(post["responses"])
     assert set(post["requestBody"]["content"]) >= {"application/json", "application/yaml"}
     example = post["requestBody"]["content"]["application/json"]["example"]
-    assert not list(Draft202012Validator({"$ref": "#/components/schemas/Job", **doc})
-                    .iter_errors(example))  # fmt: skip
+    assert not list(
+        Draft202012Validator({"$ref": "#/components/schemas/Job", **doc}).iter_errors(example)
+    )
     accepted = api.client.post("/v1/jobs", json=example, headers=auth())
     assert accepted.status_code in (201, 429), accepted.text  # valid (429: alice's limit)
 

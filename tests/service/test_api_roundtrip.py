@@ -39,8 +39,9 @@ def sse_events(response: httpx.Response) -> Iterator[tuple[str, str]]:
                 data.append(value)
 
 
-def test_submit_follow_and_download(service_settings: ServiceSettings, store: JobStore,
-                                    ray_connection) -> None:  # fmt: skip
+def test_submit_follow_and_download(
+    service_settings: ServiceSettings, store: JobStore, ray_connection
+) -> None:
     settings = service_settings.model_copy(update={"tokens": TOKENS})
     runner = JobRunner(settings, store, ray_connection, evaluate_episodes=1)
     runner.start()

@@ -35,8 +35,12 @@ from tests.service.api_support import (
 PROBLEM = "application/problem+json"
 PUBLIC = {"/healthz", "/openapi.json", "/docs"}
 """liveness and the API's documentation (a browser cannot send a bearer token to /docs)"""
-NAMES = {"checkpoints": CHECKPOINT, "recordings": "iter-000002.mcap",
-         "reports": f"evaluate-{CHECKPOINT}.json", "scenes": "stand-2d"}  # fmt: skip
+NAMES = {
+    "checkpoints": CHECKPOINT,
+    "recordings": "iter-000002.mcap",
+    "reports": f"evaluate-{CHECKPOINT}.json",
+    "scenes": "stand-2d",
+}
 
 
 @dataclass
@@ -236,8 +240,10 @@ def test_body_over_the_limit_is_413(api: Api) -> None:
 
 def test_unknown_routes_and_methods_are_problems(api: Api) -> None:
     for method, path, status in (
-        ("GET", "/nope", 404), ("DELETE", "/healthz", 405), ("PUT", "/v1/jobs", 405),
-    ):  # fmt: skip
+        ("GET", "/nope", 404),
+        ("DELETE", "/healthz", 405),
+        ("PUT", "/v1/jobs", 405),
+    ):
         r = api.client.request(method, path, headers=auth())
         assert r.status_code == status and r.headers["content-type"] == PROBLEM
         assert r.json()["status"] == status and r.json()["instance"] == path

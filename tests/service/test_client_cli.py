@@ -52,20 +52,32 @@ def test_a_missing_scene_file_is_one_line_naming_the_stage(tmp_path: Path) -> No
 
 def test_server_sent_events_parse() -> None:
     lines = [
-        ": ping", "", "event: progress", 'data: {"state": "running",', 'data: "id": "j-1"}', "",
-        "data: plain text", "", "event: end", "",
-    ]  # fmt: skip
+        ": ping",
+        "",
+        "event: progress",
+        'data: {"state": "running",',
+        'data: "id": "j-1"}',
+        "",
+        "data: plain text",
+        "",
+        "event: end",
+        "",
+    ]
     assert list(parse_sse(iter(lines))) == [
-        ("progress", {"state": "running", "id": "j-1"}), ("message", "plain text"), ("end", None)
-    ]  # fmt: skip
+        ("progress", {"state": "running", "id": "j-1"}),
+        ("message", "plain text"),
+        ("end", None),
+    ]
 
 
 def test_a_problem_is_one_line_with_its_field_errors() -> None:
     problem = {
-        "type": "about:blank", "title": "Unprocessable Content", "status": 422,
+        "type": "about:blank",
+        "title": "Unprocessable Content",
+        "status": 422,
         "detail": "the job spec is invalid",
         "errors": [{"field": "stages.0.scene", "message": "paths are not accepted"}],
-    }  # fmt: skip
+    }
     response = httpx.Response(
         422, json=problem, headers={"content-type": "application/problem+json"}
     )
@@ -110,8 +122,9 @@ def test_a_checkpoint_zip_unpacks_into_its_folder(tmp_path: Path, prefix: str) -
         zf.writestr(f"{prefix}sub/policy.safetensors", "x")
     target = unzip_checkpoint(archive, tmp_path / "out" / "ckpt-000000000512")
     assert sorted(p.relative_to(target).as_posix() for p in target.rglob("*") if p.is_file()) == [
-        "meta.json", "sub/policy.safetensors"
-    ]  # fmt: skip
+        "meta.json",
+        "sub/policy.safetensors",
+    ]
 
 
 def test_a_zip_member_outside_its_folder_is_refused(tmp_path: Path) -> None:

@@ -44,8 +44,16 @@ def _layout(root: Path, env_steps: int, job_id: str = "j-0123456789ab") -> JobLa
 
 
 def _start(layout: JobLayout, *args: str) -> subprocess.Popen:
-    command = [sys.executable, "-m", "gaitforge.service.jobs.entry", "--job-dir",
-               str(layout.dir), "--evaluate-episodes", "1", *args]  # fmt: skip
+    command = [
+        sys.executable,
+        "-m",
+        "gaitforge.service.jobs.entry",
+        "--job-dir",
+        str(layout.dir),
+        "--evaluate-episodes",
+        "1",
+        *args,
+    ]
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "GAITFORGE_JOB_ID": layout.job_id}
     return subprocess.Popen(
         command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env

@@ -95,17 +95,36 @@ def test_progress_round_trip_and_atomic_replace(tmp_path: Path) -> None:
     path = tmp_path / "progress.json"
     assert read_progress(path) is None
     rule = RuleProgress(
-        rule="survival >= 0.95 over 100 episodes", metric="survival", op=">=", target=0.95,
-        window=100, episodes=12, value=0.5, passing=False,
-    )  # fmt: skip
+        rule="survival >= 0.95 over 100 episodes",
+        metric="survival",
+        op=">=",
+        target=0.95,
+        window=100,
+        episodes=12,
+        value=0.5,
+        passing=False,
+    )
     stage = StageProgress(
-        index=0, name="stand", scene="stand-2d", count=1, env_steps=512,
-        budget_env_steps=1024, promote=[rule],
-    )  # fmt: skip
+        index=0,
+        name="stand",
+        scene="stand-2d",
+        count=1,
+        env_steps=512,
+        budget_env_steps=1024,
+        promote=[rule],
+    )
     progress = JobProgress(
-        phase="training", pid=1, host="h", updated_at=now(), iteration=1, env_steps=512,
-        steps_per_s=900.0, stage=stage, metrics={"return": 1.5}, checkpoint="ckpt-000000000512",
-    )  # fmt: skip
+        phase="training",
+        pid=1,
+        host="h",
+        updated_at=now(),
+        iteration=1,
+        env_steps=512,
+        steps_per_s=900.0,
+        stage=stage,
+        metrics={"return": 1.5},
+        checkpoint="ckpt-000000000512",
+    )
     write_progress(path, progress)
     assert read_progress(path) == progress
     assert [p.name for p in tmp_path.iterdir()] == ["progress.json"]  # no temporary left
@@ -117,8 +136,15 @@ def test_metrics_lines_drop_non_finite_and_skip_a_torn_last_line(tmp_path: Path)
     path = tmp_path / "metrics.jsonl"
     assert read_metrics(path) == []
     for i in range(3):
-        append_metrics(path, {"iteration": i + 1, "return": np.float32(i), "kl": math.nan,
-                              "health": {"nan_obs": np.int64(2)}})  # fmt: skip
+        append_metrics(
+            path,
+            {
+                "iteration": i + 1,
+                "return": np.float32(i),
+                "kl": math.nan,
+                "health": {"nan_obs": np.int64(2)},
+            },
+        )
     with path.open("a") as f:
         f.write('{"iteration": 4, "ret')  # being written
     rows = read_metrics(path)

@@ -94,10 +94,11 @@ def walk_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A walk-2d run of one PPO update (in-process), through the train operation."""
     run_dir = tmp_path_factory.mktemp("walk") / "run"
     job = {
-        "name": "walk", "ppo": {"batch_env_steps": 128, "minibatch_size": 64, "epochs": 1},
+        "name": "walk",
+        "ppo": {"batch_env_steps": 128, "minibatch_size": 64, "epochs": 1},
         "workers": {"num_workers": 0, "envs_per_worker": 1, "fragment_length": 64},
         "stages": [{"scene": "walk-2d", "env_steps": 100000}],
-    }  # fmt: skip
+    }
     training = prepare_training(TrainRequest(job=job, run_dir=run_dir, tensorboard=False))
     result = training.run(max_iterations=1)
     assert result.iterations == 1 and result.checkpoint is not None
@@ -106,8 +107,20 @@ def walk_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_evaluate_json_on_stdout_and_to_a_file(walk_run: Path, tmp_path: Path) -> None:
     out = tmp_path / "eval.json"
-    args = ["evaluate", str(walk_run), "--episodes", "1", "--mode", "both", "--sweep",
-            "--sweep-percent", "0,50", "--json", "--json-out", str(out)]  # fmt: skip
+    args = [
+        "evaluate",
+        str(walk_run),
+        "--episodes",
+        "1",
+        "--mode",
+        "both",
+        "--sweep",
+        "--sweep-percent",
+        "0,50",
+        "--json",
+        "--json-out",
+        str(out),
+    ]
     result = runner.invoke(app, args, env=NARROW)
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)
@@ -117,14 +130,34 @@ def test_evaluate_json_on_stdout_and_to_a_file(walk_run: Path, tmp_path: Path) -
 
 
 def test_evaluate_at_80_columns_cuts_nothing(walk_run: Path) -> None:
-    args = ["evaluate", str(walk_run), "--episodes", "2", "--mode", "both", "--sweep",
-            "--sweep-percent", "0,10,20,30", "--per-episode"]  # fmt: skip
+    args = [
+        "evaluate",
+        str(walk_run),
+        "--episodes",
+        "2",
+        "--mode",
+        "both",
+        "--sweep",
+        "--sweep-percent",
+        "0,10,20,30",
+        "--per-episode",
+    ]
     result = runner.invoke(app, args, env=NARROW)
     assert result.exit_code == 0, result.output
     text = result.output
     assert "…" not in text and max(map(len, text.splitlines())) <= 80
-    for needed in ("deterministic", "stochastic", "health failures", "fall rate", "survival",
-                   "30 %", "Speed against safety", "distance", "return", "effort"):  # fmt: skip
+    for needed in (
+        "deterministic",
+        "stochastic",
+        "health failures",
+        "fall rate",
+        "survival",
+        "30 %",
+        "Speed against safety",
+        "distance",
+        "return",
+        "effort",
+    ):
         assert needed in text, needed
 
 

@@ -34,20 +34,32 @@ def test_scenes_list_show_and_check_return_models(capsys: pytest.CaptureFixture)
     [
         (lambda: scene_ops.show_scene("walk-3d", "opensim"), "backend", "runs on ['mujoco']"),
         (lambda: scene_ops.show_scene("walk-2d", "bullet"), "backend", "unknown 'bullet'"),
-        (lambda: scene_ops.scenes_to_check("walk-2d", "mujoco", all_scenes=True), "name",
-         "not both"),
+        (
+            lambda: scene_ops.scenes_to_check("walk-2d", "mujoco", all_scenes=True),
+            "name",
+            "not both",
+        ),
         (lambda: scene_ops.scenes_to_check(None, "mujoco"), "name", "neither"),
-        (lambda: fidelity_ops.sweep(fidelity_ops.SweepRequest(scene="walk-2d", tolerance=0)),
-         "tolerance", "must be > 0 rad"),
-        (lambda: fidelity_ops.stress(fidelity_ops.StressRequest(scene="walk-2d", seconds=0)),
-         "seconds", "must be > 0 s"),
+        (
+            lambda: fidelity_ops.sweep(fidelity_ops.SweepRequest(scene="walk-2d", tolerance=0)),
+            "tolerance",
+            "must be > 0 rad",
+        ),
+        (
+            lambda: fidelity_ops.stress(fidelity_ops.StressRequest(scene="walk-2d", seconds=0)),
+            "seconds",
+            "must be > 0 s",
+        ),
         (lambda: evaluate_ops.parse_percentages("0,100"), "sweep_percent", "[0, 100)"),
         (lambda: evaluate_ops.parse_percentages("0,fast"), "sweep_percent", "percentages"),
         (lambda: validate_request(train_ops.TrainRequest), "request", "not both or neither"),
-        (lambda: validate_request(train_ops.TrainRequest, job={}, budget_scale=0),
-         "budget_scale", "greater than 0"),
+        (
+            lambda: validate_request(train_ops.TrainRequest, job={}, budget_scale=0),
+            "budget_scale",
+            "greater than 0",
+        ),
     ],
-)  # fmt: skip
+)
 def test_bad_arguments_are_one_line_input_errors(call, field: str, words: str) -> None:
     with pytest.raises(InputError) as caught:
         call()
@@ -71,8 +83,11 @@ def test_budget_scaling_scales_every_stage_and_blend_ramp() -> None:
     job, _ = load_job(EXAMPLES / "gait2d-curriculum.yaml")
     scaled = train_ops.scale_budget(job, 0.001)
     assert [s.env_steps for s in scaled.stages] == [round(s.env_steps / 1000) for s in job.stages]
-    blends = [(s.blend, t.blend) for s, t in zip(job.stages, scaled.stages, strict=True)
-              if s.blend is not None]  # fmt: skip
+    blends = [
+        (s.blend, t.blend)
+        for s, t in zip(job.stages, scaled.stages, strict=True)
+        if s.blend is not None
+    ]
     assert blends and all(b.ramp_env_steps == round(a.ramp_env_steps / 1000) for a, b in blends)
     assert all(s.env_steps >= 1 for s in train_ops.scale_budget(job, 1e-9).stages)
     overridden = train_ops.apply_overrides(job, workers=0, address="auto")
@@ -82,13 +97,21 @@ def test_budget_scaling_scales_every_stage_and_blend_ramp() -> None:
 def test_a_job_spec_trains_and_reports_where_it_stands(tmp_path: Path) -> None:
     scene = tmp_path / "scenes" / "reach.yaml"
     scene.parent.mkdir()
-    scene.write_text((Path(scene_ops.__file__).parents[2] / "workers" / "scenes" / "catalogue"
-                      / "elbow-reach.yaml").read_text())  # fmt: skip
+    scene.write_text(
+        (
+            Path(scene_ops.__file__).parents[2]
+            / "workers"
+            / "scenes"
+            / "catalogue"
+            / "elbow-reach.yaml"
+        ).read_text()
+    )
     spec = {
-        "name": "reach", "ppo": {"batch_env_steps": 128, "minibatch_size": 64, "epochs": 1},
+        "name": "reach",
+        "ppo": {"batch_env_steps": 128, "minibatch_size": 64, "epochs": 1},
         "workers": {"num_workers": 3, "envs_per_worker": 1, "fragment_length": 64},
         "stages": [{"scene": "scenes/reach.yaml", "env_steps": 10**6}],
-    }  # fmt: skip
+    }
     request = train_ops.TrainRequest(
         job=spec, base_dir=tmp_path, run_dir=tmp_path / "run", workers=0, tensorboard=False
     )
@@ -109,9 +132,18 @@ def test_a_job_spec_trains_and_reports_where_it_stands(tmp_path: Path) -> None:
 def test_progress_log_at_most_once_per_period_and_at_stage_ends(
     caplog: pytest.LogCaptureFixture,
 ) -> None:
-    metrics = {"stage": 0, "stage_name": "walk", "iteration": 1, "env_steps": 1000,
-               "stage_env_steps": 1000, "steps_per_s": 500.0, "return": 1.5, "speed": 0.5,
-               "fall_rate": 0.25, "verdict": None}  # fmt: skip
+    metrics = {
+        "stage": 0,
+        "stage_name": "walk",
+        "iteration": 1,
+        "env_steps": 1000,
+        "stage_env_steps": 1000,
+        "steps_per_s": 500.0,
+        "return": 1.5,
+        "speed": 0.5,
+        "fall_rate": 0.25,
+        "verdict": None,
+    }
     log = train_ops.ProgressLog(every_s=3600)
     with caplog.at_level(logging.INFO, logger=train_ops.logger.name):
         log(metrics)

@@ -35,10 +35,13 @@ class Service:
         self.home = home
         self.server = f"http://127.0.0.1:{port or free_port()}"
         self.env = {
-            **os.environ, "GAITFORGE_HOME": str(home), "GAITFORGE_SERVER": self.server,
-            "GAITFORGE_PORT": self.server.rsplit(":", 1)[1], "GAITFORGE_POLL_INTERVAL_S": "0.2",
+            **os.environ,
+            "GAITFORGE_HOME": str(home),
+            "GAITFORGE_SERVER": self.server,
+            "GAITFORGE_PORT": self.server.rsplit(":", 1)[1],
+            "GAITFORGE_POLL_INTERVAL_S": "0.2",
             "COLUMNS": "250",
-        }  # fmt: skip
+        }
         for name in ("GAITFORGE_TOKEN", "GAITFORGE_TOKEN_FILE", "GAITFORGE_TOKENS"):
             self.env.pop(name, None)
         self.process: subprocess.Popen | None = None
@@ -103,9 +106,18 @@ def test_submit_follow_download_and_load(
     assert code == 0 and output.strip(), "the trainer's log reads to its end"
     out = tmp_path / "download"
     code, output = svc.cli(
-        "download", job_id, "--checkpoint", "latest", "--recording", "latest",
-        "--report", "latest", "--out", str(out), "--json",
-    )  # fmt: skip
+        "download",
+        job_id,
+        "--checkpoint",
+        "latest",
+        "--recording",
+        "latest",
+        "--report",
+        "latest",
+        "--out",
+        str(out),
+        "--json",
+    )
     assert code == 0, output
     files = json.loads(output)["files"]
     kinds = {f["kind"] for f in files}
@@ -147,9 +159,12 @@ def test_a_job_keeps_running_across_a_killed_service(
     job = httpx.post(f"{first.server}/v1/jobs", json=spec, headers=headers).raise_for_status()
     job_id = job.json()["id"]
     follower = subprocess.Popen(
-        [*CLI, "status", job_id, "--follow", "--json"], env=first.env, text=True,
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-    )  # fmt: skip
+        [*CLI, "status", job_id, "--follow", "--json"],
+        env=first.env,
+        text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     try:
         before = _wait(first, job_id, lambda s: (s.get("iteration") or 0) >= 1, 90)
         first.kill()
@@ -170,9 +185,13 @@ def test_a_job_keeps_running_across_a_killed_service(
 def test_serve_refuses_other_hosts_without_tokens(tmp_path: Path) -> None:
     env = {k: v for k, v in os.environ.items() if not k.startswith("GAITFORGE_")}
     done = subprocess.run(
-        [*CLI, "serve", "--host", "0.0.0.0", "--home", str(tmp_path)], env=env, text=True,
-        capture_output=True, timeout=60, check=False,
-    )  # fmt: skip
+        [*CLI, "serve", "--host", "0.0.0.0", "--home", str(tmp_path)],
+        env=env,
+        text=True,
+        capture_output=True,
+        timeout=60,
+        check=False,
+    )
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "--host 0.0.0.0" in lines[0] and "TOKENS" in lines[0], done.stderr

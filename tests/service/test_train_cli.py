@@ -23,8 +23,16 @@ def _train_args(tmp_path: Path, *limit: str) -> list[str]:
     """``gaitforge train`` of the tiny job in-process into ``tmp_path/run``, with ``limit``."""
     job = tmp_path / "job.yaml"
     job.write_text(JOB)
-    return ["train", str(job), "--workers", "0", "--run-dir", str(tmp_path / "run"),
-            *limit, "--no-tensorboard"]  # fmt: skip
+    return [
+        "train",
+        str(job),
+        "--workers",
+        "0",
+        "--run-dir",
+        str(tmp_path / "run"),
+        *limit,
+        "--no-tensorboard",
+    ]
 
 
 def _newest_meta(tmp_path: Path):
@@ -46,8 +54,9 @@ def test_train_runs_a_job_and_resumes_from_its_run_dir(tmp_path: Path) -> None:
 def test_max_minutes_stops_training_with_a_checkpoint(tmp_path: Path) -> None:
     """The wall-clock limit is checked between updates: a limit shorter than one update ends
     the run after its first, checkpointed, long before the stage's budget."""
-    result = runner.invoke(app, _train_args(tmp_path, "--max-minutes", "0.001"),
-                           env={"COLUMNS": "200"})  # fmt: skip
+    result = runner.invoke(
+        app, _train_args(tmp_path, "--max-minutes", "0.001"), env={"COLUMNS": "200"}
+    )
     assert result.exit_code == 0, result.output
     meta = _newest_meta(tmp_path)
     assert meta.iteration == 1 and meta.env_steps < 100_000
@@ -57,15 +66,18 @@ def test_max_minutes_stops_training_with_a_checkpoint(tmp_path: Path) -> None:
     ("job", "message"),
     [
         (JOB.replace("epochs: 1", "epochs: 0"), "ppo.epochs: Input should be greater than"),
-        (JOB.replace("epochs: 1}", "epochs: 1, mirror: true}"),
-         "ppo.mirror: stages.0 (elbow-reach): mirror: the body has no left and right muscles"),
+        (
+            JOB.replace("epochs: 1}", "epochs: 1, mirror: true}"),
+            "ppo.mirror: stages.0 (elbow-reach): mirror: the body has no left and right muscles",
+        ),
     ],
-)  # fmt: skip
+)
 def test_a_bad_job_is_one_line(tmp_path: Path, job: str, message: str) -> None:
     path = tmp_path / "job.yaml"
     path.write_text(job)
-    result = runner.invoke(app, ["train", str(path), "--run-dir", str(tmp_path / "run")],
-                           env={"COLUMNS": "300"})  # fmt: skip
+    result = runner.invoke(
+        app, ["train", str(path), "--run-dir", str(tmp_path / "run")], env={"COLUMNS": "300"}
+    )
     assert result.exit_code == 2
     assert message in result.output and len(result.output.strip().splitlines()) == 1
 

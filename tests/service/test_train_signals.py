@@ -37,11 +37,28 @@ STATUS = re.compile(
 
 
 def _train(job: Path, run_dir: Path, *args: str, new_session: bool = False) -> subprocess.Popen:
-    command = [sys.executable, "-m", "gaitforge.service.cli", "train", str(job), "--run-dir",
-               str(run_dir), "--no-tensorboard", "--log-every", "0", *args]  # fmt: skip
+    command = [
+        sys.executable,
+        "-m",
+        "gaitforge.service.cli",
+        "train",
+        str(job),
+        "--run-dir",
+        str(run_dir),
+        "--no-tensorboard",
+        "--log-every",
+        "0",
+        *args,
+    ]
     env = {**os.environ, "COLUMNS": "200", "PYTHONUNBUFFERED": "1"}
-    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=env, start_new_session=new_session)  # fmt: skip
+    return subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        start_new_session=new_session,
+    )
 
 
 def _lines(stream) -> queue.Queue:

@@ -14,18 +14,33 @@ from gaitforge.workers.sim.base import SimState
 def _state_at(x_m: float) -> SimState:
     """An upright body at rest with its pelvis ``x_m`` m along the forward axis (x)."""
     zeros = np.zeros(3)
-    return SimState(time=0.0, dof_pos=np.zeros(2), dof_vel=np.zeros(2),
-                    pelvis_pos=np.array([x_m, 1.0, 0.0]), pelvis_up=np.array([0.0, 1.0, 0.0]),
-                    pelvis_vel=zeros, pelvis_angvel=zeros, activations=np.zeros(4),
-                    foot_forces=np.zeros(2))  # fmt: skip
+    return SimState(
+        time=0.0,
+        dof_pos=np.zeros(2),
+        dof_vel=np.zeros(2),
+        pelvis_pos=np.array([x_m, 1.0, 0.0]),
+        pelvis_up=np.array([0.0, 1.0, 0.0]),
+        pelvis_vel=zeros,
+        pelvis_angvel=zeros,
+        activations=np.zeros(4),
+        foot_forces=np.zeros(2),
+    )
 
 
 def _terms(speed: float, target: float | None) -> dict[str, float]:
     """The terms of one 0.04-s control step at ``speed`` m/s against ``target`` m/s."""
     dt = 0.04
-    ctx = StepContext(previous=_state_at(0.0), excitation=np.zeros(4),
-                      previous_excitation=np.zeros(4), dt=dt, forward_axis=0, up_axis=1,
-                      target_speed=target, reach_index=None, reach_target=0.0)  # fmt: skip
+    ctx = StepContext(
+        previous=_state_at(0.0),
+        excitation=np.zeros(4),
+        previous_excitation=np.zeros(4),
+        dt=dt,
+        forward_axis=0,
+        up_axis=1,
+        target_speed=target,
+        reach_index=None,
+        reach_target=0.0,
+    )
     return reward_terms(_state_at(speed * dt), ctx)
 
 

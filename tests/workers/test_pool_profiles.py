@@ -60,9 +60,16 @@ def test_auto_fidelity_steps_on_worker_nodes_with_the_drivers_profile(
     node_dir.mkdir()
     monkeypatch.setenv(ENV_DIR, str(driver_dir))
     saved_profiles.save(
-        SavedProfile(name=SAVED, scene="elbow-reach", backend="mujoco", tolerance=0.05,
-                     profile=PROFILE, error=0.01, steps_per_s=1000.0)
-    )  # fmt: skip
+        SavedProfile(
+            name=SAVED,
+            scene="elbow-reach",
+            backend="mujoco",
+            tolerance=0.05,
+            profile=PROFILE,
+            error=0.01,
+            steps_per_s=1000.0,
+        )
+    )
     job, scenes = load_job(_job(tmp_path))
     scene = scenes[0]
     assert scene.is_resolved

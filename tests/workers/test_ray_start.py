@@ -38,8 +38,9 @@ def _command_name(pid: int) -> str:
 
 
 def test_a_signal_to_the_drivers_group_leaves_ray_to_the_driver_which_takes_it_down() -> None:
-    driver = subprocess.Popen([sys.executable, "-c", DRIVER], stdout=subprocess.PIPE,
-                              text=True, start_new_session=True)  # fmt: skip
+    driver = subprocess.Popen(
+        [sys.executable, "-c", DRIVER], stdout=subprocess.PIPE, text=True, start_new_session=True
+    )
     try:
         assert driver.stdout.readline().strip() == "up"
         daemons = descendants({driver.pid})
@@ -99,8 +100,13 @@ print(ray.get_runtime_context().gcs_address, flush=True)
 
 def _gcs_address_of_driver(start: str, env: dict[str, str]) -> str:
     """The GCS address (host:port) a driver that runs ``start`` ends up on."""
-    driver = subprocess.run([sys.executable, "-c", ADDRESS_OF.format(start=start)], env=env,
-                            capture_output=True, text=True, timeout=120)  # fmt: skip
+    driver = subprocess.run(
+        [sys.executable, "-c", ADDRESS_OF.format(start=start)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert driver.returncode == 0, driver.stderr[-2000:]
     return driver.stdout.strip().splitlines()[-1]
 

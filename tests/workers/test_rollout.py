@@ -60,8 +60,16 @@ def test_fragment_has_the_documented_layout() -> None:
 
 def test_fragment_dtypes_pickling_and_shape_check() -> None:
     frag = _worker(num_envs=2, fragment_length=110).sample()
-    floats = ("obs", "action", "logp", "value", "reward", "bootstrap_value", "last_obs",
-              "last_value")  # fmt: skip
+    floats = (
+        "obs",
+        "action",
+        "logp",
+        "value",
+        "reward",
+        "bootstrap_value",
+        "last_obs",
+        "last_value",
+    )
     assert all(getattr(frag, n).dtype == np.float32 for n in floats)
     assert all(getattr(frag, n).dtype == bool for n in ("terminated", "truncated", "unhealthy"))
     assert frag.episode_length.dtype == np.int64 and frag.episode_fell.dtype == bool

@@ -62,9 +62,11 @@ def sweep_grid(scene: Scene, backend: str, quick: bool = False) -> list[Fidelity
             QUICK_MUJOCO if quick else [(i, h) for i in MUJOCO_INTEGRATORS for h in MUJOCO_STEPS]
         )
         return [FidelityProfile(integrator=i, timestep=h) for i, h in pairs if divides(scene, h)]
-    pairs_os = QUICK_OPENSIM if quick else [
-        (i, a) for i in OPENSIM_INTEGRATORS for a in OPENSIM_ACCURACIES
-    ]  # fmt: skip
+    pairs_os = (
+        QUICK_OPENSIM
+        if quick
+        else [(i, a) for i in OPENSIM_INTEGRATORS for a in OPENSIM_ACCURACIES]
+    )
     grid = [
         FidelityProfile(integrator=i, timestep=OPENSIM_MAX_STEP, accuracy=a) for i, a in pairs_os
     ]

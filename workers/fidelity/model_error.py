@@ -44,13 +44,25 @@ def _rate(r: Rollout) -> float:
     return r.steps / r.wall_s if r.wall_s else float("nan")
 
 
-def _compare(what: str, setting: str, base: Rollout, other: Rollout, short: float, long: float,
-             dt: float, note: str = "") -> ModelDifference:  # fmt: skip
+def _compare(
+    what: str,
+    setting: str,
+    base: Rollout,
+    other: Rollout,
+    short: float,
+    long: float,
+    dt: float,
+    note: str = "",
+) -> ModelDifference:
     failed = f"failed: {other.health}" if other.health != "ok" else ""
     return ModelDifference(
-        what, setting, rms_error(other, base, short, dt), rms_error(other, base, long, dt),
-        _rate(other) / _rate(base), note or failed,
-    )  # fmt: skip
+        what,
+        setting,
+        rms_error(other, base, short, dt),
+        rms_error(other, base, long, dt),
+        _rate(other) / _rate(base),
+        note or failed,
+    )
 
 
 def cross_simulator(
@@ -64,20 +76,29 @@ def cross_simulator(
     other = others[0]
     run = held_rollout(scene, other, REFERENCE[other], long)
     setting = f"{describe(REFERENCE[other])} vs {describe(REFERENCE[backend])}"
-    return _compare(f"{other} vs {backend}", setting, reference, run, short, long,
-                    1.0 / scene.control_hz)  # fmt: skip
+    return _compare(
+        f"{other} vs {backend}", setting, reference, run, short, long, 1.0 / scene.control_hz
+    )
 
 
-def tendon(scene: Scene, backend: str, short: float, long: float, accuracy: float = 1e-5
-           ) -> ModelDifference | None:  # fmt: skip
+def tendon(
+    scene: Scene, backend: str, short: float, long: float, accuracy: float = 1e-5
+) -> ModelDifference | None:
     """OpenSim only: compliant against rigid tendons at ``accuracy`` (both runs alike)."""
     if backend != "opensim":
         return None
     profile = REFERENCE["opensim"].model_copy(update={"accuracy": accuracy})
     rigid = held_rollout(_with_tendon(scene, "rigid"), backend, profile, long)
     compliant = held_rollout(_with_tendon(scene, "compliant"), backend, profile, long)
-    return _compare("compliant vs rigid tendon", describe(profile), rigid, compliant, short, long,
-                    1.0 / scene.control_hz)  # fmt: skip
+    return _compare(
+        "compliant vs rigid tendon",
+        describe(profile),
+        rigid,
+        compliant,
+        short,
+        long,
+        1.0 / scene.control_hz,
+    )
 
 
 def pruning(scene: Scene, backend: str, reference: Rollout, size: SweepSize) -> ModelDifference:
@@ -87,8 +108,15 @@ def pruning(scene: Scene, backend: str, reference: Rollout, size: SweepSize) -> 
     scene's own profile (the one training uses), batches alternated ``size.repeats`` times,
     median."""
     raw = scene.model_dump(mode="python")
-    raw["keep"] = {**raw["keep"], "joints": "all", "muscles": "all", "planar": False,
-                   "lock_at": {}, "contacts": "all", "visuals": True}  # fmt: skip
+    raw["keep"] = {
+        **raw["keep"],
+        "joints": "all",
+        "muscles": "all",
+        "planar": False,
+        "lock_at": {},
+        "contacts": "all",
+        "visuals": True,
+    }
     full = validate_model(raw, Scene, f"scene {scene.name!r} unpruned")
     dt = 1.0 / scene.control_hz
     run = held_rollout(full, backend, REFERENCE[backend], size.long)
@@ -99,9 +127,14 @@ def pruning(scene: Scene, backend: str, reference: Rollout, size: SweepSize) -> 
         for _ in range(max(1, size.repeats))
     ]
     diff = _compare(
-        "unpruned vs pruned", describe(REFERENCE[backend]), reference, run, size.short,
-        size.long, dt,
-    )  # fmt: skip
+        "unpruned vs pruned",
+        describe(REFERENCE[backend]),
+        reference,
+        run,
+        size.short,
+        size.long,
+        dt,
+    )
     diff.speed_ratio = float(np.median(ratios))
     diff.note = (diff.note + f" speed at {describe(own)}, with contact").strip()
     return diff

@@ -11,13 +11,33 @@ from pathlib import Path
 from gaitforge.workers.fidelity.sweep import SweepResult
 
 CSV_FIELDS = (
-    "label", "integrator", "timestep_ms", "accuracy", "fixed_step", "steps_per_s", "realtime",
-    "err_short", "err_long", "error", "stable", "within", "health",
-)  # fmt: skip
+    "label",
+    "integrator",
+    "timestep_ms",
+    "accuracy",
+    "fixed_step",
+    "steps_per_s",
+    "realtime",
+    "err_short",
+    "err_long",
+    "error",
+    "stable",
+    "within",
+    "health",
+)
 TASK_FIELDS = (
-    "distance_m", "distance_ci", "distance_vs_ref", "distance_vs_ref_ci", "fall_rate",
-    "fall_rate_lo", "fall_rate_hi", "peak_grf_bw", "peak_grf_ci", "grf_vs_ref", "grf_vs_ref_ci",
-)  # fmt: skip
+    "distance_m",
+    "distance_ci",
+    "distance_vs_ref",
+    "distance_vs_ref_ci",
+    "fall_rate",
+    "fall_rate_lo",
+    "fall_rate_hi",
+    "peak_grf_bw",
+    "peak_grf_ci",
+    "grf_vs_ref",
+    "grf_vs_ref_ci",
+)
 
 
 def _clean(value: object) -> object:
@@ -35,8 +55,11 @@ def write_all(result: SweepResult, out: Path) -> dict[str, Path]:
     """Write ``<scene>-<backend>.csv/.json/.png`` under ``out``; returns the paths by kind."""
     out.mkdir(parents=True, exist_ok=True)
     stem = out / f"{result.scene}-{result.backend}"
-    paths = {"csv": stem.with_suffix(".csv"), "json": stem.with_suffix(".json"),
-             "png": stem.with_suffix(".png")}  # fmt: skip
+    paths = {
+        "csv": stem.with_suffix(".csv"),
+        "json": stem.with_suffix(".json"),
+        "png": stem.with_suffix(".png"),
+    }
     with paths["csv"].open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow([*CSV_FIELDS, *TASK_FIELDS])
@@ -65,30 +88,64 @@ def pareto_plot(result: SweepResult, path: Path) -> None:
     markers = dict(zip(sorted({r.integrator for r in result.rows}), "osD^v<>ph*", strict=False))
     for integ, marker in markers.items():
         rows = [r for r in result.rows if r.integrator == integ and r.stable]
-        ax.scatter([r.steps_per_s for r in rows], [max(r.error, bottom) for r in rows],
-                   marker=marker, label=integ)  # fmt: skip
+        ax.scatter(
+            [r.steps_per_s for r in rows],
+            [max(r.error, bottom) for r in rows],
+            marker=marker,
+            label=integ,
+        )
     for r in result.rows:
         if r.stable:
             short = r.label.split(" ", 1)[-1].replace("acc ", "")
-            ax.annotate(short, (r.steps_per_s, max(r.error, bottom)), fontsize=5,
-                        xytext=(3, 2), textcoords="offset points", color="dimgrey")  # fmt: skip
+            ax.annotate(
+                short,
+                (r.steps_per_s, max(r.error, bottom)),
+                fontsize=5,
+                xytext=(3, 2),
+                textcoords="offset points",
+                color="dimgrey",
+            )
     for m in result.model:
         if 0 < m["rms_long"] < math.inf:
             ax.axhline(m["rms_long"], ls=":", lw=1, color="purple")
-            ax.text(0.01, m["rms_long"] * 1.1, f"model: {m['what']}", fontsize=6,
-                    transform=ax.get_yaxis_transform(), color="purple")  # fmt: skip
+            ax.text(
+                0.01,
+                m["rms_long"] * 1.1,
+                f"model: {m['what']}",
+                fontsize=6,
+                transform=ax.get_yaxis_transform(),
+                color="purple",
+            )
             top = max(top, m["rms_long"] * 3)
     bad = [r for r in result.rows if not r.stable]
     if bad:
-        ax.scatter([max(r.steps_per_s, 1e-3) for r in bad], [top] * len(bad), marker="x",
-                   color="red", label="unstable")  # fmt: skip
+        ax.scatter(
+            [max(r.steps_per_s, 1e-3) for r in bad],
+            [top] * len(bad),
+            marker="x",
+            color="red",
+            label="unstable",
+        )
     ax.axhline(result.tolerance, ls="--", color="grey", lw=1)
-    ax.text(0.99, result.tolerance * 1.1, "tolerance", fontsize=8,
-            transform=ax.get_yaxis_transform(), ha="right", color="grey")  # fmt: skip
+    ax.text(
+        0.99,
+        result.tolerance * 1.1,
+        "tolerance",
+        fontsize=8,
+        transform=ax.get_yaxis_transform(),
+        ha="right",
+        color="grey",
+    )
     if result.recommended is not None:
         r = result.recommended
-        ax.scatter([r.steps_per_s], [max(r.error, bottom)], s=200, facecolors="none",
-                   edgecolors="black", label=f"recommended: {r.label}")  # fmt: skip
+        ax.scatter(
+            [r.steps_per_s],
+            [max(r.error, bottom)],
+            s=200,
+            facecolors="none",
+            edgecolors="black",
+            label=f"recommended: {r.label}",
+        )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_ylim(bottom, top * 1.5)

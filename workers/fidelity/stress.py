@@ -124,8 +124,9 @@ def stability_map(
     return rows
 
 
-def _stable(scene: Scene, backend: str, profile: FidelityProfile, seconds: float,
-            scenarios: tuple[str, ...]) -> bool:  # fmt: skip
+def _stable(
+    scene: Scene, backend: str, profile: FidelityProfile, seconds: float, scenarios: tuple[str, ...]
+) -> bool:
     return all(run_scenario(scene, backend, profile, s, seconds) == "ok" for s in scenarios)
 
 

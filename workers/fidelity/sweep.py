@@ -62,9 +62,11 @@ class Row:
 
     def profile(self) -> FidelityProfile:
         return FidelityProfile(
-            integrator=self.integrator, timestep=self.timestep_ms / 1e3,
-            accuracy=self.accuracy, fixed_step=self.fixed_step,
-        )  # fmt: skip
+            integrator=self.integrator,
+            timestep=self.timestep_ms / 1e3,
+            accuracy=self.accuracy,
+            fixed_step=self.fixed_step,
+        )
 
 
 @dataclass
@@ -98,9 +100,13 @@ def save_recommendation(result: SweepResult) -> tuple[saved_profiles.SavedProfil
         return None
     saved = saved_profiles.SavedProfile(
         name=saved_profiles.saved_name(result.scene, result.backend, result.tolerance),
-        scene=result.scene, backend=result.backend, tolerance=result.tolerance,
-        profile=best.profile(), error=best.error, steps_per_s=best.steps_per_s,
-    )  # fmt: skip
+        scene=result.scene,
+        backend=result.backend,
+        tolerance=result.tolerance,
+        profile=best.profile(),
+        error=best.error,
+        steps_per_s=best.steps_per_s,
+    )
     return saved, saved_profiles.save(saved)
 
 
@@ -147,8 +153,11 @@ def run_sweep(
     if not ref.converged:
         logger.warning(
             "reference %s not converged: refinement changes it by %.3g rad, margin %.1f < %g",
-            describe(ref.profile), ref.refined_change, ref.margin, MARGIN,
-        )  # fmt: skip
+            describe(ref.profile),
+            ref.refined_change,
+            ref.margin,
+            MARGIN,
+        )
     ref_task, ref_speed = speed_runs(scene, backend, ref.profile, size.seeds, size.task_s, 1)
     note("reference task runs")
     rows = []
@@ -167,15 +176,21 @@ def run_sweep(
         task_ok = task_tolerance is None or abs(task["distance_vs_ref"]) <= task_tolerance
         rows.append(
             Row(
-                label=label, integrator=profile.integrator, timestep_ms=profile.timestep * 1e3,
-                accuracy=profile.accuracy, fixed_step=profile.fixed_step,
-                steps_per_s=speed, realtime=speed / scene.control_hz,
-                err_short=err_short, err_long=err_long,
-                stable=stable, health=health,
+                label=label,
+                integrator=profile.integrator,
+                timestep_ms=profile.timestep * 1e3,
+                accuracy=profile.accuracy,
+                fixed_step=profile.fixed_step,
+                steps_per_s=speed,
+                realtime=speed / scene.control_hz,
+                err_short=err_short,
+                err_long=err_long,
+                stable=stable,
+                health=health,
                 within=stable and max(err_short, err_long) <= tolerance and task_ok,
                 task=task,
             )
-        )  # fmt: skip
+        )
         note(label)
     model: list[dict] = []
     if model_checks:
@@ -192,11 +207,15 @@ def run_sweep(
     fits = [r for r in rows if r.within]
     best = max(fits, key=lambda r: r.steps_per_s) if fits else None
     reference = {
-        "profile": describe(ref.profile), "refined": describe(ref.refined_profile),
-        "refined_change": ref.refined_change, "margin": ref.margin, "converged": ref.converged,
-        "required_margin": MARGIN, "task": ref_task.summary(),
+        "profile": describe(ref.profile),
+        "refined": describe(ref.refined_profile),
+        "refined_change": ref.refined_change,
+        "margin": ref.margin,
+        "converged": ref.converged,
+        "required_margin": MARGIN,
+        "task": ref_task.summary(),
         "steps_per_s": ref_speed,
-    }  # fmt: skip
+    }
     result = SweepResult(scene.name, backend, tolerance, size, reference, rows, model, best)
     result.task_tolerance = task_tolerance
     result.challenge = _versus_challenge(rows, best)
@@ -211,11 +230,14 @@ def _versus_challenge(rows: list[Row], best: Row | None) -> dict | None:
     if row is None or best is None:
         return None
     return {
-        "challenge": row.label, "challenge_steps_per_s": row.steps_per_s,
-        "challenge_error": row.error, "recommended": best.label,
-        "recommended_steps_per_s": best.steps_per_s, "recommended_error": best.error,
+        "challenge": row.label,
+        "challenge_steps_per_s": row.steps_per_s,
+        "challenge_error": row.error,
+        "recommended": best.label,
+        "recommended_steps_per_s": best.steps_per_s,
+        "recommended_error": best.error,
         "speedup": best.steps_per_s / row.steps_per_s,
-    }  # fmt: skip
+    }
 
 
 def remeasure(

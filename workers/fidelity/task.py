@@ -81,9 +81,14 @@ class TaskStats:
         g, gh = mean_ci(self.peak_grf)
         rate, lo, hi = wilson(int(self.fell.sum()), len(self.fell))
         return {
-            "distance_m": d, "distance_ci": dh, "peak_grf_bw": g, "peak_grf_ci": gh,
-            "fall_rate": rate, "fall_rate_lo": lo, "fall_rate_hi": hi,
-        }  # fmt: skip
+            "distance_m": d,
+            "distance_ci": dh,
+            "peak_grf_bw": g,
+            "peak_grf_ci": gh,
+            "fall_rate": rate,
+            "fall_rate_lo": lo,
+            "fall_rate_hi": hi,
+        }
 
 
 def task_runs(
@@ -116,9 +121,14 @@ def task_runs(
         counts.append(k + 1)
         walls.append(wall)
     return TaskStats(
-        np.array(distance), np.array(fell), np.array(peak), np.array(counts), np.array(walls),
-        env.dt, health,
-    )  # fmt: skip
+        np.array(distance),
+        np.array(fell),
+        np.array(peak),
+        np.array(counts),
+        np.array(walls),
+        env.dt,
+        health,
+    )
 
 
 def difference(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:

@@ -93,9 +93,7 @@ def load_motion_file(path: str | Path, body: str | None = None) -> Motion:
     except SpecError as exc:  # the body itself is unknown
         raise MotionError(f"{path}: body: {exc}") from None
     if body is not None and motion.body != body:
-        raise MotionError(
-            f"{path}: body: the motion is for {motion.body!r}, not for {body!r}"
-        )  # fmt: skip
+        raise MotionError(f"{path}: body: the motion is for {motion.body!r}, not for {body!r}")
     return motion
 
 

@@ -165,9 +165,9 @@ class Motion(BaseModel):
         for i, foot in enumerate(self.feet):
             if foot not in topo.feet:
                 raise MotionProblem(
-                    f"feet.{i}", f"body {self.body!r} has no foot {foot!r}; its feet are "
-                    f"{', '.join(topo.feet)}"
-                )  # fmt: skip
+                    f"feet.{i}",
+                    f"body {self.body!r} has no foot {foot!r}; its feet are {', '.join(topo.feet)}",
+                )
         for group in ("feet_rel_pelvis", "stance"):
             if set(getattr(self, group)) != set(self.feet):
                 raise MotionProblem(group, f"must name exactly the feet {self.feet}")

@@ -55,9 +55,15 @@ class SimState:
 
     def arrays(self) -> list[np.ndarray]:
         return [
-            self.dof_pos, self.dof_vel, self.pelvis_pos, self.pelvis_up, self.pelvis_vel,
-            self.pelvis_angvel, self.activations, self.foot_forces,
-        ]  # fmt: skip
+            self.dof_pos,
+            self.dof_vel,
+            self.pelvis_pos,
+            self.pelvis_up,
+            self.pelvis_vel,
+            self.pelvis_angvel,
+            self.activations,
+            self.foot_forces,
+        ]
 
     def is_finite(self) -> bool:
         return bool(np.isfinite(self.time)) and all(np.isfinite(a).all() for a in self.arrays())

@@ -78,9 +78,14 @@ class HuntCrossleyFloor:
         self.up = up
         self.forces = np.zeros((len(self.spheres), 3))
         self._each = list(
-            zip(self.spheres.tolist(), self.bodies.tolist(), self.radii.tolist(),
-                self.coefficient.tolist(), strict=True)
-        )  # fmt: skip
+            zip(
+                self.spheres.tolist(),
+                self.bodies.tolist(),
+                self.radii.tolist(),
+                self.coefficient.tolist(),
+                strict=True,
+            )
+        )
         self._jac = np.zeros((3, model.nv))
         self._torque = np.zeros(3)
 

@@ -44,9 +44,13 @@ class LimitSprings:
     def __init__(self, model: mujoco.MjModel, limits: dict[str, JointLimit]) -> None:
         joints = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in limits]
         self._each = list(
-            zip(model.jnt_qposadr[joints].tolist(), model.jnt_dofadr[joints].tolist(),
-                limits.values(), strict=True)
-        )  # fmt: skip
+            zip(
+                model.jnt_qposadr[joints].tolist(),
+                model.jnt_dofadr[joints].tolist(),
+                limits.values(),
+                strict=True,
+            )
+        )
 
     def add(self, model: mujoco.MjModel, data: mujoco.MjData, qfrc: np.ndarray) -> None:
         """Add the springs' torques at the present state to ``qfrc`` ([nv])."""

@@ -72,9 +72,14 @@ FEET = ["foot_right", "foot_left"]
 HEADER = "# Written by python -m gaitforge.workers.sim.make_motions; do not edit.\n"
 
 
-def replay_feet(replay: Replay, joints: dict[str, np.ndarray], pitch: np.ndarray,
-                height: np.ndarray, list_: np.ndarray | None = None,
-                rotation: np.ndarray | None = None) -> tuple[dict, dict]:  # fmt: skip
+def replay_feet(
+    replay: Replay,
+    joints: dict[str, np.ndarray],
+    pitch: np.ndarray,
+    height: np.ndarray,
+    list_: np.ndarray | None = None,
+    rotation: np.ndarray | None = None,
+) -> tuple[dict, dict]:
     """Per foot: lowest point height [n] (m) and centroid minus pelvis origin [n, 3] (m); also
     (key ``<foot>:low``) the lowest geom's centre minus pelvis origin [n, 3] (m)."""
     n = len(pitch)
@@ -82,10 +87,12 @@ def replay_feet(replay: Replay, joints: dict[str, np.ndarray], pitch: np.ndarray
     rel = {k: np.zeros((n, 3)) for f in FEET for k in (f, f"{f}:low")}
     for k in range(n):
         replay.pose(
-            {j: float(v[k]) for j, v in joints.items()}, float(pitch[k]), float(height[k]),
+            {j: float(v[k]) for j, v in joints.items()},
+            float(pitch[k]),
+            float(height[k]),
             list_=0.0 if list_ is None else float(list_[k]),
             rotation=0.0 if rotation is None else float(rotation[k]),
-        )  # fmt: skip
+        )
         origin = replay.pelvis_origin()
         for f in FEET:
             lows[f][k] = replay.lowest(f)
@@ -94,8 +101,9 @@ def replay_feet(replay: Replay, joints: dict[str, np.ndarray], pitch: np.ndarray
     return lows, rel
 
 
-def belt_speed(rel: dict[str, np.ndarray], stance: dict[str, np.ndarray], tx_rate: np.ndarray,
-               period: float) -> float:  # fmt: skip
+def belt_speed(
+    rel: dict[str, np.ndarray], stance: dict[str, np.ndarray], tx_rate: np.ndarray, period: float
+) -> float:
     """Median backward speed (m/s), relative to the treadmill, of the stance feet's lowest
     contact geoms (the ones on the ground)."""
     speeds = []
@@ -109,10 +117,20 @@ def _series(x: np.ndarray, digits: int = 4) -> list[float]:
     return [round(float(v), digits) for v in x]
 
 
-def write_motion(path: Path, *, name: str, body: str, period: float, speed: float, source: str,
-                 joints: dict[str, np.ndarray], pelvis: dict[str, np.ndarray],
-                 speed_offset: np.ndarray, rel: dict[str, np.ndarray],
-                 stance: dict[str, np.ndarray]) -> None:  # fmt: skip
+def write_motion(
+    path: Path,
+    *,
+    name: str,
+    body: str,
+    period: float,
+    speed: float,
+    source: str,
+    joints: dict[str, np.ndarray],
+    pelvis: dict[str, np.ndarray],
+    speed_offset: np.ndarray,
+    rel: dict[str, np.ndarray],
+    stance: dict[str, np.ndarray],
+) -> None:
     """Write one motion file and check it loads."""
     data = {
         "name": name,
@@ -133,9 +151,14 @@ def write_motion(path: Path, *, name: str, body: str, period: float, speed: floa
     log.info("wrote %s: period %.3f s, speed %.2f m/s", path, period, speed)
 
 
-def contact_height(replay: Replay, joints: dict[str, np.ndarray], pitch: np.ndarray,
-                   ty: np.ndarray, stance: dict[str, np.ndarray], **lateral: np.ndarray
-                   ) -> np.ndarray:  # fmt: skip
+def contact_height(
+    replay: Replay,
+    joints: dict[str, np.ndarray],
+    pitch: np.ndarray,
+    ty: np.ndarray,
+    stance: dict[str, np.ndarray],
+    **lateral: np.ndarray,
+) -> np.ndarray:
     """Pelvis height [n] (m): the recorded ``ty`` plus an offset that puts the lowest stance
     foot's lowest point on the floor; across samples with no foot in stance (flight) the
     offset is interpolated linearly (periodically) between the neighbouring stance samples;
@@ -152,8 +175,9 @@ def contact_height(replay: Replay, joints: dict[str, np.ndarray], pitch: np.ndar
     return cycle(np.arange(n + 1), np.append(ty + filled, ty[0] + filled[0]), 0, n, n)
 
 
-def kinematic_stance(t: np.ndarray, lows: dict[str, np.ndarray], rel: dict[str, np.ndarray],
-                     tx: np.ndarray) -> dict[str, np.ndarray]:  # fmt: skip
+def kinematic_stance(
+    t: np.ndarray, lows: dict[str, np.ndarray], rel: dict[str, np.ndarray], tx: np.ndarray
+) -> dict[str, np.ndarray]:
     """Stance per foot with no force data: the foot moves backward with the belt (the centre of
     its lowest contact geom, the one on the ground, relative to the treadmill, faster than
     :data:`BELT_SHARE` of the belt speed, the belt speed being the 5th percentile of all
@@ -168,25 +192,48 @@ def kinematic_stance(t: np.ndarray, lows: dict[str, np.ndarray], rel: dict[str, 
     }
 
 
-def build(replay: Replay, *, name: str, period: float, joints: dict[str, np.ndarray],
-          pitch: np.ndarray, ty: np.ndarray, tx: np.ndarray | None,
-          stance: dict[str, np.ndarray], source: str, speed: float | None = None,
-          **lateral: np.ndarray) -> None:  # fmt: skip
+def build(
+    replay: Replay,
+    *,
+    name: str,
+    period: float,
+    joints: dict[str, np.ndarray],
+    pitch: np.ndarray,
+    ty: np.ndarray,
+    tx: np.ndarray | None,
+    stance: dict[str, np.ndarray],
+    source: str,
+    speed: float | None = None,
+    **lateral: np.ndarray,
+) -> None:
     """Pelvis height, feet and speed by replay; write ``data/<body>-<name>.yaml``."""
     height = contact_height(replay, joints, pitch, ty, stance, **lateral)
     lows, rel = replay_feet(replay, joints, pitch, height, **lateral)
     tx_rate = np.zeros(len(ty)) if tx is None else periodic_rate(tx, period)
     belt = belt_speed(rel, stance, tx_rate, period)
-    log.info("%s %s: belt speed from the kinematics %.3f m/s; lowest foot point %.1f cm",
-             replay.body, name, belt, 100 * min(v.min() for v in lows.values()))  # fmt: skip
+    log.info(
+        "%s %s: belt speed from the kinematics %.3f m/s; lowest foot point %.1f cm",
+        replay.body,
+        name,
+        belt,
+        100 * min(v.min() for v in lows.values()),
+    )
     pelvis = {"pelvis_height": height, "pelvis_pitch": pitch}
     if lateral:
         pelvis |= {"pelvis_list": lateral["list_"], "pelvis_rotation": lateral["rotation"]}
     write_motion(
-        data_dir() / f"{replay.body}-{name}.yaml", name=name, body=replay.body, period=period,
-        speed=belt if speed is None else speed, source=source, joints=joints, pelvis=pelvis,
-        speed_offset=tx_rate, rel=rel, stance=stance,
-    )  # fmt: skip
+        data_dir() / f"{replay.body}-{name}.yaml",
+        name=name,
+        body=replay.body,
+        period=period,
+        speed=belt if speed is None else speed,
+        source=source,
+        joints=joints,
+        pelvis=pelvis,
+        speed_offset=tx_rate,
+        rel=rel,
+        stance=stance,
+    )
 
 
 def walk_2d(ref: Path) -> tuple[float, float]:
@@ -214,10 +261,17 @@ def walk_2d(ref: Path) -> tuple[float, float]:
     in the kinematics, the median backward speed of the stance foot's grounded contact sphere
     relative to the treadmill; the within-stride fluctuation is the
     rate of change of pelvis_tx. The treadmill's own speed is not recorded."""
-    build(Replay("gait2d"), name="walk", period=period, joints=joints,
-          pitch=cycle(t, np.radians(ik["pelvis_tilt"]), t0, t1),
-          ty=cycle(t, ik["pelvis_ty"], t0, t1), tx=cycle(t, ik["pelvis_tx"], t0, t1),
-          stance=stance, source=source)  # fmt: skip
+    build(
+        Replay("gait2d"),
+        name="walk",
+        period=period,
+        joints=joints,
+        pitch=cycle(t, np.radians(ik["pelvis_tilt"]), t0, t1),
+        ty=cycle(t, ik["pelvis_ty"], t0, t1),
+        tx=cycle(t, ik["pelvis_tx"], t0, t1),
+        stance=stance,
+        source=source,
+    )
     write_excitations(ref, t0, t1)
     return t0, t1
 
@@ -269,8 +323,10 @@ def run(ref: Path, body: str) -> None:
     pitch, ty = np.radians(ik["pelvis_tilt"]), ik["pelvis_ty"]
     lateral = {}
     if body == "myoleg":
-        lateral = {"list_": np.radians(ik["pelvis_list"]),
-                   "rotation": np.radians(ik["pelvis_rotation"])}  # fmt: skip
+        lateral = {
+            "list_": np.radians(ik["pelvis_list"]),
+            "rotation": np.radians(ik["pelvis_rotation"]),
+        }
     replay = Replay(body)
     lows, rel = replay_feet(replay, raw, pitch, ty, **lateral)
     stance_all = kinematic_stance(t, lows, rel, ik["pelvis_tx"])
@@ -280,8 +336,14 @@ def run(ref: Path, body: str) -> None:
     i = middle + int(np.argmin(np.abs(periods[middle - 3 : middle + 3] - np.median(periods)))) - 3
     t0, t1 = strikes[i], strikes[i + 1]
     period = t1 - t0
-    log.info("run (%s): %d right heel strikes, median stride %.3f s; stride %.3f-%.3f s",
-             body, len(strikes), float(np.median(periods)), t0, t1)  # fmt: skip
+    log.info(
+        "run (%s): %d right heel strikes, median stride %.3f s; stride %.3f-%.3f s",
+        body,
+        len(strikes),
+        float(np.median(periods)),
+        t0,
+        t1,
+    )
     grid = t0 + period * np.arange(SAMPLES) / SAMPLES
     near = np.clip(np.searchsorted(t, grid), 0, len(t) - 1)
     stance = {f: stance_all[f][near] for f in FEET}
@@ -308,10 +370,18 @@ def run(ref: Path, body: str) -> None:
     subject's fast runs; the within-stride fluctuation is the rate of change of pelvis_tx."""
     if body == "myoleg":
         source += " MyoLeg's knee_angle is the recorded one negated (MyoLeg flexes positive)."
-    build(replay, name="run", period=period, joints=joints,
-          pitch=cycle(t, pitch, t0, t1), ty=cycle(t, ty, t0, t1),
-          tx=cycle(t, ik["pelvis_tx"], t0, t1), stance=stance, source=source,
-          **cyc_lateral)  # fmt: skip
+    build(
+        replay,
+        name="run",
+        period=period,
+        joints=joints,
+        pitch=cycle(t, pitch, t0, t1),
+        ty=cycle(t, ty, t0, t1),
+        tx=cycle(t, ik["pelvis_tx"], t0, t1),
+        stance=stance,
+        source=source,
+        **cyc_lateral,
+    )
 
 
 WALK_CONTACT_M = 0.01
@@ -329,8 +399,10 @@ def walk_3d(ref: Path, body: str = "myoleg") -> None:
     t = nm["time"] * NORMAL_PERIOD_S
     period = NORMAL_PERIOD_S
     joints = {j: cycle(t, v, 0, period) for j, v in _body_joints(body, nm, WALK_3D_JOINTS).items()}
-    lateral = {k: cycle(t, np.radians(nm[c]), 0, period)
-               for k, c in (("list_", "pelvis_list"), ("rotation", "pelvis_rotation"))}  # fmt: skip
+    lateral = {
+        k: cycle(t, np.radians(nm[c]), 0, period)
+        for k, c in (("list_", "pelvis_list"), ("rotation", "pelvis_rotation"))
+    }
     lateral["rotation"] -= lateral["rotation"].mean()
     pitch = cycle(t, np.radians(nm["pelvis_tilt"]), 0, period)
     replay = Replay(body)
@@ -374,10 +446,18 @@ def walk_3d(ref: Path, body: str = "myoleg") -> None:
     that phase 0 is that landing. Forward speed: stride length on {body} (the stance foot's
     backward travel relative to the pelvis) / period; no within-cycle fluctuation (none
     recorded)."""
-    build(replay, name="walk", period=period, joints={j: roll(v) for j, v in joints.items()},
-          pitch=roll(pitch), ty=roll(height), tx=None,
-          stance={f: roll(v) for f, v in stance.items()}, source=source,
-          **{k: roll(v) for k, v in lateral.items()})  # fmt: skip
+    build(
+        replay,
+        name="walk",
+        period=period,
+        joints={j: roll(v) for j, v in joints.items()},
+        pitch=roll(pitch),
+        ty=roll(height),
+        tx=None,
+        stance={f: roll(v) for f, v in stance.items()},
+        source=source,
+        **{k: roll(v) for k, v in lateral.items()},
+    )
 
 
 def main() -> None:

@@ -89,8 +89,15 @@ class Replay:
                 self.data.xpos[self.pelvis] - self.data.xpos[root]
             )
 
-    def pose(self, joints: dict[str, float], pitch: float, height: float, x: float = 0.0,
-             list_: float = 0.0, rotation: float = 0.0) -> None:  # fmt: skip
+    def pose(
+        self,
+        joints: dict[str, float],
+        pitch: float,
+        height: float,
+        x: float = 0.0,
+        list_: float = 0.0,
+        rotation: float = 0.0,
+    ) -> None:
         """Pose the body: joints (rad, the model's own signs, as a motion stores them), pelvis
         tilt/list/rotation (rad, OpenSim's convention and order), pelvis
         origin at forward position ``x`` (m) and ``height`` (m) above the floor."""

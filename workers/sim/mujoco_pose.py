@@ -76,10 +76,11 @@ class PoseSetter:
         self.forward_adr = slides.get(self.forward, -1)
         self.lateral_adr = slides.get(3 - self.up - self.forward, -1)
         self.hinges = [
-            int(m.jnt_qposadr[j]) if (j := mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)) >= 0
+            int(m.jnt_qposadr[j])
+            if (j := mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)) >= 0
             else -1
             for n in ROOT_ANGLES
-        ]  # fmt: skip
+        ]
 
     def apply(self, data: mujoco.MjData, pose: Pose) -> None:
         """Set ``data`` to ``pose`` (forward position kept, lateral 0) and run ``mj_forward``."""

@@ -124,7 +124,10 @@ class OpenSimMuscles:
         # damping outweighs the rest (a relaxed fibre shortening fast)
         self.tension[:] = self.peak * np.maximum(force, 0.0) * cos
         mujoco.mju_sparse2dense(
-            self._moment, data.actuator_moment, data.moment_rownnz, data.moment_rowadr,
+            self._moment,
+            data.actuator_moment,
+            data.moment_rownnz,
+            data.moment_rowadr,
             data.moment_colind,
-        )  # fmt: skip
+        )
         qfrc -= self._moment.T @ self.tension  # MuJoCo's tension is a negative actuator force

@@ -18,19 +18,35 @@ def test_gait2d_is_the_2017_model() -> None:
     assert len(body.muscles) == 18
     moving = [d for d in body.dof_names if d != "lumbar_extension"]
     assert moving == [
-        "pelvis_tx", "pelvis_ty", "pelvis_tilt",
-        "hip_flexion_r", "knee_angle_r", "ankle_angle_r",
-        "hip_flexion_l", "knee_angle_l", "ankle_angle_l",
-    ]  # fmt: skip
+        "pelvis_tx",
+        "pelvis_ty",
+        "pelvis_tilt",
+        "hip_flexion_r",
+        "knee_angle_r",
+        "ankle_angle_r",
+        "hip_flexion_l",
+        "knee_angle_l",
+        "ankle_angle_l",
+    ]
     per_leg = {m.name.rsplit("_", 1)[0] for m in body.muscles}
     assert per_leg == {
-        "hamstrings", "bifemsh", "glut_max", "iliopsoas", "rect_fem", "vasti", "gastroc",
-        "soleus", "tib_ant",
-    }  # fmt: skip
+        "hamstrings",
+        "bifemsh",
+        "glut_max",
+        "iliopsoas",
+        "rect_fem",
+        "vasti",
+        "gastroc",
+        "soleus",
+        "tib_ant",
+    }
     assert body.total_mass == pytest.approx(79.66, abs=0.05)
     assert sorted(c.name for c in body.contact_spheres if c.part == "foot") == [
-        "l_heel", "l_toe", "r_heel", "r_toe",
-    ]  # fmt: skip
+        "l_heel",
+        "l_toe",
+        "r_heel",
+        "r_toe",
+    ]
 
 
 def test_spans_follow_the_tree() -> None:

@@ -59,8 +59,9 @@ def _kinked_cycle(raw: dict) -> None:
         (lambda r: r.update(cadence=1.0), ["cadence", "Extra inputs"]),
     ],
 )
-def test_bad_motion_file(tmp_path: Path, edit: Callable[[dict], None], fragments: list[str]
-                         ) -> None:  # fmt: skip
+def test_bad_motion_file(
+    tmp_path: Path, edit: Callable[[dict], None], fragments: list[str]
+) -> None:
     path = _write(tmp_path, edit)
     with pytest.raises(MotionError) as info:
         load_motion_file(path, "gait2d")

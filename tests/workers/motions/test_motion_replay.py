@@ -55,8 +55,14 @@ def _trace(body: str, name: str) -> dict[str, np.ndarray]:
     out: dict[str, list] = {k: [] for k in keys}
     for k in range(k_total):
         state = motion.at(k / k_total)
-        replay.pose(state.joints, state.pelvis_pitch, state.pelvis_height, x=x,
-                    list_=state.pelvis_list, rotation=state.pelvis_rotation)  # fmt: skip
+        replay.pose(
+            state.joints,
+            state.pelvis_pitch,
+            state.pelvis_height,
+            x=x,
+            list_=state.pelvis_list,
+            rotation=state.pelvis_rotation,
+        )
         assert replay.pelvis_origin()[replay.up] == pytest.approx(state.pelvis_height)
         for foot in motion.feet:
             out[foot].append(replay.lowest(foot))

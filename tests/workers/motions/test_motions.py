@@ -108,8 +108,10 @@ def test_mirrored_state_swaps(body: str, name: str) -> None:
         other = joint[:-2] + ("_l" if joint.endswith("_r") else "_r")
         assert mirrored.joints[other] == state.joints[joint]
         assert mirrored.joint_speeds[other] == state.joint_speeds[joint]
-    assert mirrored.stance == {"foot_left": state.stance["foot_right"],
-                               "foot_right": state.stance["foot_left"]}  # fmt: skip
+    assert mirrored.stance == {
+        "foot_left": state.stance["foot_right"],
+        "foot_right": state.stance["foot_left"],
+    }
     lateral = 1 if body == "myoleg" else 2
     for a, b in (("foot_right", "foot_left"), ("foot_left", "foot_right")):
         assert mirrored.feet_rel_pelvis[b][lateral] == -state.feet_rel_pelvis[a][lateral]

@@ -15,9 +15,16 @@ SAVED = FidelityProfile(integrator="euler", timestep=0.001)
 
 def _save(name: str) -> None:
     saved_profiles.save(
-        SavedProfile(name=name, scene="walk-2d", backend="mujoco", tolerance=0.02,
-                     profile=SAVED, error=0.01, steps_per_s=1.0)
-    )  # fmt: skip
+        SavedProfile(
+            name=name,
+            scene="walk-2d",
+            backend="mujoco",
+            tolerance=0.02,
+            profile=SAVED,
+            error=0.01,
+            steps_per_s=1.0,
+        )
+    )
 
 
 def test_named_profiles_resolve_on_every_backend() -> None:

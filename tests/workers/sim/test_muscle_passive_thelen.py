@@ -133,6 +133,8 @@ def test_the_fibre_fit_changes_only_the_pennated_muscles() -> None:
 
     glut, gastroc = actuator("glut_max_r"), actuator("gastroc_r")
     np.testing.assert_array_equal(fibre.actuator_biasprm[glut], thelen.actuator_biasprm[glut])
-    pull = {name: mujoco_passive(np.array([1.458]), *m.actuator_biasprm[gastroc, [5, 7]])[0]
-            for name, m in (("thelen", thelen), ("fibre", fibre))}  # fmt: skip
+    pull = {
+        name: mujoco_passive(np.array([1.458]), *m.actuator_biasprm[gastroc, [5, 7]])[0]
+        for name, m in (("thelen", thelen), ("fibre", fibre))
+    }
     assert pull["fibre"] < 0.95 * pull["thelen"]

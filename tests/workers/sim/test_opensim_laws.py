@@ -101,9 +101,12 @@ def test_on_mujoco_mujocos_own_versions_are_taken_out() -> None:
     muscles no MuJoCo force and their tendons no damping; the laws carry the body, and the
     muscles still start at their least activation."""
     scene = _scene(
-        contact_model="hunt-crossley", joint_limits="opensim", muscle_min_activation=0.01,
-        muscle_curves="opensim", muscle_passive="opensim",
-    )  # fmt: skip
+        contact_model="hunt-crossley",
+        joint_limits="opensim",
+        muscle_min_activation=0.01,
+        muscle_curves="opensim",
+        muscle_passive="opensim",
+    )
     model, _, _ = compile_scene(scene)
     floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "floor")
     assert model.geom_conaffinity[floor] == 0
@@ -127,9 +130,14 @@ def test_the_relaxed_body_sinks_as_on_opensim() -> None:
     heights = {}
     for name, scene, backend in [
         ("opensim", _scene(), "opensim"),
-        ("laws", _scene(contact_model="hunt-crossley", joint_limits="opensim",
-                        muscle_min_activation=0.01), "mujoco"),
-    ]:  # fmt: skip
+        (
+            "laws",
+            _scene(
+                contact_model="hunt-crossley", joint_limits="opensim", muscle_min_activation=0.01
+            ),
+            "mujoco",
+        ),
+    ]:
         sim = make_simulator(scene, backend)
         sim.reset(0)
         for _ in range(10):
@@ -167,10 +175,22 @@ def test_the_muscles_pull_as_opensims_millard_muscles(opensim_gait2d, relaxed: b
     fibre's damping outweighs its force and OpenSim's tendon goes slack): each tendon force on
     MuJoCo (``muscle_curves`` and ``muscle_passive: opensim``) is OpenSim's within 0.5 % (the
     two simulators' path lengths differ by micrometres)."""
-    pose = {"hip_flexion_r": 0.4, "knee_angle_r": -0.6, "ankle_angle_r": 0.15,
-            "hip_flexion_l": -0.2, "knee_angle_l": -0.1, "ankle_angle_l": -0.2}  # fmt: skip
-    speeds = {"hip_flexion_r": 1.5, "knee_angle_r": -2.0, "ankle_angle_r": 1.0,
-              "hip_flexion_l": -1.0, "knee_angle_l": 0.5, "ankle_angle_l": -2.0}  # fmt: skip
+    pose = {
+        "hip_flexion_r": 0.4,
+        "knee_angle_r": -0.6,
+        "ankle_angle_r": 0.15,
+        "hip_flexion_l": -0.2,
+        "knee_angle_l": -0.1,
+        "ankle_angle_l": -0.2,
+    }
+    speeds = {
+        "hip_flexion_r": 1.5,
+        "knee_angle_r": -2.0,
+        "ankle_angle_r": 1.0,
+        "hip_flexion_l": -1.0,
+        "knee_angle_l": 0.5,
+        "ankle_angle_l": -2.0,
+    }
     if relaxed:
         speeds = {name: 4.0 * speed for name, speed in speeds.items()}
     op = opensim_gait2d
