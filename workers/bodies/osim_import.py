@@ -21,9 +21,10 @@ malformed file fails with its line and column. What maps to the body:
 * muscles (Thelen 2003, Millard 2012 equilibrium; any other ``Muscle`` by its Hill
   parameters) -> forces, fibre and tendon lengths, pennation, velocities, time constants and
   the strains of their passive and tendon curves; path points fixed, conditional and moving;
-* wrap objects -> cylinders, spheres and ellipsoids on the path segment nearest them (a wrap
-  acts between two points; OpenSim's wrap range is kept by choosing, within it, the segment of
-  the path that passes closest to the wrap in the default pose); tori are dropped;
+* wrap objects -> cylinders, spheres and ellipsoids on one path segment (a wrap acts between
+  two points): within OpenSim's wrap range, the segment OpenSim itself wraps over it on most
+  poses of the muscle's coordinate sweeps, or where it never wraps, the segment passing
+  closest to the wrap in the default pose; tori are dropped;
 * contact spheres and markers as they are. A model without foot contact gets the rule of
   :func:`default_foot_contacts`, which a contacts file overrides.
 

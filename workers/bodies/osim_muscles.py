@@ -18,7 +18,11 @@ from gaitforge.workers.bodies.osim_basics import (
     resolve_coupling,
     vec3_array,
 )
-from gaitforge.workers.bodies.osim_stand_ins import fit_stand_ins
+from gaitforge.workers.bodies.osim_stand_ins import (
+    fit_stand_ins,
+    spanned_coordinates,
+    sweep_values,
+)
 from gaitforge.workers.bodies.rotations import euler_xyz, rotation_xyz
 from gaitforge.workers.bodies.schema import (
     ActiveRange,
@@ -152,12 +156,15 @@ def _muscle(muscle: Any, wraps: dict[str, WrapObject], ctx: ImportContext) -> Mu
     wrap_set = geometry.getWrapSet()
     if wrap_set.getSize() == 0:
         points = fit_stand_ins(muscle, points, ctx)
+    wrapped = _where_opensim_wraps(muscle, points, ctx) if wrap_set.getSize() else {}
     for path_wrap in items(wrap_set):
         name = path_wrap.get_wrap_object()
         if name not in wraps:
             ctx.report.dropped.append(f"{where}: wraps over {name!r}, which was not imported")
             continue
-        gap = _wrap_gap(muscle, path_wrap, wraps[name], ctx, taken=set(gaps))
+        gap = _wrap_gap(
+            muscle, path_wrap, wraps[name], ctx, taken=set(gaps), wrapped=wrapped.get(name, {})
+        )
         if gap is None:
             ctx.report.dropped.append(
                 f"{where}: wrap {name!r} (no free path segment within its range: a backend "
@@ -173,25 +180,68 @@ def _muscle(muscle: Any, wraps: dict[str, WrapObject], ctx: ImportContext) -> Mu
     return Muscle(name=muscle.getName(), path=path, **_hill_parameters(muscle, ctx))
 
 
+def _where_opensim_wraps(
+    muscle: Any, points: list[PathPoint], ctx: ImportContext
+) -> dict[str, dict[int, int]]:
+    """Per wrap object (OpenSim's name): on how many poses OpenSim wraps the muscle's path
+    over it on each path segment (index of the segment's first point), each rotational
+    coordinate the muscle spans swept over its range, the others at their defaults."""
+    import opensim
+
+    model, state = ctx.model, ctx.state
+    geometry = muscle.getGeometryPath()
+    point_set = geometry.getPathPointSet()
+    index = {point_set.get(i).getName(): i for i in range(point_set.getSize())}
+    counts: dict[str, dict[int, int]] = {}
+    for coordinate in spanned_coordinates(points, ctx):
+        info = ctx.coords.info[coordinate]
+        default = info.getValue(state)
+        for value in sweep_values(ctx, coordinate):
+            ctx.coords.set_value(state, coordinate, value)
+            model.realizePosition(state)
+            current = geometry.getCurrentPath(state)
+            gap = -1
+            for k in range(current.getSize()):
+                point = current.get(k)
+                wrap_point = opensim.PathWrapPoint.safeDownCast(point)
+                if wrap_point is None:
+                    gap = index.get(point.getName(), gap)
+                elif gap >= 0:
+                    per_gap = counts.setdefault(wrap_point.getWrapObject().getName(), {})
+                    per_gap[gap] = per_gap.get(gap, 0) + 1
+        ctx.coords.set_value(state, coordinate, default)
+    model.realizePosition(state)
+    return counts
+
+
 def _wrap_gap(
-    muscle: Any, path_wrap: Any, wrap: WrapObject, ctx: ImportContext, taken: set[int]
+    muscle: Any,
+    path_wrap: Any,
+    wrap: WrapObject,
+    ctx: ImportContext,
+    taken: set[int],
+    wrapped: dict[int, int],
 ) -> int | None:
-    """The path segment (index of its first point) a wrap acts on: within OpenSim's range,
-    the free one passing closest to the wrap's centre in the default pose."""
+    """The path segment (index of its first point) a wrap acts on, within OpenSim's range
+    and free: the one OpenSim wraps over it on most of the muscle's swept poses (``wrapped``:
+    segment -> poses), or, where it never does, the one passing closest to the wrap's centre
+    in the default pose."""
     point_set = muscle.getGeometryPath().getPathPointSet()
     n = point_set.getSize()
     first, last = path_wrap.get_range(0), path_wrap.get_range(1)
     first = 1 if first < 1 else first
     last = n if last < 1 or last > n else last
+    free = [gap for gap in range(first - 1, last - 1) if gap not in taken]
+    seen = [gap for gap in free if wrapped.get(gap, 0) > 0]
+    if seen:
+        return max(seen, key=lambda gap: wrapped[gap])
     ground = [vec3_array(point_set.get(i).getLocationInGround(ctx.state)) for i in range(n)]
     segment_frame = ctx.frames[wrap.segment]
     body = ctx.model.getBodySet().get(wrap.segment)
     centre_in_body = segment_frame.p + segment_frame.r @ np.asarray(wrap.location)
     centre = vec3_array(body.findStationLocationInGround(ctx.state, opensim_vec3(centre_in_body)))
     best: tuple[float, int] | None = None
-    for gap in range(first - 1, last - 1):
-        if gap in taken:
-            continue
+    for gap in free:
         a, b = ground[gap], ground[gap + 1]
         t = float(np.clip(np.dot(centre - a, b - a) / max(np.dot(b - a, b - a), 1e-12), 0, 1))
         distance = float(np.linalg.norm(a + t * (b - a) - centre))

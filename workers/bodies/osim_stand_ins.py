@@ -47,7 +47,7 @@ def fit_stand_ins(muscle: Any, points: list[PathPoint], ctx: ImportContext) -> l
     special = [i for i, p in enumerate(points) if p.active_when or p.moves_with]
     if not special:
         return points
-    spanned = _spanned_coordinates(points, ctx)
+    spanned = spanned_coordinates(points, ctx)
     if not spanned:
         return points
     sweeps = [_Sweep(muscle, points, coordinate, ctx) for coordinate in spanned]
@@ -66,7 +66,7 @@ def fit_stand_ins(muscle: Any, points: list[PathPoint], ctx: ImportContext) -> l
     return fitted
 
 
-def _spanned_coordinates(points: list[PathPoint], ctx: ImportContext) -> list[str]:
+def spanned_coordinates(points: list[PathPoint], ctx: ImportContext) -> list[str]:
     """The free rotational coordinates of the joints between the segments the points sit on."""
     free = set(ctx.coords.info) - set(ctx.coords.couplers)
     return [
@@ -84,7 +84,7 @@ class _Sweep:
     def __init__(self, muscle: Any, points: list[PathPoint], coordinate: str, ctx: ImportContext):
         model, state = ctx.model, ctx.state
         point_set = muscle.getGeometryPath().getPathPointSet()
-        values = _sweep_values(ctx, coordinate)
+        values = sweep_values(ctx, coordinate)
         self.step = float(values[1] - values[0])
         n = len(points)
         special = [i for i, p in enumerate(points) if p.active_when or p.moves_with]
@@ -95,7 +95,7 @@ class _Sweep:
         info = ctx.coords.info[coordinate]
         default = info.getValue(state)
         for k, value in enumerate(values):
-            info.setValue(state, float(value), True)
+            ctx.coords.set_value(state, coordinate, value)
             model.realizePosition(state)
             self.length[k] = muscle.getLength(state)
             for i in range(n):
@@ -103,7 +103,7 @@ class _Sweep:
             for i in special:
                 for c, (host, local, _) in enumerate(hosts[i]):
                     hosted[i][c, k] = vec3_array(host.findStationLocationInGround(state, local))
-        info.setValue(state, default, True)
+        ctx.coords.set_value(state, coordinate, default)
         model.realizePosition(state)
         self.candidates = {
             i: _candidates(points[i], self.fixed[:, i], hosts[i], hosted[i], ctx) for i in special
@@ -130,7 +130,7 @@ class _Sweep:
         return arm_rms / arm_allowance(self.reference_arm) + 0.1 * length_rms / ARM_TOLERANCE_M
 
 
-def _sweep_values(ctx: ImportContext, coordinate: str) -> np.ndarray:
+def sweep_values(ctx: ImportContext, coordinate: str) -> np.ndarray:
     return np.linspace(*ctx.coords.span(coordinate), SWEEP_POINTS)
 
 
@@ -161,15 +161,16 @@ def _moving_places(
     if point.moves_with is None:
         return []
     model, state = ctx.model, ctx.state
-    info = ctx.coords.info[point.moves_with.coordinate]
+    coordinate = point.moves_with.coordinate
+    info = ctx.coords.info[coordinate]
     default = info.getValue(state)
     parent = info.getJoint().getParentFrame().findBaseFrame().getName()
     names = [point.segment] + ([parent] if parent != point.segment and parent in ctx.frames else [])
     hosts = [model.getBodySet().get(n) for n in names if n != "ground"]
-    values = sorted(_sweep_values(ctx, info.getName()), key=lambda v: abs(v - default))
+    values = sorted(sweep_values(ctx, coordinate), key=lambda v: abs(v - default))
     places = []
     for value in values:
-        info.setValue(state, float(value), True)
+        ctx.coords.set_value(state, coordinate, value)
         model.realizePosition(state)
         where = opensim_point.getLocationInGround(state)
         for host in hosts:
@@ -177,6 +178,6 @@ def _moving_places(
             location = ctx.frames[host.getName()].point_in(vec3_array(local))
             stand_in = StandIn(segment=host.getName(), location=as_tuple(location))
             places.append((host, local, stand_in))
-    info.setValue(state, default, True)
+    ctx.coords.set_value(state, coordinate, default)
     model.realizePosition(state)
     return places

@@ -101,6 +101,27 @@ def test_a_coordinate_coupler_becomes_dofs_coupled_to_the_independent_coordinate
     assert any("knee_angle_r_beta" in note for note in result.report.notes)
 
 
+def test_a_wrap_goes_where_opensim_wraps_the_path() -> None:
+    """Rajagopal2016's vastus lateralis: in the default pose its path passes closest to the
+    femur's knee-extensor cylinder between its two patella points, but OpenSim wraps it
+    between the femur and the patella once the knee bends past about 90 degrees; the import
+    puts the wrap there."""
+    vaslat = next(
+        m for m in import_osim(MODELS / "Rajagopal2016.osim").body.muscles if m.name == "vaslat_r"
+    )
+    wrap_at = next(i for i, e in enumerate(vaslat.path) if getattr(e, "wrap", None))
+    before, after = vaslat.path[wrap_at - 1], vaslat.path[wrap_at + 1]
+    assert vaslat.path[wrap_at].wrap == "KnExt_at_fem_r"
+    assert (before.segment, after.segment) == ("femur_r", "patella_r")
+    model = opensim.Model(str(MODELS / "Rajagopal2016.osim"))
+    state = model.initSystem()
+    model.getCoordinateSet().get("knee_angle_r").setValue(state, np.radians(110), True)
+    model.realizePosition(state)
+    path = model.getMuscles().get("vaslat_r").getGeometryPath().getCurrentPath(state)
+    names = [path.get(i).getName() for i in range(path.getSize())]
+    assert names[names.index("vaslat_r-P2") + 1] != "vaslat_r-P3"  # wrap points between them
+
+
 def test_conditional_and_moving_points_and_ellipsoids_are_kept() -> None:
     gait = import_osim(MODELS / "gait10dof18musc.osim").body
     vasti = next(m for m in gait.muscles if m.name == "vasti_r")
