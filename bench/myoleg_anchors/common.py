@@ -7,6 +7,7 @@ A run folder ``DIR`` holds ``run.json`` (what was run: runner, seed, settings, v
 
 from __future__ import annotations
 
+import argparse
 import csv
 import json
 import logging
@@ -198,3 +199,24 @@ def setup_logging() -> None:
     logging.basicConfig(
         level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )
+
+
+def run_arguments(doc: str) -> argparse.ArgumentParser:
+    """The options both runners take (a runner adds its own): ``--minutes`` (training time
+    of the run, min), ``--seed``, ``--out``, ``--resume``, ``--checkpoint-minutes``,
+    ``--eval-episodes``, ``--eval-seed``, ``--torch-threads``."""
+    p = argparse.ArgumentParser(description=doc.split("\n", 1)[0])
+    p.add_argument("--minutes", type=float, required=True, help="training time of the run")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", type=Path, required=True, help="run folder")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out")
+    p.add_argument(
+        "--checkpoint-minutes",
+        type=float,
+        default=CHECKPOINT_INTERVAL_S / 60.0,
+        help="training minutes between checkpoints",
+    )
+    p.add_argument("--eval-episodes", type=int, default=10)
+    p.add_argument("--torch-threads", type=int, default=1, help="threads of the learner process")
+    p.add_argument("--eval-seed", type=int, default=1000)
+    return p

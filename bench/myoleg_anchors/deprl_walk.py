@@ -50,6 +50,7 @@ from common import (
     machine_cores,
     package_versions,
     prepare_run_dir,
+    run_arguments,
     setup_logging,
     write_json,
 )
@@ -352,22 +353,9 @@ def train(args: argparse.Namespace) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     """Command line: see the module docstring."""
-    p = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    p.add_argument("--minutes", type=float, required=True, help="training time of the run")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", type=Path, required=True, help="run folder")
-    p.add_argument("--resume", action="store_true", help="continue the run in --out")
+    p = run_arguments(__doc__)
     p.add_argument("--parallel", type=int, default=machine_cores(), help="worker processes")
     p.add_argument("--sequential", type=int, default=10, help="envs per worker process")
-    p.add_argument(
-        "--checkpoint-minutes",
-        type=float,
-        default=CHECKPOINT_INTERVAL_S / 60.0,
-        help="training minutes between checkpoints",
-    )
-    p.add_argument("--eval-episodes", type=int, default=10)
-    p.add_argument("--torch-threads", type=int, default=1, help="threads of the learner process")
-    p.add_argument("--eval-seed", type=int, default=1000)
     setup_logging()
     args = p.parse_args(argv)
     torch.set_num_threads(args.torch_threads)
