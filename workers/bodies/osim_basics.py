@@ -4,7 +4,7 @@ the body's (:mod:`workers.bodies.functions`), coordinates and their couplers."""
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -282,6 +282,20 @@ class ImportContext:
     coords: Coordinates
     frames: dict[str, Frame]  # segment -> its child frame in OpenSim's body frame
     report: ImportReport
+
+    def posed(self, coordinate: str, values: Iterable[float]) -> Iterator[float]:
+        """Each of ``values`` (rad or m) in turn: set on ``coordinate`` (its coupled
+        coordinates with it, :meth:`Coordinates.set_value`), the state's positions realized,
+        the value yielded; afterwards the coordinate is back where it was, realized."""
+        before = self.coords.info[coordinate].getValue(self.state)
+        try:
+            for value in values:
+                self.coords.set_value(self.state, coordinate, value)
+                self.model.realizePosition(self.state)
+                yield value
+        finally:
+            self.coords.set_value(self.state, coordinate, before)
+            self.model.realizePosition(self.state)
 
     def in_segment(self, frame: Any, location: np.ndarray) -> tuple[str, np.ndarray]:
         """A point given in OpenSim ``frame``: its segment and location in the segment."""

@@ -188,18 +188,13 @@ def _where_opensim_wraps(
     coordinate the muscle spans swept over its range, the others at their defaults."""
     import opensim
 
-    model, state = ctx.model, ctx.state
     geometry = muscle.getGeometryPath()
     point_set = geometry.getPathPointSet()
     index = {point_set.get(i).getName(): i for i in range(point_set.getSize())}
     counts: dict[str, dict[int, int]] = {}
     for coordinate in spanned_coordinates(points, ctx):
-        info = ctx.coords.info[coordinate]
-        default = info.getValue(state)
-        for value in sweep_values(ctx, coordinate):
-            ctx.coords.set_value(state, coordinate, value)
-            model.realizePosition(state)
-            current = geometry.getCurrentPath(state)
+        for _ in ctx.posed(coordinate, sweep_values(ctx, coordinate)):
+            current = geometry.getCurrentPath(ctx.state)
             gap = -1
             for k in range(current.getSize()):
                 point = current.get(k)
@@ -209,8 +204,6 @@ def _where_opensim_wraps(
                 elif gap >= 0:
                     per_gap = counts.setdefault(wrap_point.getWrapObject().getName(), {})
                     per_gap[gap] = per_gap.get(gap, 0) + 1
-        ctx.coords.set_value(state, coordinate, default)
-    model.realizePosition(state)
     return counts
 
 

@@ -82,7 +82,7 @@ class _Sweep:
     point's candidates (the same candidates, in the same order, in every sweep)."""
 
     def __init__(self, muscle: Any, points: list[PathPoint], coordinate: str, ctx: ImportContext):
-        model, state = ctx.model, ctx.state
+        state = ctx.state
         point_set = muscle.getGeometryPath().getPathPointSet()
         values = sweep_values(ctx, coordinate)
         self.step = float(values[1] - values[0])
@@ -92,19 +92,13 @@ class _Sweep:
         self.fixed = np.zeros((SWEEP_POINTS, n, 3))
         self.length = np.zeros(SWEEP_POINTS)
         hosted = {i: np.zeros((len(hosts[i]), SWEEP_POINTS, 3)) for i in special}
-        info = ctx.coords.info[coordinate]
-        default = info.getValue(state)
-        for k, value in enumerate(values):
-            ctx.coords.set_value(state, coordinate, value)
-            model.realizePosition(state)
+        for k, _value in enumerate(ctx.posed(coordinate, values)):
             self.length[k] = muscle.getLength(state)
             for i in range(n):
                 self.fixed[k, i] = vec3_array(point_set.get(i).getLocationInGround(state))
             for i in special:
                 for c, (host, local, _) in enumerate(hosts[i]):
                     hosted[i][c, k] = vec3_array(host.findStationLocationInGround(state, local))
-        ctx.coords.set_value(state, coordinate, default)
-        model.realizePosition(state)
         self.candidates = {
             i: _candidates(points[i], self.fixed[:, i], hosts[i], hosted[i], ctx) for i in special
         }
@@ -169,15 +163,11 @@ def _moving_places(
     hosts = [model.getBodySet().get(n) for n in names if n != "ground"]
     values = sorted(sweep_values(ctx, coordinate), key=lambda v: abs(v - default))
     places = []
-    for value in values:
-        ctx.coords.set_value(state, coordinate, value)
-        model.realizePosition(state)
+    for _ in ctx.posed(coordinate, values):
         where = opensim_point.getLocationInGround(state)
         for host in hosts:
             local = model.getGround().findStationLocationInAnotherFrame(state, where, host)
             location = ctx.frames[host.getName()].point_in(vec3_array(local))
             stand_in = StandIn(segment=host.getName(), location=as_tuple(location))
             places.append((host, local, stand_in))
-    ctx.coords.set_value(state, coordinate, default)
-    model.realizePosition(state)
     return places
