@@ -3,13 +3,15 @@ neither (MuJoCo), fitted on the OpenSim model being imported.
 
 Each rotational coordinate the muscle spans is swept over its range (the others at their
 defaults) and OpenSim's own muscle-tendon length is the reference. The candidates are, for
-a conditional point, kept or dropped; for a moving point, fixed where
-the point is at one of the sweep's poses, either on its own segment or on the parent of the
-joint its coordinate turns (a patella-like point rides with the femur). A candidate path's
-length is the sum of its straight pieces; the choice minimises the RMS error of the moment
-arm (``-dL/dq``) over what the conversion allows, summed over the sweeps, then of the length,
-by coordinate descent over the muscle's special points (two passes). A muscle with wrap
-objects keeps the default rule (a straight-piece length would not be its length).
+a conditional point, kept or dropped; for a moving point, followed along its path by a
+carrier (``StandIn.follow``, whose quartics ``osim_carriers`` fits once it is chosen), or
+fixed where the point is at one of the sweep's poses, either on its own segment or on the
+parent of the joint its coordinate turns (a patella-like point rides with the femur). A
+candidate path's length is the sum of its straight pieces; the choice minimises the RMS
+error of the moment arm (``-dL/dq``) over what the conversion allows, summed over the
+sweeps, then of the length, by coordinate descent over the muscle's special points (two
+passes). A muscle with wrap objects keeps the default rule (a straight-piece length would
+not be its length).
 """
 
 from __future__ import annotations
@@ -26,7 +28,8 @@ from gaitforge.workers.bodies.osim_basics import (
     joints_between,
     vec3_array,
 )
-from gaitforge.workers.bodies.schema import PathPoint, StandIn
+from gaitforge.workers.bodies.osim_carriers import fit_carrier
+from gaitforge.workers.bodies.schema import GROUND, PathPoint, StandIn
 
 SWEEP_POINTS = 21
 """poses per coordinate sweep (and candidate poses of a moving point)"""
@@ -35,10 +38,11 @@ SWEEP_POINTS = 21
 @dataclass
 class _Candidate:
     """One way to stand in for a point: ``ground[k]`` its position at sweep pose ``k`` (None:
-    the point is left out), and the stand-in it would be."""
+    the point is left out), and the stand-in it would be (None: a moving point followed by
+    a carrier, whose quartics are fitted once it is chosen)."""
 
     ground: np.ndarray | None  # [poses, 3] m
-    stand_in: StandIn
+    stand_in: StandIn | None
 
 
 def fit_stand_ins(muscle: Any, points: list[PathPoint], ctx: ImportContext) -> list[PathPoint]:
@@ -62,6 +66,8 @@ def fit_stand_ins(muscle: Any, points: list[PathPoint], ctx: ImportContext) -> l
     fitted = list(points)
     for i in special:
         stand_in = sweeps[0].candidates[i][choice[i]].stand_in
+        if stand_in is None:
+            stand_in = fit_carrier(muscle, i, points[i], ctx)
         fitted[i] = points[i].model_copy(update={"stand_in": stand_in})
     return fitted
 
@@ -135,11 +141,12 @@ def _candidates(
     hosted: np.ndarray,
     ctx: ImportContext,
 ) -> list[_Candidate]:
-    """A point's stand-ins, the default rule's first, with positions over a sweep: a
-    conditional point kept (``ground``, its own positions) or dropped; a moving point at
-    each of its ``hosts`` places (``hosted[c]``)."""
+    """A point's stand-ins, the first one tried first, with positions over a sweep: a
+    conditional point kept (``ground``, its own positions) or dropped; a moving point
+    followed (``ground``) or fixed at each of its ``hosts`` places (``hosted[c]``)."""
     if point.active_when is None:
-        return [_Candidate(hosted[c], stand_in) for c, (_, _, stand_in) in enumerate(hosts)]
+        fixed = [_Candidate(hosted[c], stand_in) for c, (_, _, stand_in) in enumerate(hosts)]
+        return [_Candidate(ground, None), *fixed] if point.segment != GROUND else fixed
     lo, hi = point.active_when.range
     default = ctx.coords.info[point.active_when.coordinate].getDefaultValue()
     keep, drop = _Candidate(ground, StandIn(keep=True)), _Candidate(None, StandIn(keep=False))

@@ -27,6 +27,7 @@ from gaitforge.workers.bodies.functions import Function
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 Vec3 = tuple[float, float, float]
+Quartic = tuple[float, float, float, float, float]
 PositiveFloat = Annotated[float, Field(gt=0)]
 GROUND = "ground"
 
@@ -136,13 +137,30 @@ class MovingLocation(_Strict):
 class StandIn(_Strict):
     """How a backend without conditional or moving points stands in for such a point: a
     fixed point (on ``segment`` at ``location``, each defaulting to the point's own), none
-    (``keep: false``), or wrapping over the wrap object ``wrap`` instead. The import picks
-    it to keep the muscle's moment arms."""
+    (``keep: false``), wrapping over the wrap object ``wrap`` instead, or (a moving point
+    only) a carrier that follows the point's path (``follow``). The import picks it to keep
+    the muscle's moment arms."""
 
     keep: bool = True
     segment: str | None = None
     location: Vec3 | None = None
     wrap: str | None = Field(default=None, description="a wrap object in the point's place")
+    follow: tuple[Quartic, Quartic, Quartic] | None = Field(
+        default=None,
+        description="a moving point only: MuJoCo carries it on a light body whose slides keep "
+        "it at (x, y, z) = these quartics of its coordinate's value (a0..a4, lowest order "
+        "first; m, segment frame), which the import fits to keep the moment arm "
+        "(workers/bodies/osim_carriers.py)",
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> StandIn:
+        if self.follow and (self.segment or self.location or self.wrap or not self.keep):
+            raise ValueError(
+                "follow: the point is carried along its own path (no segment, location or "
+                "wrap, and kept)"
+            )
+        return self
 
 
 class PathPoint(_Strict):
@@ -158,6 +176,12 @@ class PathPoint(_Strict):
         "(none: a conditional point is kept iff active at its dof's default; a moving one is "
         "fixed at location)",
     )
+
+    @model_validator(mode="after")
+    def _check(self) -> PathPoint:
+        if self.stand_in and self.stand_in.follow and self.moves_with is None:
+            raise ValueError("stand_in.follow: only a moving point (moves_with) can be followed")
+        return self
 
 
 class WrapRef(_Strict):

@@ -53,6 +53,7 @@ from gaitforge.workers.bodies.osim_basics import (
     joints_between,
 )
 from gaitforge.workers.bodies.schema import Body
+from gaitforge.workers.sim.mjcf_couplings import CARRIER_SUFFIX
 from gaitforge.workers.sim.mjcf_lock import coupled_qpos, lock_joints
 from gaitforge.workers.sim.mujoco_build import build_spec
 from gaitforge.workers.sim.opensim_build import quiet_opensim_log
@@ -601,8 +602,9 @@ class MujocoSide:
         self.actuators = {
             mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a): a for a in range(model.nu)
         }
-        self.bodies = {
-            mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b): b for b in range(model.nbody)
+        names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(model.nbody)]
+        self.bodies = {  # a moving point's carrier is part of its muscle's path, not a segment
+            name: b for b, name in enumerate(names) if not name.endswith(CARRIER_SUFFIX)
         }
         self._jacobian = np.zeros((model.ntendon, model.nv))
 

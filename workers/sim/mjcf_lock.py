@@ -72,10 +72,13 @@ def coupled_qpos(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
     """
     out = np.array(qpos, dtype=float, copy=True)
     couplings = _joint_couplings(model)
-    for _ in range(max(1, len(couplings))):
+    for _ in range(max(1, len(couplings))):  # a chain of n couplings settles in n passes
+        before = out.copy()
         for driven, driver, coef in couplings:
             drv = out[model.jnt_qposadr[driver]] if driver >= 0 else 0.0
             out[model.jnt_qposadr[driven]] = _coupled_value(model, driven, driver, coef, drv)
+        if np.array_equal(out, before):
+            break
     return out
 
 

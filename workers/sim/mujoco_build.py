@@ -27,8 +27,10 @@ in another form:
   equality ``couple_<dof>``): see :mod:`workers.sim.mjcf_couplings`, which also reports
   each polynomial's fit error and places coupled joints exactly;
 * MuJoCo has neither conditional nor moving sites: a point with a ``stand_in`` (the
-  importer fits one to keep the muscle's moment arms) becomes that fixed site, none, or the
-  wrap object it names (a wrap cylinder fitted in place of a conditional point).
+  importer fits one to keep the muscle's moment arms) becomes that fixed site, none, the
+  wrap object it names (a wrap cylinder fitted in place of a conditional point), or a site
+  on a carrier whose slides follow the stand-in's quartics (``follow``, a moving point;
+  :func:`workers.sim.mjcf_couplings.add_carrier`).
   Without one, a conditional path point is kept (as an ordinary site) iff the default of
   its coordinate lies in its active range, and dropped otherwise, unless dropping it would
   leave a wrap object or the path's end without a site (then it is kept, with a warning);
@@ -56,7 +58,7 @@ from gaitforge.workers.bodies.schema import (
     WrapObject,
     WrapRef,
 )
-from gaitforge.workers.sim.mjcf_couplings import add_couplings
+from gaitforge.workers.sim.mjcf_couplings import add_carrier, add_couplings
 from gaitforge.workers.sim.mujoco_warnings import route_warnings
 from gaitforge.workers.sim.muscle_curves import fit_mujoco_fpmax
 
@@ -247,9 +249,15 @@ def _add_muscles(spec: mujoco.MjSpec, body: Body, bodies: dict[str, mujoco.MjsBo
             if isinstance(element, PathPoint):
                 site = f"{muscle.name}_p{i}"
                 stand_in = element.stand_in
-                segment = (stand_in and stand_in.segment) or element.segment
-                location = (stand_in and stand_in.location) or element.location
-                bodies[segment].add_site(name=site, pos=list(location))
+                if stand_in and stand_in.follow and element.moves_with:
+                    driver = element.moves_with.coordinate
+                    host = bodies[element.segment]
+                    carrier = add_carrier(spec, host, site, driver, stand_in.follow)
+                    carrier.add_site(name=site, pos=[0.0, 0.0, 0.0])
+                else:
+                    segment = (stand_in and stand_in.segment) or element.segment
+                    location = (stand_in and stand_in.location) or element.location
+                    bodies[segment].add_site(name=site, pos=list(location))
                 tendon.wrap_site(site)
             else:
                 side = wraps[element.wrap].side is not None and element.use_side

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import opensim
 import pytest
@@ -18,9 +19,11 @@ from gaitforge.workers.bodies.osim_import import import_osim
 from gaitforge.workers.bodies.schema import Body, PathPoint
 from gaitforge.workers.fidelity.conversion import ConversionReport, measure_conversion
 from gaitforge.workers.scenes.prune import PrunePlan
+from gaitforge.workers.sim.mjcf_couplings import set_coupled_qpos
 from gaitforge.workers.sim.mujoco_build import build_spec
 from gaitforge.workers.sim.opensim_build import build_model
 from gaitforge.workers.spec_io import SpecError
+from numpy.polynomial.polynomial import polyval
 from typer.testing import CliRunner
 
 MODELS = Path(__file__).resolve().parents[3] / "examples" / "models"
@@ -223,12 +226,21 @@ def test_an_unsupported_joint_names_its_path(tmp_path: Path) -> None:
         import_osim(path)
 
 
-def _without_stand_ins(body: Body) -> Body:
+def _without_stand_ins(body: Body, *, carriers_only: bool = False) -> Body:
+    """``body`` with its points' stand-ins (or only its moving points' carriers) replaced by
+    the default rule (a conditional point kept iff active at the default pose, a moving one
+    fixed where it is then)."""
+
+    def cleared(e: PathPoint) -> bool:
+        return e.stand_in is not None and (not carriers_only or e.stand_in.follow is not None)
+
     muscles = [
         m.model_copy(
             update={
                 "path": [
-                    e.model_copy(update={"stand_in": None}) if isinstance(e, PathPoint) else e
+                    e.model_copy(update={"stand_in": None})
+                    if isinstance(e, PathPoint) and cleared(e)
+                    else e
                     for e in m.path
                 ]
             }
@@ -274,3 +286,44 @@ def test_another_function_is_resampled_and_reported(tmp_path: Path) -> None:
     slide = next(d for d in result.body.joint_of_dof("knee_angle_r").dofs if d.coupled)
     values = evaluate(slide.coupled.function, [-1.0, 0.0])
     np.testing.assert_allclose(values, [0.004, -0.005], atol=3e-4)  # kinks between knots
+
+
+def test_the_patellar_insertion_rides_a_carrier_that_keeps_the_quadriceps_moment_arms() -> None:
+    """gait10dof18musc's vasti and rectus femoris insert at a point that moves with the knee.
+    The import carries it on a MuJoCo body whose slides follow fitted quartics of the knee
+    angle: the site sits where the quartics say at any knee angle, and the knee moment arms
+    pass the conversion's bound (2 mm RMS or 5 % of the peak: 1.3-1.5 mm), where the point
+    fixed at its default place misses it (7-9 mm); the other stand-ins fitted (``convert``)
+    in both."""
+    model = MODELS / "gait10dof18musc.osim"
+    body = convert(model).body
+    vasti = next(m for m in body.muscles if m.name == "vasti_r")
+    index, point = next((i, p) for i, p in enumerate(vasti.path) if p.moves_with)
+    assert point.stand_in is not None and point.stand_in.follow is not None
+
+    mj_model = build_spec(body).compile()
+    data = mujoco.MjData(mj_model)
+    knee = mj_model.joint("knee_angle_r")
+    for angle in (-1.8, -0.9, 0.0):
+        data.qpos[knee.qposadr] = angle
+        set_coupled_qpos(mj_model, data)
+        mujoco.mj_kinematics(mj_model, data)
+        tibia = mj_model.body("tibia_r")
+        site = data.site(f"vasti_r_p{index}").xpos
+        local = data.xmat[tibia.id].reshape(3, 3).T @ (site - data.xpos[tibia.id])
+        expected = [polyval(angle, c) for c in point.stand_in.follow]
+        np.testing.assert_allclose(local, expected, atol=1e-9)
+
+    options = {"poses": 2, "force_poses": 1, "drop_s": 0.01}
+    quadriceps = {"vasti_r", "rect_fem_r"}
+
+    def knee_pairs(report: ConversionReport) -> list[bool]:
+        return [
+            p.passed
+            for p in report.pairs
+            if p.muscle in quadriceps and p.coordinate == "knee_angle_r"
+        ]
+
+    assert knee_pairs(measure_conversion(model, body, **options)) == [True, True]
+    fixed = measure_conversion(model, _without_stand_ins(body, carriers_only=True), **options)
+    assert knee_pairs(fixed) == [False, False]
