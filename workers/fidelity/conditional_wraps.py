@@ -24,7 +24,14 @@ from pathlib import Path
 import numpy as np
 from gaitforge.workers.bodies.osim_basics import arm_allowance
 from gaitforge.workers.bodies.rotations import euler_xyz, rotation_xyz
-from gaitforge.workers.bodies.schema import Body, Muscle, PathPoint, StandIn, WrapObject
+from gaitforge.workers.bodies.schema import (
+    Body,
+    Muscle,
+    PathPoint,
+    StandIn,
+    WrapObject,
+    WrapRef,
+)
 from gaitforge.workers.fidelity.conversion import (
     DEFAULT_SWEEP_POINTS,
     MujocoSide,
@@ -96,16 +103,30 @@ def _cylinders(body: Body, muscle: Muscle, index: int) -> list[WrapObject]:
 
 
 def _replaceable(muscle: Muscle, index: int) -> bool:
-    """A conditional point a wrap can replace: between two points MuJoCo keeps."""
+    """A conditional point a wrap can replace: the nearest points MuJoCo keeps on each side,
+    past conditional points it drops (vastus medialis' two over the femoral condyle), are
+    sites."""
     path = muscle.path
-    if index in (0, len(path) - 1):
-        return False
-    neighbours = (path[index - 1], path[index + 1])
-    return all(
-        isinstance(n, PathPoint)
-        and (n.active_when is None or (n.stand_in is not None and n.stand_in.keep))
-        for n in neighbours
-    )
+    for step in (-1, 1):
+        j = index + step
+        while 0 <= j < len(path) and _dropped(path[j]):
+            j += step
+        if not 0 <= j < len(path):
+            return False
+        neighbour = path[j]
+        if not isinstance(neighbour, PathPoint):
+            return False
+        if neighbour.active_when is not None and not (
+            neighbour.stand_in is not None and neighbour.stand_in.keep
+        ):
+            return False
+    return True
+
+
+def _dropped(element: PathPoint | WrapRef) -> bool:
+    """A conditional point the import's stand-in leaves out of MuJoCo's path."""
+    stand_in = isinstance(element, PathPoint) and element.stand_in
+    return bool(stand_in) and not stand_in.keep and stand_in.wrap is None
 
 
 def _with_wrap(muscle: Muscle, index: int, wrap: WrapObject, name: str) -> Muscle:
@@ -151,7 +172,12 @@ def fit_conditional_wraps(
     baseline = {
         (c.muscle, c.point): s for c, s in zip(candidates, scores, strict=True) if c.wrap is None
     }
-    chosen = {key: c for key, (s, c) in best.items() if c.wrap is not None}
+    chosen: dict[tuple[str, int], _Candidate] = {}
+    for key, (_, candidate) in sorted(best.items(), key=lambda item: item[1][0]):
+        name, index = key
+        beside = {(name, index - 1), (name, index + 1)}  # MuJoCo needs a site between wraps:
+        if candidate.wrap is not None and not beside & chosen.keys():  # the better neighbour
+            chosen[key] = candidate
     muscles = []
     added: list[WrapObject] = []
     notes = []

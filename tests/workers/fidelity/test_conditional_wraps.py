@@ -29,3 +29,20 @@ def test_cylinders_in_place_of_conditional_points_keep_more_moment_arms() -> Non
     assert after.pass_share > before.pass_share
     knee = next(p for p in after.pairs if (p.muscle, p.coordinate) == ("gastroc_r", "knee_angle_r"))
     assert knee.passed
+
+
+def test_two_conditional_points_in_a_row_take_one_wrap_between_sites() -> None:
+    """gait2392's vastus medialis crosses the femoral condyle through two conditional points
+    in a row, both left out by the import. One of them becomes a wrap cylinder (MuJoCo needs
+    a site between two wraps), the other stays out, and the knee moment arm comes within
+    bounds (10 mm RMS before)."""
+    model = GAIT10.parent / "gait2392_millard2012muscle.osim"
+    body = import_osim(model).body
+    fitted, _ = fit_conditional_wraps(model, body)
+    vastus = next(m for m in fitted.muscles if m.name == "vas_med_r")
+    conditional = [p for p in vastus.path if isinstance(p, PathPoint) and p.active_when]
+    assert len(conditional) == 2
+    assert sum(1 for p in conditional if p.stand_in and p.stand_in.wrap) == 1
+    report = measure_conversion(model, fitted, poses=1, force_poses=1, drop_s=0.0)
+    pairs = {(p.muscle, p.coordinate): p.passed for p in report.pairs}
+    assert pairs[("vas_med_r", "knee_angle_r")]
