@@ -49,6 +49,8 @@ def fit_carrier(muscle: Any, index: int, point: PathPoint, ctx: ImportContext) -
     velocity = np.stack([derivative(f, values) for f in functions], axis=1)  # m/rad
     gradient = _length_gradient(muscle, index, point, values, ctx)  # [poses, 3]
     varying = [k for k in range(3) if np.ptp(place[:, k]) > CONSTANT_SPAN]
+    if not varying:  # a moving point that does not move
+        return StandIn(follow=tuple(_constant(place[0, k]) for k in range(3)))
     powers = np.vander(values, DEGREE + 1, increasing=True)  # [poses, 5]
     slopes = np.zeros_like(powers)
     slopes[:, 1:] = powers[:, :-1] * np.arange(1, DEGREE + 1)
@@ -65,10 +67,14 @@ def fit_carrier(muscle: Any, index: int, point: PathPoint, ctx: ImportContext) -
         if k in varying:
             j = varying.index(k)
             coefficients = solution[j * (DEGREE + 1) : (j + 1) * (DEGREE + 1)]
+            quartics.append(tuple(float(c) for c in coefficients))
         else:
-            coefficients = np.r_[place[0, k], np.zeros(DEGREE)]
-        quartics.append(tuple(float(c) for c in coefficients))
+            quartics.append(_constant(place[0, k]))
     return StandIn(follow=tuple(quartics))
+
+
+def _constant(value: float) -> tuple[float, ...]:
+    return (float(value),) + (0.0,) * DEGREE
 
 
 def _length_gradient(
