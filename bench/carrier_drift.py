@@ -17,8 +17,8 @@ import mujoco
 import numpy as np
 from gaitforge.service.ops.bodies import convert
 from gaitforge.workers.sim import mjcf_couplings
-from gaitforge.workers.sim.mjcf_couplings import CARRIER_SUFFIX, set_coupled_qpos
-from gaitforge.workers.sim.mjcf_lock import _joint_couplings, lock_joints
+from gaitforge.workers.sim.mjcf_couplings import CARRIER_SUFFIX, _couplings, set_coupled_qpos
+from gaitforge.workers.sim.mjcf_lock import lock_joints
 from gaitforge.workers.sim.mujoco_build import build_spec
 from rich.console import Console
 from rich.table import Table
@@ -39,7 +39,7 @@ def worst_drift(
     model = spec.compile()
     data = mujoco.MjData(model)
     set_coupled_qpos(model, data)
-    couplings = [(a, b, c) for a, b, c in _joint_couplings(model) if b >= 0]
+    couplings = _couplings(model)
     carried = [
         model.body(model.jnt_bodyid[a]).name.endswith(CARRIER_SUFFIX) for a, _, _ in couplings
     ]

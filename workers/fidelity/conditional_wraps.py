@@ -27,10 +27,10 @@ from gaitforge.workers.bodies.rotations import euler_xyz, rotation_xyz
 from gaitforge.workers.bodies.schema import (
     Body,
     Muscle,
+    PathElement,
     PathPoint,
     StandIn,
     WrapObject,
-    WrapRef,
 )
 from gaitforge.workers.fidelity.conversion import (
     DEFAULT_SWEEP_POINTS,
@@ -123,7 +123,12 @@ def _replaceable(muscle: Muscle, index: int) -> bool:
     return True
 
 
-def _dropped(element: PathPoint | WrapRef) -> bool:
+def _no_site_between(path: list[PathElement], i: int, j: int) -> bool:
+    """Whether every point strictly between path elements ``i`` and ``j`` is dropped."""
+    return all(_dropped(path[k]) for k in range(min(i, j) + 1, max(i, j)))
+
+
+def _dropped(element: PathElement) -> bool:
     """A conditional point the import's stand-in leaves out of MuJoCo's path."""
     stand_in = isinstance(element, PathPoint) and element.stand_in
     return bool(stand_in) and not stand_in.keep and stand_in.wrap is None
@@ -172,11 +177,13 @@ def fit_conditional_wraps(
     baseline = {
         (c.muscle, c.point): s for c, s in zip(candidates, scores, strict=True) if c.wrap is None
     }
+    paths = {m.name: m.path for m in body.muscles}
     chosen: dict[tuple[str, int], _Candidate] = {}
     for key, (_, candidate) in sorted(best.items(), key=lambda item: item[1][0]):
         name, index = key
-        beside = {(name, index - 1), (name, index + 1)}  # MuJoCo needs a site between wraps:
-        if candidate.wrap is not None and not beside & chosen.keys():  # the better neighbour
+        if candidate.wrap is not None and not any(
+            other == name and _no_site_between(paths[name], index, j) for other, j in chosen
+        ):  # MuJoCo needs a site between two wraps: the better of the two keeps its wrap
             chosen[key] = candidate
     muscles = []
     added: list[WrapObject] = []
