@@ -18,7 +18,7 @@ import numpy as np
 from gaitforge.service.ops.bodies import convert
 from gaitforge.workers.sim import mjcf_couplings
 from gaitforge.workers.sim.mjcf_couplings import CARRIER_SUFFIX, _couplings, set_coupled_qpos
-from gaitforge.workers.sim.mjcf_lock import lock_joints
+from gaitforge.workers.sim.mjcf_lock import coupled_qpos, lock_joints
 from gaitforge.workers.sim.mujoco_build import build_spec
 from rich.console import Console
 from rich.table import Table
@@ -52,12 +52,13 @@ def worst_drift(
         mujoco.mj_step(model, data)
         if not np.all(np.isfinite(data.qpos)):
             return float("inf"), float("inf")
-        for (driven, driver, coefficients), carrier in zip(couplings, carried, strict=True):
-            x = data.qpos[model.jnt_qposadr[driver]]
+        exact = coupled_qpos(model, data.qpos)  # each coupled dof where its polynomial puts it
+        for (driven, driver, _), carrier in zip(couplings, carried, strict=True):
             lo, hi = model.jnt_range[driver]
-            if not lo <= x <= hi:
+            if not lo <= data.qpos[model.jnt_qposadr[driver]] <= hi:
                 continue
-            off = abs(data.qpos[model.jnt_qposadr[driven]] - np.polyval(coefficients[::-1], x))
+            adr = model.jnt_qposadr[driven]
+            off = abs(data.qpos[adr] - exact[adr])
             worst[0 if carrier else 1] = max(worst[0 if carrier else 1], off)
     return float(worst[0]), float(worst[1])
 
