@@ -17,8 +17,12 @@ import mujoco
 import numpy as np
 from gaitforge.service.ops.bodies import convert
 from gaitforge.workers.sim import mjcf_couplings
-from gaitforge.workers.sim.mjcf_couplings import CARRIER_SUFFIX, _couplings, set_coupled_qpos
-from gaitforge.workers.sim.mjcf_lock import coupled_qpos, lock_joints
+from gaitforge.workers.sim.mjcf_couplings import (
+    CARRIER_SUFFIX,
+    COUPLING_PREFIX,
+    set_coupled_qpos,
+)
+from gaitforge.workers.sim.mjcf_lock import coupled_qpos, joint_couplings, lock_joints
 from gaitforge.workers.sim.mujoco_build import build_spec
 from rich.console import Console
 from rich.table import Table
@@ -39,7 +43,7 @@ def worst_drift(
     model = spec.compile()
     data = mujoco.MjData(model)
     set_coupled_qpos(model, data)
-    couplings = _couplings(model)
+    couplings = joint_couplings(model, COUPLING_PREFIX)
     carried = [
         model.body(model.jnt_bodyid[a]).name.endswith(CARRIER_SUFFIX) for a, _, _ in couplings
     ]

@@ -59,6 +59,7 @@ import mujoco
 import numpy as np
 from gaitforge.workers.bodies.functions import Linear, Spline, evaluate
 from gaitforge.workers.bodies.schema import Body
+from gaitforge.workers.sim.mjcf_lock import joint_couplings
 from numpy.polynomial.polynomial import polyder, polyfit, polyval
 
 logger = logging.getLogger(__name__)
@@ -219,23 +220,6 @@ def _add_coupling(
     )
 
 
-def _couplings(model: mujoco.MjModel) -> list[tuple[int, int, np.ndarray]]:
-    """``(coupled joint, driver joint, a0..a4)`` of every active ``couple_*`` equality."""
-    found = []
-    for i in range(model.neq):
-        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, i) or ""
-        if (
-            name.startswith(COUPLING_PREFIX)
-            and model.eq_type[i] == mujoco.mjtEq.mjEQ_JOINT
-            and model.eq_active0[i]
-            and model.eq_obj2id[i] >= 0
-        ):
-            found.append(
-                (int(model.eq_obj1id[i]), int(model.eq_obj2id[i]), model.eq_data[i, :5].copy())
-            )
-    return found
-
-
 def set_coupled_qpos(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     """Set every coupled joint's ``qpos`` (and ``qvel``) from its driver by the polynomial.
 
@@ -245,7 +229,7 @@ def set_coupled_qpos(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     call ``mj_forward`` (or ``mj_kinematics``) afterwards for positions that depend on it.
     Joint equalities not made by :func:`add_couplings` (MyoSuite's) are left alone.
     """
-    for coupled, driver, coefficients in _couplings(model):
+    for coupled, driver, coefficients in joint_couplings(model, COUPLING_PREFIX):
         qc, qd = model.jnt_qposadr[coupled], model.jnt_qposadr[driver]
         x = data.qpos[qd] - model.qpos0[qd]
         data.qpos[qc] = model.qpos0[qc] + polyval(x, coefficients)

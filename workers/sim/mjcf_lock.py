@@ -37,12 +37,17 @@ def _name(model: mujoco.MjModel, obj: mujoco.mjtObj, idx: int) -> str:
     return mujoco.mj_id2name(model, obj, idx) or ""
 
 
-def _joint_couplings(model: mujoco.MjModel) -> list[tuple[int, int, np.ndarray]]:
-    """Active joint couplings as ``(driven joint, driver joint or -1, polycoef[5])``."""
+def joint_couplings(
+    model: mujoco.MjModel, name_prefix: str = ""
+) -> list[tuple[int, int, np.ndarray]]:
+    """Active joint couplings as ``(driven joint, driver joint or -1, polycoef[5])``: every
+    ``<equality><joint>`` whose name starts with ``name_prefix`` (all of them by default)."""
     return [
         (int(model.eq_obj1id[i]), int(model.eq_obj2id[i]), model.eq_data[i, :5].copy())
         for i in range(model.neq)
-        if model.eq_type[i] == mujoco.mjtEq.mjEQ_JOINT and model.eq_active0[i]
+        if model.eq_type[i] == mujoco.mjtEq.mjEQ_JOINT
+        and model.eq_active0[i]
+        and _name(model, mujoco.mjtObj.mjOBJ_EQUALITY, i).startswith(name_prefix)
     ]
 
 
@@ -71,7 +76,7 @@ def coupled_qpos(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
         A copy of ``qpos`` that satisfies the joint couplings.
     """
     out = np.array(qpos, dtype=float, copy=True)
-    couplings = _joint_couplings(model)
+    couplings = joint_couplings(model)
     for _ in range(max(1, len(couplings))):  # a chain of n couplings settles in n passes
         before = out.copy()
         for driven, driver, coef in couplings:
@@ -200,7 +205,7 @@ def lock_joints(spec: mujoco.MjSpec, values: dict[str, float]) -> list[str]:
         locked[jid] = float(value)
 
     # Propagate through joint couplings (driver locked -> driven locked at coupled value).
-    couplings = _joint_couplings(model)
+    couplings = joint_couplings(model)
     changed = True
     while changed:
         changed = False

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import mujoco
 import numpy as np
-from gaitforge.workers.sim.mjcf_lock import _HINGE_SLIDE, _joint_couplings, _name, coupled_qpos
+from gaitforge.workers.sim.mjcf_lock import _HINGE_SLIDE, _name, coupled_qpos, joint_couplings
 
 logger = logging.getLogger(__name__)
 
@@ -84,7 +84,7 @@ def _coupling_map(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
     independent coordinates.
     """
     T = np.eye(model.nv)
-    couplings = _joint_couplings(model)
+    couplings = joint_couplings(model)
     driven_dofs = [model.jnt_dofadr[d] for d, _, _ in couplings]
     T[:, driven_dofs] = 0.0
     for _ in range(max(1, len(couplings))):
@@ -132,7 +132,7 @@ def muscle_moment_arms(
 
 
 def _spannable_joints(model: mujoco.MjModel) -> list[int]:
-    driven = {d for d, _, _ in _joint_couplings(model)}
+    driven = {d for d, _, _ in joint_couplings(model)}
     return [
         j for j in range(model.njnt) if int(model.jnt_type[j]) in _HINGE_SLIDE and j not in driven
     ]
