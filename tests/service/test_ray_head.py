@@ -219,7 +219,7 @@ def test_an_unreachable_cluster_fails_the_running_job_later_and_the_queue_waits_
     runner.reconcile()  # it answers again; the first attempt still runs there: stopped first
     assert runner.ray_state == "ok" and store.get(record.id).state == "queued"
     client = cluster.client
-    _wait("the first attempt stopped", lambda: client.get_job_status(first).is_terminal(), 30)
+    _wait("the first attempt stopped", lambda: client.get_job_status(first).is_terminal(), 90)
     runner.reconcile()
     second = store.get(record.id)
     assert second.state == "running" and second.attempt == 2, second
