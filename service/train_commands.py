@@ -11,6 +11,7 @@ work is :mod:`gaitforge.service.ops.train`'s; this parses and shows progress.
 from __future__ import annotations
 
 import logging
+import shlex
 import signal
 from pathlib import Path
 from typing import Annotated
@@ -92,6 +93,26 @@ class TrainDisplay:
         )
         table.add_row("health (this batch)", health)
         return table
+
+
+def resume_command(
+    job_file: Path,
+    run_dir: Path,
+    seed: int | None,
+    budget_scale: float,
+    set_fields: list[str] | None,
+) -> str:
+    """The ``gaitforge train`` command that goes on from ``run_dir``'s newest checkpoint with
+    the same job: the options that change the job (``--seed``, ``--budget-scale``, ``--set``)
+    repeated, each word quoted for a POSIX shell."""
+    words = ["gaitforge", "train", str(job_file), "--run-dir", str(run_dir)]
+    if seed is not None:
+        words += ["--seed", str(seed)]
+    if budget_scale != 1.0:
+        words += ["--budget-scale", repr(budget_scale)]
+    for assignment in set_fields or []:
+        words += ["--set", assignment]
+    return shlex.join(words)
 
 
 def train(
@@ -185,7 +206,7 @@ def train(
         out.print(
             f"{signals.first.name if signals.first else 'stop'}: stopped after iteration "
             f"{result.iteration} ({result.env_steps:,} env steps); checkpoint: {where} "
-            f"(resume: gaitforge train {job_file} --run-dir {result.run_dir})",
+            f"(resume: {resume_command(job_file, result.run_dir, seed, budget_scale, set_fields)})",
             soft_wrap=True,
             highlight=False,
         )

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import json
+import shlex
 from pathlib import Path
 
 import pytest
+import typer
 from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint
 from gaitforge.service.cli import app
+from gaitforge.service.train_commands import resume_command
 from typer.testing import CliRunner
 
 runner = CliRunner()
@@ -94,6 +97,23 @@ def test_seed_and_set_override_the_job_file(tmp_path: Path) -> None:
     meta = _newest_meta(tmp_path)
     assert meta.job["seed"] == 7 and meta.job["ppo"]["epochs"] == 2
     assert meta.scene["episode_s"] == 1.5
+
+
+def test_the_resume_hint_repeats_the_options_that_change_the_job(tmp_path: Path) -> None:
+    """The command printed at a stop, parsed by ``gaitforge train``'s own parser, gives the
+    job, run directory, seed, budget scale and overrides it stopped with."""
+    job, run_dir = tmp_path / "my jobs" / "job.yaml", tmp_path / "run"
+    overrides = ["ppo.epochs=2", "stages.0.scene_set={episode_s: 1.5}"]
+    hint = resume_command(job, run_dir, 7, 0.5, overrides)
+    words = shlex.split(hint)
+    assert words[:2] == ["gaitforge", "train"]
+    group = typer.main.get_command(app)
+    train = group.get_command(group.make_context("gaitforge", ["train", "--help"]), "train")
+    params = train.make_context("train", words[2:]).params
+    assert (params["job_file"], params["run_dir"]) == (job, run_dir)
+    assert (params["seed"], params["budget_scale"], params["set_fields"]) == (7, 0.5, overrides)
+    plain = shlex.split(resume_command(job, run_dir, None, 1.0, None))
+    assert plain == ["gaitforge", "train", str(job), "--run-dir", str(run_dir)]
 
 
 @pytest.mark.parametrize(
