@@ -204,7 +204,8 @@ class StageEvaluation(StrictSpec):
     ``scene_set`` (its fidelity, control-rate and action overrides are not applied); None:
     the stage's own scene as trained"""
     episodes: Annotated[int, Field(ge=1, le=10_000)] = 50
-    """episodes per evaluation (seeds ``EVALUATION_SEED`` + i, the same at every evaluation)"""
+    """episodes per evaluation (seeds ``EVALUATION_SEED`` + i, the same at every evaluation),
+    and per confirmation of an evaluation that promotes (fresh seeds each time)"""
     every_env_steps: Annotated[int, Field(ge=1)] = 200_000
     """env steps of the stage between evaluations (the first follows its first update, the
     last its end)"""

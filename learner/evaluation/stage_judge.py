@@ -11,14 +11,20 @@ can be checked on episodes it was not chosen on). The rollout actors go on sampl
 meanwhile.
 
 Each evaluation is where the stage's evaluation rules (``promote: eval.fall_rate <= 0.1``)
-are judged: the stage is promoted when they pass on it and its training rules pass on their
-windows then (``learner.curriculum.CurriculumState.verdict``).
+are judged: the stage is promoted when they pass on it, its training rules pass on their
+windows then (``learner.curriculum.CurriculumState.verdict``), and the rules pass again on a
+confirmation: as many fresh episodes (seeds ``CONFIRMATION_SEED + episodes * iteration + i``,
+a set no other evaluation of the run plays). Networks that pass the fixed set at one of many
+evaluations include some that fit its episodes: on episodes nobody picked they fall short
+(docs/results/curriculum.md). The confirmation is not chosen on, so it judges the network as
+fresh episodes would.
 
 The best network so far is saved as a checkpoint in ``run_dir/best/stage-<i>`` (its
 evaluation in ``meta.json``'s metrics, so a resumed run knows what it must beat). With
 ``keep_best`` the stage ends with that network if it beats the last one: better means more
 of the stage's promotion rules passed on the evaluation, then fewer falls, then a higher mean
-return (:func:`score`); a stage promoted on an evaluation ends with the network evaluated
+return, the worse of the evaluation and its confirmation where one ran (:func:`score`); a
+stage promoted on an evaluation ends with the network evaluated
 then, which passed its rules.
 """
 
@@ -47,6 +53,10 @@ logger = logging.getLogger(__name__)
 
 EVALUATION_SEED = 1_000_000
 """episode i of every in-training evaluation resets with this seed + i"""
+CONFIRMATION_SEED = 2_000_000
+"""episode i of the confirmation at run iteration n resets with this seed + episodes * n + i"""
+CONFIRMATION_PREFIX = "confirmation_"
+"""a confirmation's metrics are its evaluation's (``eval_*``) with this prefix"""
 
 Score = tuple[int, float, float]
 """(promotion rules passed, -fall rate, mean return): larger is better"""
@@ -67,9 +77,17 @@ def evaluation_metrics(result: ModeResult) -> dict[str, float]:
 
 def score(metrics: dict[str, float], rules: list[PromotionRule]) -> Score:
     """How good an evaluation (``eval_*`` metrics) is for a stage with promotion ``rules``
-    (each, training rules too, tested on the evaluation)."""
-    passed = sum(rule.passes(metrics[f"eval_{rule.statistic}"]) for rule in rules)
-    return passed, -metrics["eval_fall_rate"], metrics["eval_return"]
+    (each, training rules too, tested on the evaluation); where a confirmation ran
+    (``confirmation_eval_*``), the worse of the two."""
+    scores = [_score(metrics, "eval_", rules)]
+    if f"{CONFIRMATION_PREFIX}eval_return" in metrics:
+        scores.append(_score(metrics, f"{CONFIRMATION_PREFIX}eval_", rules))
+    return min(scores)
+
+
+def _score(metrics: dict[str, float], prefix: str, rules: list[PromotionRule]) -> Score:
+    passed = sum(rule.passes(metrics[f"{prefix}{rule.statistic}"]) for rule in rules)
+    return passed, -metrics[f"{prefix}fall_rate"], metrics[f"{prefix}return"]
 
 
 def judged_scene(
@@ -163,13 +181,22 @@ class StageJudge:
     def evaluate(self, policy: ActorCritic, stage_env_steps: int) -> dict[str, float]:
         """Run the evaluation of ``policy`` (mean actions); returns its ``eval_*`` metrics."""
         self._evaluated_at = stage_env_steps // self.spec.every_env_steps
+        return self._play(policy, EVALUATION_SEED, "evaluation")
+
+    def confirm(self, policy: ActorCritic, iteration: int) -> dict[str, float]:
+        """Run the confirmation of ``policy``, which passed its evaluation at run
+        ``iteration``, on fresh episodes; returns its ``eval_*`` metrics."""
+        seed = CONFIRMATION_SEED + self.spec.episodes * iteration
+        return self._play(policy, seed, "confirmation")
+
+    def _play(self, policy: ActorCritic, seed: int, what: str) -> dict[str, float]:
         result = evaluate_policy(
             policy,
             self.scene,
             self.backend,
             episodes=self.spec.episodes,
-            seed=EVALUATION_SEED,
-            label=f"evaluation on {self.scene.name}",
+            seed=seed,
+            label=f"{what} on {self.scene.name}",
         )
         return evaluation_metrics(result)
 

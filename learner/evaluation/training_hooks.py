@@ -7,7 +7,8 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from gaitforge.learner.evaluation.stage_judge import StageJudge
+from gaitforge.learner.curriculum import PROMOTED
+from gaitforge.learner.evaluation.stage_judge import CONFIRMATION_PREFIX, StageJudge
 from gaitforge.learner.hooks import Checkpoints, TrainingHook, recording_due
 from gaitforge.learner.policy import ActorCritic
 from gaitforge.learner.run_state import RunState
@@ -22,7 +23,8 @@ class StageJudging(TrainingHook):
     (:class:`StageJudge`, keeping its best network in ``run_dir/best/stage-<i>``): after the
     stage's first update, every ``evaluate.every_env_steps`` and at its end, into the
     iteration's metrics (``eval_*``). Each evaluation judges the stage's promotion rules again,
-    its evaluation rules (``eval.*``) on it, into ``metrics["verdict"]``. A ``keep_best``
+    its evaluation rules (``eval.*``) on it, into ``metrics["verdict"]``; where they pass, a
+    confirmation on fresh episodes (``confirmation_eval_*``) must pass them too. A ``keep_best``
     stage that ends with a network worse than its best goes on from the best, unless it was
     promoted on that evaluation.
 
@@ -60,9 +62,33 @@ class StageJudging(TrainingHook):
         metrics.update(evaluation)
         run.curriculum.evaluation = evaluation
         metrics["verdict"] = run.curriculum.verdict(run.stage, evaluation)
+        if judge.promoted_on_evaluation(metrics["verdict"]):
+            self._confirm(judge, run, metrics)
         best = judge.judge(run.policy, metrics, run.meta(metrics), run.env_steps)
         if best is not None:
             run.switch_policy(best, run.stage_io)
+
+    @staticmethod
+    def _confirm(judge: StageJudge, run: RunState, metrics: dict) -> None:
+        """Play ``run``'s policy, which passed its evaluation, on fresh episodes; the stage is
+        promoted only if the rules pass there too (``metrics``' verdict then names both)."""
+        passed = metrics["verdict"]
+        confirmation = judge.confirm(run.policy, run.iteration)
+        metrics.update({f"{CONFIRMATION_PREFIX}{k}": v for k, v in confirmation.items()})
+        confirmed = run.curriculum.verdict(run.stage, confirmation)
+        if judge.promoted_on_evaluation(confirmed):
+            metrics["verdict"] = f"{passed}; confirmed: {confirmed.removeprefix(PROMOTED)}"
+            return
+        metrics["verdict"] = confirmed
+        logger.info(
+            "stage %d: %s on its evaluation; not promoted: on fresh episodes speed %.3g m/s, "
+            "falls %.3g, return %.3g",
+            run.curriculum.stage,
+            passed.removeprefix(PROMOTED),
+            confirmation["eval_speed"],
+            confirmation["eval_fall_rate"],
+            confirmation["eval_return"],
+        )
 
 
 class Recordings(TrainingHook):

@@ -1,7 +1,8 @@
 """Promotion on a stage's deterministic evaluation: ``eval.*`` rules, how they are written and
 checked, the verdict they give at an evaluation, and real short runs that promote on one, run
 to their budget when one cannot pass (or, with ``if_not_promoted: fail``, end the job saying
-which rule fell short and by how much), and end with the network that passed."""
+which rule fell short and by how much), promote only when fresh episodes confirm the pass,
+and end with the network that passed."""
 
 from __future__ import annotations
 
@@ -12,9 +13,17 @@ import pytest
 import torch
 from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint
 from gaitforge.learner.curriculum import CurriculumState, EpisodeStats, StageShortfallError
-from gaitforge.learner.evaluation.stage_judge import score
+from gaitforge.learner.evaluation.episodes import evaluate_policy
+from gaitforge.learner.evaluation.stage_judge import (
+    CONFIRMATION_SEED,
+    EVALUATION_SEED,
+    evaluation_metrics,
+    score,
+)
 from gaitforge.learner.job import Job, PromotionRule, Stage, load_job
+from gaitforge.learner.policy import ActorCritic
 from gaitforge.learner.trainer import Trainer
+from gaitforge.workers.scenes import load_scene
 from gaitforge.workers.spec_io import SpecError
 
 BATCH = 256
@@ -207,15 +216,32 @@ def _job(promote: object, env_steps: int = 4 * BATCH, every: int = EVERY, **stag
     )
 
 
-def test_a_stage_promotes_at_its_first_evaluation(tmp_path: Path) -> None:
+def _played(policy: ActorCritic, seed: int) -> dict[str, float]:
+    """``policy``'s evaluation metrics on elbow-reach, episodes ``seed .. seed + EPISODES - 1``."""
+    return evaluation_metrics(
+        evaluate_policy(policy, load_scene("elbow-reach"), episodes=EPISODES, seed=seed)
+    )
+
+
+def test_a_stage_promotes_at_its_first_evaluation_once_fresh_episodes_confirm_it(
+    tmp_path: Path,
+) -> None:
     trainer = Trainer(_job("eval.fall_rate <= 1.0"), tmp_path, tensorboard=False)
     history = trainer.run()
     assert trainer.done
     assert len(history) == 1, "the first evaluation follows the first update"
     (only,) = history
-    fall_rate = only["eval_fall_rate"]
-    assert only["verdict"] == f"promoted: eval.fall_rate {fall_rate:.3g} <= 1"
+    fall_rate, confirmed = only["eval_fall_rate"], only["confirmation_eval_fall_rate"]
+    assert only["verdict"] == (
+        f"promoted: eval.fall_rate {fall_rate:.3g} <= 1; confirmed: eval.fall_rate "
+        f"{confirmed:.3g} <= 1"
+    )
     assert only["stage_env_steps"] == BATCH
+    # the confirmation played the promoted network on its own episodes (run iteration 1)
+    fresh = _played(trainer.policy, CONFIRMATION_SEED + EPISODES * 1)
+    assert only["confirmation_eval_return"] == pytest.approx(fresh["eval_return"])
+    again = _played(trainer.policy, EVALUATION_SEED)
+    assert only["eval_return"] == pytest.approx(again["eval_return"])
     _, meta = load_checkpoint(latest_checkpoint(tmp_path / "checkpoints"))
     assert meta.metrics["verdict"] == only["verdict"]
     assert (tmp_path / "recordings").is_dir(), "a stage's end is recorded"
@@ -238,6 +264,26 @@ def test_a_stage_whose_evaluation_rule_cannot_pass_runs_to_its_budget(
     evaluated = [h["stage_env_steps"] for h in history if "eval_return" in h]
     assert evaluated == [BATCH, 2 * BATCH, 4 * BATCH], "first update, 512, and the end at 1024"
     assert history[-1]["stage_env_steps"] >= 4 * BATCH
+
+
+def test_a_pass_that_fresh_episodes_do_not_confirm_does_not_promote(tmp_path: Path) -> None:
+    """A one-update stage whose rule lies between its network's return on the evaluation's
+    episodes and on the confirmation's: it passes the evaluation, fails the confirmation, and
+    the stage ends unpromoted; the network is scored by the worse of the two."""
+    probe = Trainer(
+        _job("eval.return >= 1e9", env_steps=BATCH), tmp_path / "probe", tensorboard=False
+    )
+    (probed,) = probe.run()
+    evaluated = probed["eval_return"]
+    confirmed = _played(probe.policy, CONFIRMATION_SEED + EPISODES * 1)["eval_return"]
+    assert evaluated != pytest.approx(confirmed), "the two episode sets differ"
+    op = ">=" if evaluated > confirmed else "<="
+    job = _job(f"eval.return {op} {(evaluated + confirmed) / 2!r}", env_steps=BATCH)
+    (only,) = Trainer(job, tmp_path / "run", tensorboard=False).run()
+    assert only["eval_return"] == pytest.approx(evaluated), "the same network as the probe's"
+    assert only["confirmation_eval_return"] == pytest.approx(confirmed)
+    assert only["verdict"] == "budget spent"
+    assert score(only, job.stages[0].promote)[0] == 0, "scored by the failed confirmation"
 
 
 def test_a_stage_that_must_promote_ends_the_job_at_its_budget(tmp_path: Path) -> None:
