@@ -80,15 +80,6 @@ class StageJudging(TrainingHook):
             metrics["verdict"] = f"{passed}; confirmed: {confirmed.removeprefix(PROMOTED)}"
             return
         metrics["verdict"] = confirmed
-        logger.info(
-            "stage %d: %s on its evaluation; not promoted: on fresh episodes speed %.3g m/s, "
-            "falls %.3g, return %.3g",
-            run.curriculum.stage,
-            passed.removeprefix(PROMOTED),
-            confirmation["eval_speed"],
-            confirmation["eval_fall_rate"],
-            confirmation["eval_return"],
-        )
 
 
 class Recordings(TrainingHook):

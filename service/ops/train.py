@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from gaitforge.learner.evaluation.stage_judge import CONFIRMATION_PREFIX
 from gaitforge.learner.job import Job, load_job, resolve_scenes, with_evaluation_paths
 from gaitforge.workers.overrides import set_fields
 from gaitforge.workers.spec_io import validate_model
@@ -247,13 +248,20 @@ def start_line(training: Training) -> str:
 
 def status_line(m: dict) -> str:
     """One line of an iteration's metrics: stage, env steps, speed, return, falls, and the
-    stage's deterministic evaluation where one ran (``learner.evaluation.stage_judge``)."""
+    stage's deterministic evaluation where one ran (``learner.evaluation.stage_judge``), with
+    its confirmation on fresh episodes where it passed (promoted only if that passes too)."""
     verdict = f" ({m['verdict']})" if m.get("verdict") else ""
     evaluated = ""
     if "eval_fall_rate" in m:
         evaluated = (
             f"; evaluated: return {m['eval_return']:.1f}, speed {m['eval_speed']:.2f} m/s, "
             f"falls {100 * m['eval_fall_rate']:.0f} %"
+        )
+    confirmation = f"{CONFIRMATION_PREFIX}eval_fall_rate"
+    if confirmation in m:
+        evaluated += (
+            f"; on fresh episodes: speed {m[f'{CONFIRMATION_PREFIX}eval_speed']:.2f} m/s, "
+            f"falls {100 * m[confirmation]:.0f} %"
         )
     if "kept_best_from_env_steps" in m:
         evaluated += (

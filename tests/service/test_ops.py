@@ -158,6 +158,30 @@ def test_progress_log_at_most_once_per_period_and_at_stage_ends(
     ]
 
 
+
+def test_the_status_line_gives_an_evaluation_and_its_confirmation_on_fresh_episodes() -> None:
+    evaluated = {
+        "stage": 3,
+        "stage_name": "run",
+        "iteration": 40,
+        "env_steps": 8192,
+        "stage_env_steps": 4096,
+        "steps_per_s": 1000.0,
+        "return": 300.0,
+        "speed": 2.9,
+        "fall_rate": 0.1,
+        "verdict": None,
+        "eval_return": 350.0,
+        "eval_speed": 3.05,
+        "eval_fall_rate": 0.08,
+        "confirmation_eval_speed": 2.98,
+        "confirmation_eval_fall_rate": 0.12,
+    }
+    assert train_ops.status_line(evaluated).endswith(
+        "; evaluated: return 350.0, speed 3.05 m/s, falls 8 %; on fresh episodes: speed "
+        "2.98 m/s, falls 12 %"
+    )
+
 def test_evaluation_errors_are_typed(tmp_path: Path) -> None:
     request = evaluate_ops.EvaluateRequest(checkpoint=tmp_path / "missing")
     with pytest.raises(EvaluationError, match="no such file"):
