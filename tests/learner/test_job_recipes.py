@@ -60,7 +60,7 @@ def test_the_curriculum_promotes_each_task_stage_on_its_evaluation_or_ends() -> 
     judged = "on the stage's evaluation"
     assert rules["walk"] == [f"eval.fall_rate <= 0.1 {judged}", f"eval.speed >= 1 {judged}"]
     assert rules["run"] == [f"eval.fall_rate <= 0.1 {judged}", f"eval.speed >= 3 {judged}"]
-    assert rules["obstacles"] == [f"eval.fall_rate <= 0.1 {judged}", f"eval.speed >= 2 {judged}"]
+    assert rules["obstacles"] == [f"eval.fall_rate <= 0.07 {judged}", f"eval.speed >= 2 {judged}"]
 
 
 def test_set_changes_one_field_of_the_job_it_extends() -> None:
