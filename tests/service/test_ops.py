@@ -158,7 +158,6 @@ def test_progress_log_at_most_once_per_period_and_at_stage_ends(
     ]
 
 
-
 def test_the_status_line_gives_an_evaluation_and_its_confirmation_on_fresh_episodes() -> None:
     evaluated = {
         "stage": 3,
@@ -181,6 +180,7 @@ def test_the_status_line_gives_an_evaluation_and_its_confirmation_on_fresh_episo
         "; evaluated: return 350.0, speed 3.05 m/s, falls 8 %; on fresh episodes: speed "
         "2.98 m/s, falls 12 %"
     )
+
 
 def test_evaluation_errors_are_typed(tmp_path: Path) -> None:
     request = evaluate_ops.EvaluateRequest(checkpoint=tmp_path / "missing")
