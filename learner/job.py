@@ -67,6 +67,7 @@ __all__ = [
     "WorkersSpec",
     "check_warm_start",
     "evaluation_scene",
+    "job_changes",
     "load_job",
     "resolve_scenes",
     "with_evaluation_paths",
@@ -158,6 +159,25 @@ class Job(StrictSpec):
         if self.init_from_action_std is not None and self.init_from is None:
             raise ValueError("init_from_action_std: only with init_from (a network to reset)")
         return self
+
+
+def job_changes(saved: Any, given: Any, path: str = "") -> list[str]:
+    """Where job dump ``given`` differs from ``saved`` (both ``Job.model_dump(mode="json")``,
+    e.g. a checkpoint's job and the one a resume was given): one ``path: saved -> given``
+    per differing value, with dict keys and list positions in the dotted path."""
+    if isinstance(saved, dict) and isinstance(given, dict):
+        return [
+            change
+            for key in sorted(saved.keys() | given.keys())
+            for change in job_changes(saved.get(key), given.get(key), f"{path}{key}.")
+        ]
+    if isinstance(saved, list) and isinstance(given, list) and len(saved) == len(given):
+        return [
+            change
+            for index, (before, after) in enumerate(zip(saved, given, strict=True))
+            for change in job_changes(before, after, f"{path}{index}.")
+        ]
+    return [] if saved == given else [f"{path.rstrip('.')}: {saved!r} -> {given!r}"]
 
 
 def load_job(path: Path, overrides: dict[str, Any] | None = None) -> tuple[Job, list[Scene]]:

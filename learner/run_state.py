@@ -11,12 +11,13 @@ import logging
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import torch
 from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint, restore_optimizer
 from gaitforge.learner.checkpoint_meta import CheckpointMeta
 from gaitforge.learner.curriculum import CurriculumState, StageIO, check_stages
-from gaitforge.learner.job import Job, Stage
+from gaitforge.learner.job import Job, Stage, job_changes
 from gaitforge.learner.policy import ActorCritic, GaussianPolicy, build_policy
 from gaitforge.learner.ppo import PPO, PPOSettings
 from gaitforge.learner.sampling import Rollouts
@@ -25,6 +26,9 @@ from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
+
+MAX_CHANGES_LOGGED = 6
+"""changes of the job at a resume named in its warning; the rest are counted"""
 
 
 class RunState:
@@ -192,6 +196,7 @@ class RunState:
             return
         state, meta = load_checkpoint(latest)
         meta.check_resumable(latest)
+        self._warn_of_job_changes(meta.job, latest)
         policy = build_policy(meta.network)
         policy.load_state_dict(state)
         self.ppo = self.new_ppo(policy)
@@ -211,6 +216,22 @@ class RunState:
             self.iteration,
             self.env_steps,
         )
+
+    def _warn_of_job_changes(self, saved: dict[str, Any] | None, latest: Path) -> None:
+        """Log what the job given to a resume changes in the one checkpoint ``latest`` trained
+        (a seed or override left out of the command, or a rule changed on purpose): the run
+        goes on with the job given."""
+        changes = job_changes(saved, self.job.model_dump(mode="json")) if saved else []
+        if changes:
+            shown = "; ".join(changes[:MAX_CHANGES_LOGGED])
+            more = len(changes) - MAX_CHANGES_LOGGED
+            logger.warning(
+                "resuming %s with a job that differs from the one it trained (%s%s); the run "
+                "goes on with the job given",
+                latest,
+                shown,
+                f"; and {more} more" if more > 0 else "",
+            )
 
     def _init_from(self, path: Path) -> None:
         """The first network from checkpoint ``path`` (``job.init_from``; see

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import logging
 import shlex
 from pathlib import Path
 
@@ -52,6 +53,34 @@ def test_train_runs_a_job_and_resumes_from_its_run_dir(tmp_path: Path) -> None:
     again = runner.invoke(app, args, env={"COLUMNS": "200"})
     assert again.exit_code == 0, again.output
     assert _newest_meta(tmp_path).iteration == 4, "the second run went on from the first's"
+
+
+def test_a_resume_with_another_job_names_what_changed(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The checkpoint records the job it trained: a resume given another seed and override
+    says which fields changed, old and new, and goes on with the job given."""
+    args = _train_args(tmp_path, "--max-iterations", "1")
+    assert runner.invoke(app, args, env={"COLUMNS": "200"}).exit_code == 0
+    caplog.set_level(logging.WARNING, logger="gaitforge.learner.run_state")
+    changed = [*args[:-1], "--seed", "7", "--set", "ppo.epochs=2", "--no-tensorboard"]
+    again = runner.invoke(app, changed, env={"COLUMNS": "200"})
+    assert again.exit_code == 0, again.output
+    warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(warnings) == 1 and "differs from the one it trained" in warnings[0]
+    assert "ppo.epochs: 1 -> 2" in warnings[0] and "seed: 0 -> 7" in warnings[0]
+    meta = _newest_meta(tmp_path)
+    assert meta.iteration == 2 and meta.job["seed"] == 7, "the run went on with the job given"
+
+
+def test_a_resume_with_the_same_job_warns_of_nothing(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    args = _train_args(tmp_path, "--max-iterations", "1")
+    assert runner.invoke(app, args, env={"COLUMNS": "200"}).exit_code == 0
+    caplog.set_level(logging.WARNING, logger="gaitforge.learner.run_state")
+    assert runner.invoke(app, args, env={"COLUMNS": "200"}).exit_code == 0
+    assert not [r for r in caplog.records if "differs" in r.getMessage()]
 
 
 def test_max_minutes_stops_training_with_a_checkpoint(tmp_path: Path) -> None:
