@@ -4,10 +4,12 @@ on as the catalogue composes it (the stage's ``scene_set`` left out: the scene t
 names for it), ``--episodes`` deterministic episodes from ``--seed``; a stage whose scene
 draws its target speed on ``--sweep-episodes`` episodes instead, also swept at 0 / 10 / 20 /
 30 % slower. One table: falls and mean speed per run and stage, and the median over the
-runs.
+runs. ``--reports DIR`` also keeps each stage's whole evaluation report
+(``DIR/<label>/<stage>.json``, as ``gaitforge evaluate --json-out`` writes it), the one
+``gaitforge ship --evaluation`` cites.
 
 Usage: python bench/curriculum_judge.py RUN [RUN ...] [--labels seed-0 ...] [--episodes 100]
-           [--sweep-episodes 300] [--seed 0] [--json-out judged.json]
+           [--sweep-episodes 300] [--seed 0] [--json-out judged.json] [--reports DIR]
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from typing import Any
 from curriculum_run import job_stages
 from gaitforge.learner.checkpoint import latest_checkpoint
 from gaitforge.learner.evaluation.evaluate import evaluate_checkpoint
-from gaitforge.learner.evaluation.results import ModeResult
+from gaitforge.learner.evaluation.results import EvaluationReport, ModeResult, write_json
 from gaitforge.workers.scenes import load_scene
 from rich.console import Console
 from rich.table import Table
@@ -58,23 +60,27 @@ def figures(result: ModeResult) -> dict[str, Any]:
     }
 
 
-def judge_stage(
+def evaluate_stage(
     checkpoint: Path, scene: str, episodes: int, sweep_episodes: int, seed: int
-) -> dict[str, Any]:
-    """``checkpoint`` on catalogue ``scene``: its figures over ``episodes`` episodes or, if
-    the scene draws its target speed, over ``sweep_episodes`` with the sweep's (each point's
-    target in m/s) from the same evaluation."""
+) -> EvaluationReport:
+    """``checkpoint`` on catalogue ``scene`` over ``episodes`` deterministic episodes or, if
+    the scene draws its target speed, over ``sweep_episodes`` with the sweep."""
     sweeps = load_scene(scene).task.target_speed_range is not None
-    report = evaluate_checkpoint(
+    return evaluate_checkpoint(
         checkpoint,
         scene=scene,
         episodes=sweep_episodes if sweeps else episodes,
         seed=seed,
         sweep=SWEEP if sweeps else None,
     )
+
+
+def judge_stage(checkpoint: Path, scene: str, report: EvaluationReport) -> dict[str, Any]:
+    """The figures of ``checkpoint``'s ``report`` on ``scene``, and the sweep's (each
+    point's target in m/s) if it was swept."""
     judged = {"checkpoint": str(checkpoint), "scene": scene}
     judged.update(figures(report.results["deterministic"]))
-    if sweeps:
+    if report.sweep:
         judged["sweep"] = [
             {"target_m_s": point.target_speed_m_s, **figures(point.result)}
             for point in report.sweep
@@ -137,6 +143,7 @@ def main() -> None:
     parser.add_argument("--sweep-episodes", type=int, default=300)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json-out", type=Path)
+    parser.add_argument("--reports", type=Path, help="keep each stage's evaluation report here")
     args = parser.parse_args()
     labels = args.labels or [run.name for run in args.runs]
     if len(labels) != len(args.runs):
@@ -150,9 +157,12 @@ def main() -> None:
                 console.print(f"{label}: stage {index} {name}: no best network kept")
                 continue
             console.print(f"{label}: stage {index} {name} on {scene} ...")
-            judged[label][name] = judge_stage(
+            report = evaluate_stage(
                 checkpoint, scene, args.episodes, args.sweep_episodes, args.seed
             )
+            judged[label][name] = judge_stage(checkpoint, scene, report)
+            if args.reports is not None:
+                write_json(report, args.reports / label / f"{name}.json")
     console.print(table(judged))
     if args.json_out is not None:
         args.json_out.write_text(json.dumps(judged, indent=2) + "\n")
