@@ -164,20 +164,41 @@ class Job(StrictSpec):
 def job_changes(saved: Any, given: Any, path: str = "") -> list[str]:
     """Where job dump ``given`` differs from ``saved`` (both ``Job.model_dump(mode="json")``,
     e.g. a checkpoint's job and the one a resume was given): one ``path: saved -> given``
-    per differing value, with dict keys and list positions in the dotted path."""
+    per differing value, with dict keys and list positions in the dotted path. A list of
+    mappings (``stages``, ``promote``) that grew or shrank is said as its count of entries,
+    the changes in the positions both have, then each entry only one has (by its name where
+    it has one)."""
     if isinstance(saved, dict) and isinstance(given, dict):
         return [
             change
             for key in sorted(saved.keys() | given.keys())
             for change in job_changes(saved.get(key), given.get(key), f"{path}{key}.")
         ]
-    if isinstance(saved, list) and isinstance(given, list) and len(saved) == len(given):
-        return [
-            change
-            for index, (before, after) in enumerate(zip(saved, given, strict=True))
-            for change in job_changes(before, after, f"{path}{index}.")
-        ]
+    if isinstance(saved, list) and isinstance(given, list):
+        mappings = any(isinstance(entry, dict) for entry in saved + given)
+        if len(saved) == len(given) or mappings:
+            changes = [
+                change
+                for index, (before, after) in enumerate(zip(saved, given, strict=False))
+                for change in job_changes(before, after, f"{path}{index}.")
+            ]
+            if len(saved) == len(given):
+                return changes
+            count = f"{path.rstrip('.')}: {len(saved)} entries -> {len(given)}"
+            longer, word = (saved, "removed") if len(saved) > len(given) else (given, "added")
+            only = [
+                f"{path}{index}: {word} {_entry_label(longer[index])}"
+                for index in range(min(len(saved), len(given)), len(longer))
+            ]
+            return [count, *changes, *only]
     return [] if saved == given else [f"{path.rstrip('.')}: {saved!r} -> {given!r}"]
+
+
+def _entry_label(entry: Any) -> str:
+    """A list entry as a change names it: a mapping with a name by its name, else whole."""
+    if isinstance(entry, dict) and entry.get("name"):
+        return repr(entry["name"])
+    return repr(entry)
 
 
 def load_job(path: Path, overrides: dict[str, Any] | None = None) -> tuple[Job, list[Scene]]:
