@@ -7,10 +7,10 @@ slows when asked are the four task stages of one uninterrupted run of
 1.10 m/s); the runner runs run-2d+clock+one-leg+forward, the clock leading with the same leg
 every start (9 % falls at 2.97 m/s: run-2d's target is 3 m/s at 10 %); the obstacle runner
 runs that scene with obstacles (11 % falls at 3.88 m/s: obstacles-2d's target is 2 m/s at
-10 %); the runner that slows when asked runs it with speed-range in place of forward, the
-target speed drawn from 1.5 to 3 m/s (2 falls in 300 at 2.34 m/s). The walker fine-tuned on
-OpenSim (from the walker shipped before) walks there (real OpenSim, 23 % falls at
-1.19 m/s)."""
+10 %); the runner that slows when asked runs it with speed-range in place of forward
+(trained on targets drawn from 1.5 to 3 m/s; 2 falls in 300 at 2.34 m/s on the catalogue's
+draws of 2 to 3). The walker fine-tuned on OpenSim (from the walker shipped before) walks
+there (real OpenSim, 23 % falls at 1.19 m/s)."""
 
 from __future__ import annotations
 
