@@ -30,6 +30,7 @@ from gaitforge.workers.sim.mujoco_drawing import body_frames, muscle_paths
 from gaitforge.workers.sim.mujoco_pose import PoseSetter
 from gaitforge.workers.sim.mujoco_warnings import route_warnings
 from gaitforge.workers.sim.opensim_laws import OpenSimLaws
+from gaitforge.workers.sim.upright import UprightHold
 
 logger = logging.getLogger(__name__)
 route_warnings()  # MuJoCo's warnings to logging, not to MUJOCO_LOG.TXT in the cwd
@@ -118,6 +119,19 @@ class MujocoSimulator:
         self._foot_geoms = [
             np.flatnonzero(self._geom_foot == k) for k in range(len(self.foot_names))
         ]
+        assist = scene.task.assist
+        self._hold = (
+            UprightHold(
+                assist,
+                self._pelvis,
+                (self.up_axis, self.forward_axis),
+                PELVIS_UP,
+                scene.task.target_speed or 0.0,
+            )
+            if assist is not None and assist.active and self._pelvis >= 0
+            else None
+        )
+        """the pelvis's hold and push (``task.assist``), None without"""
         self._poser = PoseSetter(
             m,
             self.dof_names,
@@ -153,7 +167,13 @@ class MujocoSimulator:
         m, d = self.model, self.data
         t0 = self._start_step()
         d.ctrl[:] = np.clip(np.nan_to_num(excitations, nan=0.0), 0.0, 1.0)
-        self.opensim_laws.advance(m, d, max(1, round(duration / m.opt.timestep)))
+        steps = max(1, round(duration / m.opt.timestep))
+        if self._hold is None:
+            self.opensim_laws.advance(m, d, steps)
+        else:
+            for _ in range(steps):
+                self._hold.apply(m, d)
+                self.opensim_laws.advance(m, d, 1)
         return self._health(t0)
 
     def step_reflex(
@@ -169,6 +189,8 @@ class MujocoSimulator:
             excitation = reflex(qpos[self._qadr], qvel[self._vadr])  # finite while the state is
             total += excitation
             d.ctrl[:] = excitation
+            if self._hold is not None:
+                self._hold.apply(m, d)
             self.opensim_laws.advance(m, d, substeps)
             if not np.isfinite(qvel).all():
                 break
