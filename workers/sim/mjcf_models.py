@@ -2,18 +2,21 @@
 
 ``myo-sim`` ships MyoLeg only as include fragments (assets, kinematic chain, tendons,
 muscles) that its own composer attaches to a torso scaffold. :func:`myoleg_spec` wraps the
-fragments in a small standalone model instead: a floor, a floating root and the legs, and
-nothing else. The wrapper is an MJCF string whose ``<include>`` and ``meshdir`` entries
-are absolute paths into the installed package, so nothing is written anywhere (the
-package is only read).
+fragments in a small standalone model instead: a floor, a floating root, the legs and the
+rigid torso that MyoSuite's own walking models carry, and nothing else. The wrapper is an
+MJCF string whose ``<include>`` and ``meshdir`` entries are absolute paths into the
+installed package, so nothing is written anywhere (the package is only read).
 
 MyoLeg world frame (after our wrapper): Z up, gravity -Z (MuJoCo default), the body
 faces +X, its left is +Y. (The fragments themselves are OpenSim-style Y-up; MyoSuite's
 own models face -Y. We turn the root by +90 degrees about Z so that forward is +X.)
-Lengths are metres, angles radians, masses kilograms. Leg and pelvis only: no torso, so
-the total mass is ~38 kg.
+Lengths are metres, angles radians, masses kilograms. The torso (head, arms and trunk as
+one rigid 37.4 kg body fixed to the pelvis, no joints, no muscles) brings the total mass to
+75.2 kg, its centre of mass 0.93 m up when standing (the legs and pelvis alone: 37.8 kg,
+0.62 m up).
 
-Collision (as shipped by MyoSuite): leg capsules/ellipsoids (class ``myolegs_coll``) have
+Collision (as shipped by MyoSuite): leg and torso capsules/ellipsoids (classes
+``myolegs_coll``, ``myotorso_coll``; the torso's unnamed ones named ``torso_col<k>``) have
 ``contype=1 conaffinity=0`` so they touch the floor (``contype=conaffinity=1``) but not
 each other; bone meshes and wrap objects have ``contype=conaffinity=0`` (render only).
 """
@@ -66,6 +69,10 @@ _LEG_FRAGMENTS = (
     "myolegs_tendon.xml",
     "myolegs_muscle.xml",
 )
+_TORSO_FRAGMENTS = ("myotorso_rigid_assets.xml", "myotorso_rigid_chain.xml")
+"""MyoSuite's rigid torso (head, arms and trunk as one 37.4 kg body on the pelvis), which its
+own MyoLeg walking models carry. Its fragment turns it by -90 degrees about Z, which our
+root's +90 undoes (MyoSuite's unturned root needs a frame for it)."""
 _ROOT_QUAT = (np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5))
 """+90 degrees about Z: MyoLeg's forward (-Y as shipped) becomes +X."""
 
@@ -86,11 +93,14 @@ def myosim_models_dir() -> Path:
 def _myoleg_xml() -> str:
     models = myosim_models_dir()
     assets, chain, tendon, muscle = (models / "leg" / "assets" / f for f in _LEG_FRAGMENTS)
+    torso_dir = models / "legacy" / "torso" / "assets"
+    torso_assets, torso_chain = (torso_dir / f for f in _TORSO_FRAGMENTS)
     quat = " ".join(f"{q:.17g}" for q in _ROOT_QUAT)
     # The fragments reference meshes as "meshes/<name>.stl", relative to models/.
     return f"""<mujoco model="myoleg">
   <compiler meshdir="{models}" texturedir="{models / "textures"}"/>
   <include file="{assets}"/>
+  <include file="{torso_assets}"/>
   <asset>
     <texture name="floor_tex" type="2d" builtin="checker" rgb1=".82 .84 .86"
              rgb2=".72 .74 .76" width="256" height="256"/>
@@ -102,6 +112,7 @@ def _myoleg_xml() -> str:
           contype="1" conaffinity="1" condim="3"/>
     <body name="{ROOT_BODY}" pos="0 0 {MYOLEG_STAND_HEIGHT}" quat="{quat}">
       <freejoint name="{ROOT_JOINT}"/>
+      <include file="{torso_chain}"/>
       <include file="{chain}"/>
     </body>
   </worldbody>
@@ -139,12 +150,12 @@ def myoleg_spec(self_contacts: bool = False) -> mujoco.MjSpec:
     """MyoLeg (80 muscles, 3-D) on a floor, as a fresh editable spec.
 
     Contents: floor plane ``floor``; body ``root`` with free joint ``root`` at
-    :data:`MYOLEG_STAND_HEIGHT`, holding MyoSuite's pelvis and legs (28 hinge/slide joints,
-    14 knee/patella ``<equality><joint>`` couplings to ``knee_angle_*``); 80 spatial
-    tendons with 80 muscles; bone meshes for rendering (non-colliding); one keyframe
-    ``stand`` (knees straight, feet flat on the floor, couplings satisfied; ``qpos0``
-    itself violates the patella couplings by ~1 cm). The pruning functions of
-    :mod:`workers.sim.mjcf_lock`, :mod:`workers.sim.mjcf_muscles` and
+    :data:`MYOLEG_STAND_HEIGHT`, holding MyoSuite's rigid ``torso`` and its pelvis and legs
+    (28 hinge/slide joints, 14 knee/patella ``<equality><joint>`` couplings to
+    ``knee_angle_*``); 80 spatial tendons with 80 muscles; bone meshes for rendering
+    (non-colliding); one keyframe ``stand`` (knees straight, feet flat on the floor,
+    couplings satisfied; ``qpos0`` itself violates the patella couplings by ~1 cm). The
+    pruning functions of :mod:`workers.sim.mjcf_lock`, :mod:`workers.sim.mjcf_muscles` and
     :mod:`workers.sim.mjcf_contacts` keep the keyframe consistent.
 
     Args:
@@ -154,6 +165,11 @@ def myoleg_spec(self_contacts: bool = False) -> mujoco.MjSpec:
         A new ``mujoco.MjSpec`` (each call parses the files again).
     """
     spec = mujoco.MjSpec.from_string(_myoleg_xml())
+    torso_mesh = spec.mesh("torso")  # named bare in its fragment, it lies in models/meshes
+    torso_mesh.file = str(myosim_models_dir() / "meshes" / Path(torso_mesh.file).name)
+    unnamed = [g for g in spec.body("torso").geoms if not g.name]
+    for k, geom in enumerate(unnamed, start=1):  # the trunk's capsules, named to be pruned
+        geom.name = f"torso_col{k}"
     spec.nkey = 0  # the assets' <size nkey="1"> would add an unnamed blank keyframe
     for geom in spec.geoms:
         if geom.type == mujoco.mjtGeom.mjGEOM_MESH:

@@ -100,8 +100,9 @@ def test_model_size_consistent(myoleg_model: mujoco.MjModel) -> None:
         if t in (int(mujoco.mjtWrap.mjWRAP_SPHERE), int(mujoco.mjtWrap.mjWRAP_CYLINDER))
     }
     assert size["wrap_objects"] == len(wrap_geoms)
-    # 20 leg collision geoms (contype 1, conaffinity 0) against the floor only
-    assert size["contact_pairs"] == 20
+    # 20 leg and 8 torso-and-arm collision geoms (contype 1, conaffinity 0) against the
+    # floor only
+    assert size["contact_pairs"] == 28
 
 
 def test_planar_pipeline_size_report() -> None:
