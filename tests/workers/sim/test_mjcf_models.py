@@ -57,6 +57,20 @@ def test_myoleg_loads_and_steps_without_warnings() -> None:
     assert np.isfinite(data.qpos).all()
 
 
+def test_myoleg_carries_its_torso_upright_above_the_pelvis() -> None:
+    """MyoSuite's walking MyoLeg weighs about 80 kg with its rigid torso; ours 75.2 kg, the
+    torso's centre of mass above the pelvis, a little behind it, not off to a side."""
+    model = myoleg_spec().compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("stand").id)
+    mujoco.mj_forward(model, data)
+    assert model.body_subtreemass[model.body("root").id] == pytest.approx(75.2, abs=0.5)
+    torso = data.xipos[model.body("torso").id] - data.xpos[model.body("pelvis").id]
+    assert abs(torso[1]) < 0.01  # across (Y): centred
+    assert -0.15 < torso[0] < 0.0  # forward (X): a little behind
+    assert 0.2 < torso[2] < 0.4  # up (Z)
+
+
 def test_myoleg_spec_is_fresh_each_call() -> None:
     a, b = myoleg_spec(), myoleg_spec()
     lock_joints(a, {"mtp_angle_r": 0.0})  # (a bare delete would break the keyframe)
