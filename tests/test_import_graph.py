@@ -82,7 +82,6 @@ TOP_LEVEL_RANKS = {
     "gait_clock": 4,
     "imitation": 4,
     "reflex": 4,
-    "balance": 4,
     "env": 4,
     "probe": 5,
     "episode": 5,

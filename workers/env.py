@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-from gaitforge.workers.balance import AnkleBalance
 from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.gait_clock import GaitClock
 from gaitforge.workers.imitation import Imitation
@@ -88,12 +87,6 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         )
         targets = self.scene.action.targets
         self.reflex = ReflexLayer(self.scene.action, self.sim) if targets else None
-        balance = self.scene.action.balance
-        self.balance = (
-            AnkleBalance(balance, self.sim.dof_names, self.sim.forward_axis, self.sim.up_axis)
-            if balance is not None
-            else None
-        )
         self.act_names = action_layout(self.scene, self.sim.dof_names, self.sim.muscle_names)
         self.action_space = gym.spaces.Box(0.0, 1.0, (len(self.act_names),), dtype=np.float32)
         defaults = topology_for(self.scene.body).dof_defaults
@@ -208,16 +201,12 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
     def _step_reflex(self, action: np.ndarray) -> tuple[np.ndarray, Health]:
         """One control step through the reflex layer: the targets' base is the motion's pose
         at the step's end (with the gait clock; blended from the default pose while a standing
-        start ramps into the motion) or the default pose, shifted by the ankle reflex of
-        ``action.balance`` if any; returns the step's mean excitations [n_muscles] and its
-        health."""
-        assert self.reflex is not None and self._state is not None
+        start ramps into the motion) or the default pose; returns the step's mean excitations
+        [n_muscles] and its health."""
+        assert self.reflex is not None
         base, speeds = self._default_pose, np.zeros_like(self._default_pose)
         if self.clock is not None:
             base, speeds = self.clock.target_base(self._steps, self.sim.dof_names, base)
-        if self.balance is not None:
-            feet = list(self.sim.foot_positions().values())
-            base = base + self.balance.offsets(self._state, feet, self.target_speed() or 0.0)
         self.reflex.set_targets(action, base, speeds)
         return self.sim.step_reflex(self.reflex, self.dt, self.scene.reflex_chunks)
 

@@ -28,11 +28,6 @@ def schema_examples(schemas: dict[str, Any]) -> dict[str, Any]:
         "Artifact": artifacts["items"][0],
         "FieldError": {"field": "stages.0.scene", "message": "unknown scene 'walk-9d'"},
         "Assist": {"upright_kp": 400.0, "upright_kd": 40.0, "propel_kv": 200.0},
-        "Balance": {
-            "dofs": ["ankle_angle_r", "ankle_angle_l"],
-            "lean_gain": 2.0,
-            "speed_gain": 0.3,
-        },
     }
     seeds = [
         ("Job", full_job),

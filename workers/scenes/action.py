@@ -14,15 +14,6 @@ joint speeds the speed targets) in imitation scenes, else the body's default sta
 should go, which cuts the exploration from one dimension per muscle to one per dof
 (Peng and van de Panne 2017 found target angles learn faster than torques for the same
 motions).
-
-``balance`` (joint_targets, locomotion): a fixed postural reflex under the policy, the ankle
-strategy of human standing balance. Each control step it shifts the targets of ``dofs``
-(the ankles) by ``-(lean_gain * lean + speed_gain * (v - v*))`` rad, where ``lean`` is how
-far the pelvis stands ahead of the feet's midpoint over its height above them (rad) and
-``v - v*`` its forward speed over the task's target speed (m/s; ``workers.balance``). A body
-leaning or drifting forward gets its ankles extended, one falling backward flexed, so
-standing is no longer something the policy must discover before it can learn to step; the
-policy's own targets add to the reflex's.
 """
 
 from __future__ import annotations
@@ -30,30 +21,9 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 from gaitforge.workers.spec_types import SPEC_VALUES
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field
 
 Positive = Annotated[float, Field(gt=0)]
-FiniteGain = Annotated[float, Field(ge=-100, le=100)]
-
-
-class Balance(BaseModel):
-    """The ankle postural reflex of joint-target actions; see the module docstring."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True, **SPEC_VALUES)
-
-    dofs: list[Annotated[str, Field(min_length=1, max_length=100)]] = Field(
-        min_length=1,
-        max_length=8,
-        description="the dofs it moves: the ankles, whose positive angle tips the shank "
-        "forward over the foot (dorsiflexion, as OpenSim's ankle_angle)",
-    )
-    lean_gain: FiniteGain = Field(
-        description="rad of target per rad the pelvis leans ahead of the feet"
-    )
-    speed_gain: FiniteGain = Field(
-        default=0.0,
-        description="rad of target per m/s the pelvis moves faster than the target speed",
-    )
 
 
 class ActionSpec(BaseModel):
@@ -75,19 +45,6 @@ class ActionSpec(BaseModel):
         default=500.0,
         description="joint_targets: how often the reflex layer recomputes the excitations",
     )
-    balance: Balance | None = Field(
-        default=None,
-        description="joint_targets, locomotion: an ankle postural reflex under the policy",
-    )
-
-    @model_validator(mode="after")
-    def _balance_needs_targets(self) -> ActionSpec:
-        if self.balance is not None and not self.targets:
-            raise ValueError(
-                f"action.balance moves joint targets: set action.kind: joint_targets "
-                f"(it is {self.kind!r}), or drop the balance"
-            )
-        return self
 
     @property
     def targets(self) -> bool:

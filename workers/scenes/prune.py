@@ -54,16 +54,6 @@ def check_names(scene: Scene, topology: Topology) -> None:
                 )
     if scene.task.reach_dof is not None and scene.task.reach_dof not in dofs:
         raise ValueError(f"task.reach_dof: unknown joint {scene.task.reach_dof!r}")
-    balance = scene.action.balance
-    for i, name in enumerate(balance.dofs if balance is not None else []):
-        if name not in dofs:
-            raise ValueError(
-                f"action.balance.dofs.{i}: unknown joint {name!r}; allowed: {sorted(dofs)}"
-            )
-        if scene.keep.joints != "all" and name not in scene.keep.joints:
-            raise ValueError(
-                f"action.balance.dofs.{i}: joint {name!r} is locked; keep it in keep.joints"
-            )
     check_clock(scene.task.clock, scene.body, scene.keep.joints, topology)
 
 

@@ -256,11 +256,6 @@ class Scene(_Strict):
                 )
         if self.action.targets:
             self._check_reflex()
-        if self.action.balance is not None and self.task.kind != "locomotion":
-            raise ValueError(
-                f"action.balance: the ankle reflex balances a body on its feet, a locomotion "
-                f"task, not kind {self.task.kind!r}"
-            )
         return self
 
     def _check_reflex(self) -> None:
