@@ -43,13 +43,15 @@ def anchor_curve(run: Path) -> tuple[list[float], list[float]]:
 
 
 def gaitforge_curve(run: Path) -> tuple[list[float], list[float]]:
-    """(training minutes, mean episode length in s) of a gaitforge run, one point per update."""
-    scalars = EventAccumulator(str(run / "tb"))
+    """(training minutes, mean episode length in s) of a gaitforge run, one point per update
+    (by env steps; the last value written at a step wins, as a resumed run writes its steps
+    again: ``bench/curriculum_run.py``'s ``run_scalars`` reads them the same way)."""
+    scalars = EventAccumulator(str(run / "tb"), size_guidance={"scalars": 0})
     scalars.Reload()
-    seconds = [event.value for event in scalars.Scalars("train/train_s")]
-    lengths = [event.value for event in scalars.Scalars("train/length")]
-    count = min(len(seconds), len(lengths))
-    return [s / 60.0 for s in seconds[:count]], lengths[:count]
+    seconds = {event.step: event.value for event in scalars.Scalars("train/train_s")}
+    lengths = {event.step: event.value for event in scalars.Scalars("train/length")}
+    steps = sorted(seconds.keys() & lengths.keys())
+    return [seconds[step] / 60.0 for step in steps], [lengths[step] for step in steps]
 
 
 def labelled(pairs: list[str], flag: str) -> list[tuple[str, Path]]:
