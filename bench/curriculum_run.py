@@ -29,7 +29,16 @@ from rich.table import Table
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 console = Console()
-SERIES = ("stage", "train_s", "return", "speed", "fall_rate", "eval_speed", "eval_fall_rate")
+SERIES = (
+    "stage",
+    "train_s",
+    "return",
+    "length",
+    "speed",
+    "fall_rate",
+    "eval_speed",
+    "eval_fall_rate",
+)
 PANELS = (
     ("return", None, "training return (last 100 episodes)"),
     ("speed", "eval_speed", "mean speed (m/s)"),

@@ -18,13 +18,16 @@ from __future__ import annotations
 
 import argparse
 import csv
+import sys
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from curriculum_run import run_scalars  # bench/curriculum_run.py
 
 MYOSUITE_STEP_S = 0.01
 """Seconds of one myoLegWalk-v0 step (its frame skip times MuJoCo's timestep)."""
@@ -44,12 +47,9 @@ def anchor_curve(run: Path) -> tuple[list[float], list[float]]:
 
 def gaitforge_curve(run: Path) -> tuple[list[float], list[float]]:
     """(training minutes, mean episode length in s) of a gaitforge run, one point per update
-    (by env steps; the last value written at a step wins, as a resumed run writes its steps
-    again: ``bench/curriculum_run.py``'s ``run_scalars`` reads them the same way)."""
-    scalars = EventAccumulator(str(run / "tb"), size_guidance={"scalars": 0})
-    scalars.Reload()
-    seconds = {event.step: event.value for event in scalars.Scalars("train/train_s")}
-    lengths = {event.step: event.value for event in scalars.Scalars("train/length")}
+    (by env steps, read by ``bench/curriculum_run.py``'s ``run_scalars``)."""
+    scalars = run_scalars(run)
+    seconds, lengths = scalars["train_s"], scalars["length"]
     steps = sorted(seconds.keys() & lengths.keys())
     return [seconds[step] / 60.0 for step in steps], [lengths[step] for step in steps]
 

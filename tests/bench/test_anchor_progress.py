@@ -37,6 +37,7 @@ def gaitforge_run(tmp_path: Path) -> Path:
     run = tmp_path / "gaitforge"
     writer = SummaryWriter(str(run / "tb"))
     for step, (seconds, length) in enumerate([(120.0, 0.8), (240.0, 1.1)], start=1):
+        writer.add_scalar("train/stage", 0, step)
         writer.add_scalar("train/train_s", seconds, step)
         writer.add_scalar("train/length", length, step)
     writer.close()
