@@ -208,6 +208,11 @@ class Scene(_Strict):
         description="the policy's action: excitations, or joint targets for a reflex layer",
     )
     episode_s: Annotated[float, Field(gt=0, le=600)] = 10.0
+    observe_muscles: bool = Field(
+        default=True,
+        description="observe the muscles' activations and previous excitations "
+        "[2 n_muscles]; off, the policy sees joints, pelvis, feet and task only",
+    )
     fidelity: Fidelity = "default"
     fidelity_tolerance: Annotated[float, Field(gt=0)] | None = Field(
         default=None, description="rad: RMS joint-angle error allowed with fidelity: auto"
