@@ -3,12 +3,13 @@ an action, for PPO's symmetry augmentation (each sample's mirror image is added 
 with the same advantage; Abdolhosseini et al. 2019, "On learning symmetric locomotion").
 
 Mirroring is in the sagittal plane: names ending ``_r``/``_l`` (or ``_right``/``_left``)
-swap; of the pelvis vectors, the lateral component of ``pelvis_up_*`` and ``pelvis_vel_*``
-changes sign, and of the angular velocity (a pseudovector) the other two components do.
-Joint angles swap without a sign change: both backends define left and right joint axes so
-that the same angle is the same anatomical motion. With the gait clock ``phase_mirror`` (+1
-in an episode whose clock plays the motion mirrored) changes sign: the mirror image of a
-state at a phase of the motion is one at the same phase of the mirrored motion.
+swap; of the pelvis vectors, the lateral component of ``pelvis_up_*``, ``pelvis_forward_*``
+and ``pelvis_vel_*`` changes sign, and of the angular velocity (a pseudovector) the other
+two components do. Joint angles swap without a sign change: both backends define left and
+right joint axes so that the same angle is the same anatomical motion. With the gait clock
+``phase_mirror`` (+1 in an episode whose clock plays the motion mirrored) changes sign: the
+mirror image of a state at a phase of the motion is one at the same phase of the mirrored
+motion.
 """
 
 from __future__ import annotations
@@ -63,7 +64,8 @@ class MirrorMap:
         lateral = AXES[lateral_axis]
         sign = []
         for name in obs_names:
-            flip = name in (f"pelvis_up_{lateral}", f"pelvis_vel_{lateral}", "phase_mirror") or (
+            vectors = ("pelvis_up", "pelvis_forward", "pelvis_vel")
+            flip = name in (*(f"{v}_{lateral}" for v in vectors), "phase_mirror") or (
                 name.startswith("pelvis_angvel_") and not name.endswith(f"_{lateral}")
             )
             sign.append(-1.0 if flip else 1.0)

@@ -2,7 +2,8 @@
 
 Observation (float32, names in ``env.obs_names``), in this order:
     dof angles [n_dofs] (rad or m) and speeds [n_dofs];
-    locomotion only: pelvis height (m), pelvis up axis in world [3], pelvis linear [3] (m/s)
+    locomotion only: pelvis height (m), pelvis up axis in world [3], with the scene's
+    ``observe_heading`` its forward axis in world [3], pelvis linear [3] (m/s)
     and angular [3] (rad/s) velocity, normal ground force per foot [n_feet] (body weights);
     muscle activations [n_muscles] and previous excitations [n_muscles], unless the scene's
     ``observe_muscles`` is off;
@@ -238,9 +239,10 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
     def _observe(self, s: SimState) -> np.ndarray:
         parts = [s.dof_pos, s.dof_vel]
         if self._locomotion:
+            parts += [[s.pelvis_pos[self.sim.up_axis]], s.pelvis_up]
+            if self.scene.observe_heading:
+                parts.append(s.pelvis_forward)
             parts += [
-                [s.pelvis_pos[self.sim.up_axis]],
-                s.pelvis_up,
                 s.pelvis_vel,
                 s.pelvis_angvel,
                 s.foot_forces / self._weight,

@@ -11,6 +11,8 @@ from gaitforge.learner.policy import GaussianPolicy
 from gaitforge.learner.symmetry import MirrorMap, add_mirrored
 from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.scenes import load_scene
+from gaitforge.workers.sim.base import Pose
 
 
 def _map(scene: str) -> tuple[MuscleEnv, MirrorMap]:
@@ -41,6 +43,37 @@ def test_mirroring_twice_is_the_identity_and_swaps_sides(scene: str) -> None:
     a = muscles.index(next(n for n in muscles if n.endswith("_r")))
     b = muscles.index(muscles[a][:-2] + "_l")
     torch.testing.assert_close(flipped[:, a], action[:, b])
+
+
+def test_the_mirror_image_of_a_turned_leaning_pelvis_is_the_mirrored_pelvis() -> None:
+    """MyoLeg's pelvis turned, listed and spinning one way, mirrored, reads as the pelvis
+    turned, listed and spinning the other way: heading, up axis and angular velocity."""
+    scene = load_scene("walk-3d").model_copy(update={"observe_heading": True})
+    env = MuscleEnv(scene)
+    lateral = 3 - env.sim.up_axis - env.sim.forward_axis
+    mirror = MirrorMap.from_names(env.obs_names, env.sim.muscle_names, lateral)
+    pelvis = [i for i, n in enumerate(env.obs_names) if n.startswith(("pelvis_up", "pelvis_f"))]
+    pelvis += [i for i, n in enumerate(env.obs_names) if n.startswith("pelvis_angvel")]
+
+    def observed(side: float) -> torch.Tensor:
+        env.reset(seed=0)
+        pose = Pose(
+            coordinates={},
+            pelvis_pitch=0.1,
+            pelvis_list=side * 0.15,
+            pelvis_rotation=side * 0.4,
+            pelvis_angular_speed=(0.3, side * 0.5, side * 1.0),
+        )
+        env.sim.set_pose(pose)
+        return torch.as_tensor(env._observe(env.sim.state()))
+
+    turned_left, turned_right = observed(1.0), observed(-1.0)
+    assert turned_left[pelvis].abs().min() < 1.0  # not all axis-aligned
+    torch.testing.assert_close(
+        mirror.obs(turned_left)[pelvis], turned_right[pelvis], atol=1e-4, rtol=0
+    )
+    assert not torch.allclose(turned_left[pelvis], turned_right[pelvis], atol=1e-2)
+    env.close()
 
 
 def test_a_body_without_sides_cannot_be_mirrored() -> None:

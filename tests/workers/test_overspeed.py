@@ -20,6 +20,7 @@ def _state_at(x_m: float) -> SimState:
         dof_vel=np.zeros(2),
         pelvis_pos=np.array([x_m, 1.0, 0.0]),
         pelvis_up=np.array([0.0, 1.0, 0.0]),
+        pelvis_forward=np.array([1.0, 0.0, 0.0]),
         pelvis_vel=zeros,
         pelvis_angvel=zeros,
         activations=np.zeros(4),

@@ -37,6 +37,8 @@ class SimState:
         dof_vel: [n_dofs] their speeds, rad/s or m/s.
         pelvis_pos: [3] pelvis origin in the world, m.
         pelvis_up: [3] the pelvis's up axis in the world (unit; equals world up when upright).
+        pelvis_forward: [3] the pelvis's forward axis in the world (unit; equals world forward
+            when it stands facing ahead): its heading.
         pelvis_vel: [3] linear velocity of the pelvis origin, m/s.
         pelvis_angvel: [3] angular velocity of the pelvis, rad/s.
         activations: [n_muscles] in [0, 1].
@@ -48,6 +50,7 @@ class SimState:
     dof_vel: np.ndarray
     pelvis_pos: np.ndarray
     pelvis_up: np.ndarray
+    pelvis_forward: np.ndarray
     pelvis_vel: np.ndarray
     pelvis_angvel: np.ndarray
     activations: np.ndarray
@@ -59,6 +62,7 @@ class SimState:
             self.dof_vel,
             self.pelvis_pos,
             self.pelvis_up,
+            self.pelvis_forward,
             self.pelvis_vel,
             self.pelvis_angvel,
             self.activations,

@@ -44,8 +44,9 @@ WATCHED_WARNINGS = {
 }
 AXES = {"gait2d": (1, 0), "myoleg": (2, 0), "myoelbow": (2, 0)}
 """(up, forward) world axes per body; neutral bodies are Y-up, X-forward."""
-PELVIS_UP = 1
-"""The pelvis frame's up axis (Y in OpenSim-derived bodies, MyoLeg's included)."""
+PELVIS_UP, PELVIS_FORWARD = 1, 0
+"""The pelvis frame's up and forward axes (Y and X in OpenSim-derived bodies, MyoLeg's
+included)."""
 STAND_KEY = "stand"
 """Keyframe that, where a model has it, is the reset pose (MyoLeg)."""
 
@@ -223,17 +224,19 @@ class MujocoSimulator:
             vel = np.zeros(6)
             mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._pelvis, vel, 0)
             pelvis_pos = d.xpos[self._pelvis].copy()
-            pelvis_up = d.xmat[self._pelvis].reshape(3, 3)[:, PELVIS_UP].copy()
+            frame = d.xmat[self._pelvis].reshape(3, 3)
+            pelvis_up, pelvis_forward = frame[:, PELVIS_UP].copy(), frame[:, PELVIS_FORWARD].copy()
             angvel, linvel = vel[:3].copy(), vel[3:].copy()
         else:
             pelvis_pos, angvel, linvel = np.zeros(3), np.zeros(3), np.zeros(3)
-            pelvis_up = np.eye(3)[self.up_axis]
+            pelvis_up, pelvis_forward = np.eye(3)[self.up_axis], np.eye(3)[self.forward_axis]
         return SimState(
             time=float(d.time),
             dof_pos=d.qpos[self._qadr].copy(),
             dof_vel=d.qvel[self._vadr].copy(),
             pelvis_pos=pelvis_pos,
             pelvis_up=pelvis_up,
+            pelvis_forward=pelvis_forward,
             pelvis_vel=linvel,
             pelvis_angvel=angvel,
             activations=d.act.copy() if m.na else np.zeros(m.nu),

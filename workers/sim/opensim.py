@@ -241,6 +241,7 @@ class OpenSimSimulator:
         pelvis = self._pelvis
         rotation = pelvis.getTransformInGround(state).R()
         up = np.array([rotation.get(i, UP) for i in range(3)])
+        forward = np.array([rotation.get(i, FORWARD) for i in range(3)])
         velocity = pelvis.getVelocityInGround(state)
         feet = [sum(ground_normal_force(f, state) for f in foot) for foot in self._foot_force_objs]
         return SimState(
@@ -249,6 +250,7 @@ class OpenSimSimulator:
             dof_vel=np.array([c.getSpeedValue(state) for c in self._kept]),
             pelvis_pos=vec3(pelvis.getPositionInGround(state)),
             pelvis_up=up,
+            pelvis_forward=forward,
             pelvis_vel=vec3(velocity.get(1)),
             pelvis_angvel=vec3(velocity.get(0)),
             activations=np.array([m.getActivation(state) for m in self._muscles]),

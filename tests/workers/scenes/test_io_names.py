@@ -79,3 +79,22 @@ def test_a_scene_that_does_not_observe_its_muscles_leaves_them_out() -> None:
         assert obs.shape == (len(env.obs_names),)
     finally:
         env.close()
+
+
+@pytest.mark.parametrize(
+    ("name", "backend"), [("walk-3d", "mujoco"), ("walk-2d", "mujoco"), ("walk-2d", "opensim")]
+)
+def test_a_scene_that_observes_its_heading_sees_it_face_ahead_at_rest(
+    name: str, backend: str
+) -> None:
+    scene = load_scene(name).model_copy(update={"observe_heading": True})
+    env = MuscleEnv(scene, backend)
+    try:
+        obs, _ = env.reset(seed=0)
+        assert observation_names(scene, backend) == env.obs_names
+        heading = [env.obs_names.index(f"pelvis_forward_{a}") for a in "xyz"]
+        forward = [0.0, 0.0, 0.0]
+        forward[env.sim.forward_axis] = 1.0
+        assert obs[heading] == pytest.approx(forward, abs=0.05)
+    finally:
+        env.close()
