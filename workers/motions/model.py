@@ -46,7 +46,7 @@ class MotionProblem(Exception):
 
 @dataclass(frozen=True)
 class MotionState:
-    """The reference body state at one phase (see ``/work/notes/motions-api.md``).
+    """The reference body state at one phase.
 
     Attributes:
         phase: in [0, 1).
