@@ -17,6 +17,7 @@ Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imita
 | imitate_feet            | sum over feet of |foot - pelvis - ref.|^2, in heading    | m^2       |
 | imitate_pelvis_height   | (pelvis height - reference)^2                            | m^2       |
 | imitate_pelvis_pitch    | (pitch - reference)^2 + (list - reference)^2 (OpenSim's) | rad^2     |
+| imitate_pelvis_heading  | (heading - reference)^2, about the vertical              | rad^2     |
 | imitate_pelvis_speed    | (forward speed over the step - reference at its end)^2   | (m/s)^2   |
 
 The tracked joints are the motion's joints that the scene keeps. The episode ends early
@@ -37,6 +38,11 @@ from gaitforge.workers.scenes.clock import clock_joints
 from gaitforge.workers.scenes.imitate import IMITATION_TERMS, Imitate
 from gaitforge.workers.sim.base import Pose, SimState, Simulator
 from gaitforge.workers.sim.pose import opensim_to_world, pelvis_pitch_list, pelvis_rotation
+
+
+def wrapped(angle: float) -> float:
+    """``angle`` (rad) brought into [-pi, pi)."""
+    return (angle + np.pi) % (2.0 * np.pi) - np.pi
 
 
 @dataclass(frozen=True)
@@ -65,7 +71,6 @@ class Imitation:
         self.dt = clock.dt
         self.up, self.forward = sim.up_axis, sim.forward_axis
         self._to_os = opensim_to_world(self.up, self.forward).T
-        self._turns = clock.motion.body != "gait2d"  # 3-D: heading may differ
 
     # ---- reference state initialisation ----------------------------------------------
 
@@ -130,6 +135,7 @@ class Imitation:
             "feet": self._feet_error(state, ref, sim),
             "pelvis_height": height**2,
             "pelvis_pitch": (pitch - ref.pelvis_pitch) ** 2 + (list_ - ref.pelvis_list) ** 2,
+            "pelvis_heading": wrapped(self._heading_of(state) - self._heading(ref)) ** 2,
             "pelvis_speed": (forward / self.dt - ref.forward_speed) ** 2,
         }
         kernels = {
@@ -151,43 +157,38 @@ class Imitation:
         }
 
     def _feet_error(self, state: SimState, ref: MotionState, sim: Simulator) -> float:
+        """Sum over feet of the squared distance (m^2) between the foot's offset from the
+        pelvis and the reference's, compared in the reference's heading (the body's offsets
+        turned about the vertical by the heading difference)."""
         if not self._feet:
             return 0.0
         feet = sim.foot_positions()
-        turn = np.eye(3)
-        if self._turns:  # compare in the reference's heading: turn the body's by the difference
-            turn = self._heading(ref) @ self._heading_of(sim).T
+        turn = self._about_up(self._heading(ref) - self._heading_of(state))
         total = 0.0
         for foot in self._feet:
             rel = turn @ (feet[foot] - state.pelvis_pos) - np.asarray(ref.feet_rel_pelvis[foot])
             total += float(rel @ rel)
         return total
 
-    def _heading(self, ref: MotionState) -> np.ndarray:
-        """[3, 3] world rotation about up by the reference pelvis's heading."""
+    def _heading(self, ref: MotionState) -> float:
+        """The reference pelvis's heading, rad (see :meth:`_yaw`)."""
         rot = pelvis_rotation(
             ref.pelvis_pitch, ref.pelvis_list, ref.pelvis_rotation, self.up, self.forward
         )
-        return self._yaw(rot)
+        return self._yaw(rot[:, 0])
 
-    def _heading_of(self, sim: Simulator) -> np.ndarray:
-        q = sim.body_frames()["pelvis"].quaternion
-        w, x, y, z = q
-        rot = np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-            ]
-        )
-        return self._yaw(rot)
+    def _heading_of(self, state: SimState) -> float:
+        """The body's pelvis's heading, rad (see :meth:`_yaw`)."""
+        return self._yaw(state.pelvis_forward)
 
-    def _yaw(self, world_from_pelvis: np.ndarray) -> np.ndarray:
-        """The rotation about the world's up axis that turns forward to the pelvis's forward
-        axis projected on the ground."""
-        x_os = self._to_os @ world_from_pelvis[:, 0]  # pelvis forward, OpenSim frame
-        yaw = np.arctan2(-x_os[2], x_os[0])  # about OpenSim's Y (up)
+    def _yaw(self, pelvis_forward: np.ndarray) -> float:
+        """The angle (rad, about OpenSim's up axis) from the world's forward axis to
+        ``pelvis_forward`` ([3], world) projected on the ground."""
+        x_os = self._to_os @ pelvis_forward
+        return float(np.arctan2(-x_os[2], x_os[0]))
+
+    def _about_up(self, yaw: float) -> np.ndarray:
+        """[3, 3] world rotation by ``yaw`` rad about the up axis (OpenSim's sense)."""
         c, s = np.cos(yaw), np.sin(yaw)
         about_y = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-        to_world = self._to_os.T
-        return to_world @ about_y @ self._to_os
+        return self._to_os.T @ about_y @ self._to_os

@@ -153,8 +153,8 @@ def test_a_body_held_in_the_reference_earns_the_full_tracking_reward(make, backe
         env.sim.set_pose(imitation.pose_of(ref))
         state = env.sim.state()
         kernels = imitation.track(state, previous, env.sim, steps).kernels
-        for term in ("imitate_pose", "imitate_joint_speed", "imitate_feet", "imitate_pelvis_pitch"):
-            assert kernels[term] > 0.99, (term, kernels)
+        for term in ("pose", "joint_speed", "feet", "pelvis_pitch", "pelvis_heading"):
+            assert kernels[f"imitate_{term}"] > 0.99, (term, kernels)
         assert kernels["imitate_pelvis_height"] > 0.99
         previous = state
 
@@ -230,16 +230,20 @@ def test_every_start_steps_healthily(name: str) -> None:
         assert info["health"] == "ok" and not info["fell"], (seed, info)
 
 
-def test_the_feet_term_compares_in_the_bodys_heading() -> None:
+@pytest.mark.parametrize("turn", [0.5, -0.5])
+def test_the_feet_term_compares_in_the_bodys_heading(turn: float) -> None:
     """A MyoLeg turned about the vertical still has its feet where the reference has them,
-    relative to its pelvis and heading."""
+    relative to its pelvis and heading; the heading term sees the turn."""
     import dataclasses
 
     env = MuscleEnv(_scene_3d(noise=0.0))
     env.reset(seed=3)
     imitation = env.imitation
     ref = env.clock.reference(1)
-    turned = dataclasses.replace(imitation.pose_of(ref), pelvis_rotation=ref.pelvis_rotation + 0.5)
+    turned = dataclasses.replace(imitation.pose_of(ref), pelvis_rotation=ref.pelvis_rotation + turn)
     env.sim.set_pose(turned)
     state = env.sim.state()
-    assert imitation.track(state, state, env.sim, 1).kernels["imitate_feet"] > 0.95
+    kernels = imitation.track(state, state, env.sim, 1).kernels
+    assert kernels["imitate_feet"] > 0.95
+    scale = env.scene.task.imitate.scales.pelvis_heading
+    assert kernels["imitate_pelvis_heading"] == pytest.approx(np.exp(-scale * turn**2), rel=0.05)
