@@ -5,8 +5,7 @@ Observation (float32, names in ``env.obs_names``), in this order:
     locomotion only: pelvis height (m), pelvis up axis in world [3], with the scene's
     ``observe_heading`` its forward axis in world [3], pelvis linear [3] (m/s)
     and angular [3] (rad/s) velocity, normal ground force per foot [n_feet] (body weights);
-    muscle activations [n_muscles] and previous excitations [n_muscles], unless the scene's
-    ``observe_muscles`` is off;
+    muscle activations [n_muscles]; previous excitations [n_muscles];
     task: target speed (m/s; the episode's draw with ``task.target_speed_range``) or reach
     target (rad); with obstacles, the scene's ``obstacles.observe_ahead`` nearest spheres
     ahead of the pelvis (one whose far edge it has not passed): forward distance from the
@@ -247,8 +246,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
                 s.pelvis_angvel,
                 s.foot_forces / self._weight,
             ]
-        if self.scene.observe_muscles:
-            parts += [s.activations, self._prev_excitation]
+        parts += [s.activations, self._prev_excitation]
         parts.append([self._target_speed or 0.0] if self._locomotion else [self._reach_target])
         if self.scene.obstacles is not None:
             parts.append(self._observed_obstacles(s))

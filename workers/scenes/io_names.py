@@ -29,8 +29,7 @@ def observation_layout(
     feet and muscles (see ``workers.env`` for units): ``q:<dof>``, ``qd:<dof>``; locomotion:
     ``pelvis_height``, ``pelvis_up_{x,y,z}``, with ``observe_heading``
     ``pelvis_forward_{x,y,z}``, ``pelvis_vel_{x,y,z}``,
-    ``pelvis_angvel_{x,y,z}``, ``grf:<foot>``; ``act:<muscle>``, ``prev_exc:<muscle>`` (unless
-    the scene's ``observe_muscles`` is off);
+    ``pelvis_angvel_{x,y,z}``, ``grf:<foot>``; ``act:<muscle>``, ``prev_exc:<muscle>``;
     ``target_speed`` (locomotion) or ``reach_target``; with obstacles the observed spheres
     (``obstacle_names``); with the gait clock ``phase_sin``, ``phase_cos``,
     ``phase_mirror``."""
@@ -42,9 +41,8 @@ def observation_layout(
             names += [f"pelvis_forward_{a}" for a in XYZ]
         names += [f"pelvis_vel_{a}" for a in XYZ] + [f"pelvis_angvel_{a}" for a in XYZ]
         names += [f"grf:{f}" for f in feet]
-    if scene.observe_muscles:
-        names += [f"act:{m}" for m in muscles]
-        names += [f"prev_exc:{m}" for m in muscles]
+    names += [f"act:{m}" for m in muscles]
+    names += [f"prev_exc:{m}" for m in muscles]
     names += ["target_speed"] if locomotion else ["reach_target"]
     if scene.obstacles is not None:
         names += obstacle_names(scene.obstacles.observe_ahead)

@@ -220,11 +220,6 @@ class Scene(_Strict):
         description="locomotion: observe the pelvis's forward axis in the world [3], its "
         "heading; for bodies whose pelvis can turn about the vertical",
     )
-    observe_muscles: bool = Field(
-        default=True,
-        description="observe the muscles' activations and previous excitations "
-        "[2 n_muscles]; off, the policy sees joints, pelvis, feet and task only",
-    )
     fidelity: Fidelity = "default"
     fidelity_tolerance: Annotated[float, Field(gt=0)] | None = Field(
         default=None, description="rad: RMS joint-angle error allowed with fidelity: auto"

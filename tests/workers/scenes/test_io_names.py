@@ -65,22 +65,6 @@ def test_no_simulator_is_imported_to_ask() -> None:
     assert result.returncode == 0, result.stderr
 
 
-def test_a_scene_that_does_not_observe_its_muscles_leaves_them_out() -> None:
-    full = load_scene("imitate-walk-3d+standing-starts")
-    scene = full.model_copy(update={"observe_muscles": False})
-    env = MuscleEnv(scene, "mujoco")
-    try:
-        obs, _ = env.reset(seed=0)
-        assert observation_names(scene, "mujoco") == env.obs_names
-        assert len(env.obs_names) == len(observation_names(full, "mujoco")) - 2 * 80
-        assert not [n for n in env.obs_names if n.startswith(("act:", "prev_exc:"))]
-        assert obs.shape == (len(env.obs_names),)
-        obs, *_ = env.step(env.action_space.sample())
-        assert obs.shape == (len(env.obs_names),)
-    finally:
-        env.close()
-
-
 @pytest.mark.parametrize(
     ("name", "backend"), [("walk-3d", "mujoco"), ("walk-2d", "mujoco"), ("walk-2d", "opensim")]
 )
