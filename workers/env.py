@@ -287,15 +287,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
     # ---- episode bookkeeping ------------------------------------------------------------
 
     def _fell(self, s: SimState) -> bool:
-        """Whether the pelvis is below ``task.min_pelvis_height`` or, where the task sets
-        ``max_pelvis_tilt``, leans further than it from upright."""
-        task = self.scene.task
-        if task.min_pelvis_height is None:
-            return False
-        if float(s.pelvis_pos[self.sim.up_axis]) < task.min_pelvis_height:
-            return True
-        tilt = task.max_pelvis_tilt
-        return tilt is not None and float(s.pelvis_up[self.sim.up_axis]) < np.cos(tilt)
+        limit = self.scene.task.min_pelvis_height
+        return limit is not None and float(s.pelvis_pos[self.sim.up_axis]) < limit
 
     def _distance(self, s: SimState) -> float:
         """m the pelvis has gone forward since the reset."""

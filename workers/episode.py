@@ -44,8 +44,7 @@ class EpisodeSummary:
         return_: sum of the step rewards (the scene's weighted reward terms).
         distance_m: pelvis forward displacement since reset, m (at the last healthy state if
             the simulator failed).
-        fell: the episode ended by a fall (pelvis below ``task.min_pelvis_height``, or
-            leaning past ``task.max_pelvis_tilt``).
+        fell: the episode ended by a fall (pelvis below ``task.min_pelvis_height``).
         health: the health cause of the last step ("ok" unless the simulator failed).
         terminated: the env ended the episode (a fall or a simulator failure).
         truncated: the env cut the episode at ``episode_s``. Both are False when the loop

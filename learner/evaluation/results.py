@@ -49,8 +49,7 @@ class EpisodeResult:
         time_s: simulated time, s (steps / control_hz).
         distance_m: pelvis forward displacement, end minus start, m.
         mean_speed_m_s: distance_m / time_s, m/s.
-        fell: ended by a fall (pelvis below the scene's ``min_pelvis_height``, or leaning
-            past its ``max_pelvis_tilt``).
+        fell: ended by a fall (pelvis below the scene's ``min_pelvis_height``).
         health: the health cause the episode ended with ("ok" unless the simulator failed).
         truncated: reached the episode's length (``episode_s``).
         return_: sum of the weighted reward terms.

@@ -127,11 +127,6 @@ class Task(_Strict):
     min_pelvis_height: float | None = Field(
         default=None, description="m; the episode terminates below it (a fall)"
     )
-    max_pelvis_tilt: Annotated[float, Field(gt=0, le=np.pi)] | None = Field(
-        default=None,
-        description="rad; the episode also terminates (a fall) once the pelvis's up axis "
-        "leans further than this from the world's (locomotion)",
-    )
     reach_dof: str | None = Field(default=None, description="dof to bring to a target angle")
     reach_range: Range | None = Field(
         default=None, description="rad; target sampled uniformly each episode"
@@ -173,8 +168,6 @@ class Task(_Strict):
             )
         if self.kind == "locomotion" and self.min_pelvis_height is None:
             raise ValueError("a locomotion task needs min_pelvis_height")
-        if self.kind != "locomotion" and self.max_pelvis_tilt is not None:
-            raise ValueError(f"max_pelvis_tilt: a {self.kind!r} task has no pelvis to fall")
         if self.reward.overspeed and not self.target_speed:
             raise ValueError(
                 f"task.reward.overspeed {self.reward.overspeed}: the task has no target speed "
