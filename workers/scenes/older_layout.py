@@ -110,7 +110,10 @@ def _clock_apart_from_imitation(task: dict[str, Any]) -> dict[str, Any]:
     tracks = (
         not all_standing
         or not isinstance(weights, dict)  # absent: the default weights, which track
-        or any(weights.get(name, 1.0) != 0 for name in ImitationWeights.model_fields)
+        or any(
+            weights.get(name, field.default) != 0
+            for name, field in ImitationWeights.model_fields.items()
+        )
         or former.get("max_pose_error_rad", 0.5) is not None
     )
     task = {**task, "clock": clock}
