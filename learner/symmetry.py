@@ -62,10 +62,11 @@ class MirrorMap:
         if not any(_partner(n) for n in act_names):
             raise ValueError("mirror: the body has no left and right muscles to swap")
         lateral = AXES[lateral_axis]
+        flipped = {f"{v}_{lateral}" for v in ("pelvis_up", "pelvis_forward", "pelvis_vel")}
+        flipped.add("phase_mirror")
         sign = []
         for name in obs_names:
-            vectors = ("pelvis_up", "pelvis_forward", "pelvis_vel")
-            flip = name in (*(f"{v}_{lateral}" for v in vectors), "phase_mirror") or (
+            flip = name in flipped or (
                 name.startswith("pelvis_angvel_") and not name.endswith(f"_{lateral}")
             )
             sign.append(-1.0 if flip else 1.0)

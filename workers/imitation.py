@@ -129,13 +129,14 @@ class Imitation:
         pitch, list_ = pelvis_pitch_list(state.pelvis_up, self.up, self.forward)
         height = float(state.pelvis_pos[self.up]) - ref.pelvis_height
         forward = float(state.pelvis_pos[self.forward] - previous.pelvis_pos[self.forward])
+        turned = wrapped(self._heading_of(state) - self._heading(ref))
         errors = {
             "pose": float(pose @ pose),
             "joint_speed": float(speed @ speed),
-            "feet": self._feet_error(state, ref, sim),
+            "feet": self._feet_error(state, ref, sim, turned),
             "pelvis_height": height**2,
             "pelvis_pitch": (pitch - ref.pelvis_pitch) ** 2 + (list_ - ref.pelvis_list) ** 2,
-            "pelvis_heading": wrapped(self._heading_of(state) - self._heading(ref)) ** 2,
+            "pelvis_heading": turned**2,
             "pelvis_speed": (forward / self.dt - ref.forward_speed) ** 2,
         }
         kernels = {
@@ -156,14 +157,17 @@ class Imitation:
             t: getattr(weights, t.removeprefix("imitate_")) * kernels[t] for t in IMITATION_TERMS
         }
 
-    def _feet_error(self, state: SimState, ref: MotionState, sim: Simulator) -> float:
+    def _feet_error(
+        self, state: SimState, ref: MotionState, sim: Simulator, turned: float
+    ) -> float:
         """Sum over feet of the squared distance (m^2) between the foot's offset from the
-        pelvis and the reference's, compared in the reference's heading (the body's offsets
-        turned about the vertical by the heading difference)."""
+        pelvis and the reference's, compared in the reference's heading: the body's offsets
+        turned back about the vertical by ``turned`` (rad, the body's heading minus the
+        reference's)."""
         if not self._feet:
             return 0.0
         feet = sim.foot_positions()
-        turn = self._about_up(self._heading(ref) - self._heading_of(state))
+        turn = self._about_up(-turned)
         total = 0.0
         for foot in self._feet:
             rel = turn @ (feet[foot] - state.pelvis_pos) - np.asarray(ref.feet_rel_pelvis[foot])
