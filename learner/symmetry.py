@@ -3,13 +3,12 @@ an action, for PPO's symmetry augmentation (each sample's mirror image is added 
 with the same advantage; Abdolhosseini et al. 2019, "On learning symmetric locomotion").
 
 Mirroring is in the sagittal plane: names ending ``_r``/``_l`` (or ``_right``/``_left``)
-swap; of the pelvis vectors, the lateral component of ``pelvis_up_*``, ``pelvis_forward_*``
-and ``pelvis_vel_*`` changes sign, and of the angular velocity (a pseudovector) the other
-two components do. Joint angles swap without a sign change: both backends define left and
-right joint axes so that the same angle is the same anatomical motion. With the gait clock
-``phase_mirror`` (+1 in an episode whose clock plays the motion mirrored) changes sign: the
-mirror image of a state at a phase of the motion is one at the same phase of the mirrored
-motion.
+swap; of the pelvis vectors, the lateral component of ``pelvis_up_*`` and ``pelvis_vel_*``
+changes sign, and of the angular velocity (a pseudovector) the other two components do.
+Joint angles swap without a sign change: both backends define left and right joint axes so
+that the same angle is the same anatomical motion. With the gait clock ``phase_mirror`` (+1
+in an episode whose clock plays the motion mirrored) changes sign: the mirror image of a
+state at a phase of the motion is one at the same phase of the mirrored motion.
 """
 
 from __future__ import annotations
@@ -62,7 +61,7 @@ class MirrorMap:
         if not any(_partner(n) for n in act_names):
             raise ValueError("mirror: the body has no left and right muscles to swap")
         lateral = AXES[lateral_axis]
-        flipped = {f"{v}_{lateral}" for v in ("pelvis_up", "pelvis_forward", "pelvis_vel")}
+        flipped = {f"{v}_{lateral}" for v in ("pelvis_up", "pelvis_vel")}
         flipped.add("phase_mirror")
         sign = []
         for name in obs_names:

@@ -2,8 +2,7 @@
 
 Observation (float32, names in ``env.obs_names``), in this order:
     dof angles [n_dofs] (rad or m) and speeds [n_dofs];
-    locomotion only: pelvis height (m), pelvis up axis in world [3], with the scene's
-    ``observe_heading`` its forward axis in world [3], pelvis linear [3] (m/s)
+    locomotion only: pelvis height (m), pelvis up axis in world [3], pelvis linear [3] (m/s)
     and angular [3] (rad/s) velocity, normal ground force per foot [n_feet] (body weights);
     muscle activations [n_muscles]; previous excitations [n_muscles];
     task: target speed (m/s; the episode's draw with ``task.target_speed_range``) or reach
@@ -238,10 +237,9 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
     def _observe(self, s: SimState) -> np.ndarray:
         parts = [s.dof_pos, s.dof_vel]
         if self._locomotion:
-            parts += [[s.pelvis_pos[self.sim.up_axis]], s.pelvis_up]
-            if self.scene.observe_heading:
-                parts.append(s.pelvis_forward)
             parts += [
+                [s.pelvis_pos[self.sim.up_axis]],
+                s.pelvis_up,
                 s.pelvis_vel,
                 s.pelvis_angvel,
                 s.foot_forces / self._weight,

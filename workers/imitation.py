@@ -17,7 +17,6 @@ Tracking terms, each ``exp(-scale * error)`` in (0, 1], weighted by ``task.imita
 | imitate_feet            | sum over feet of |foot - pelvis - ref.|^2, in heading    | m^2       |
 | imitate_pelvis_height   | (pelvis height - reference)^2                            | m^2       |
 | imitate_pelvis_pitch    | (pitch - reference)^2 + (list - reference)^2 (OpenSim's) | rad^2     |
-| imitate_pelvis_heading  | (heading - reference)^2, about the vertical              | rad^2     |
 | imitate_pelvis_speed    | (forward speed over the step - reference at its end)^2   | (m/s)^2   |
 
 The tracked joints are the motion's joints that the scene keeps. The episode ends early
@@ -136,7 +135,6 @@ class Imitation:
             "feet": self._feet_error(state, ref, sim, turned),
             "pelvis_height": height**2,
             "pelvis_pitch": (pitch - ref.pelvis_pitch) ** 2 + (list_ - ref.pelvis_list) ** 2,
-            "pelvis_heading": turned**2,
             "pelvis_speed": (forward / self.dt - ref.forward_speed) ** 2,
         }
         kernels = {

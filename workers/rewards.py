@@ -14,9 +14,9 @@ weights and reports every term, weighted, in ``info["reward_terms"]``.
 
 A scene whose task imitates a motion (``task.imitate``) also has the tracking terms
 ``imitate_pose``, ``imitate_joint_speed``, ``imitate_feet``, ``imitate_pelvis_height``,
-``imitate_pelvis_pitch``, ``imitate_pelvis_heading`` and ``imitate_pelvis_speed``
-(``IMITATION_TERMS``; see ``workers.imitation``), weighted by ``task.imitate.weights``.
-:func:`term_names` gives a task's terms; other scenes report exactly ``TERMS``.
+``imitate_pelvis_pitch`` and ``imitate_pelvis_speed`` (``IMITATION_TERMS``; see
+``workers.imitation``), weighted by ``task.imitate.weights``. :func:`term_names` gives a
+task's terms; other scenes report exactly ``TERMS``.
 """
 
 from __future__ import annotations

@@ -153,7 +153,7 @@ def test_a_body_held_in_the_reference_earns_the_full_tracking_reward(make, backe
         env.sim.set_pose(imitation.pose_of(ref))
         state = env.sim.state()
         kernels = imitation.track(state, previous, env.sim, steps).kernels
-        for term in ("pose", "joint_speed", "feet", "pelvis_pitch", "pelvis_heading"):
+        for term in ("pose", "joint_speed", "feet", "pelvis_pitch"):
             assert kernels[f"imitate_{term}"] > 0.99, (term, kernels)
         assert kernels["imitate_pelvis_height"] > 0.99
         previous = state
@@ -233,7 +233,7 @@ def test_every_start_steps_healthily(name: str) -> None:
 @pytest.mark.parametrize("turn", [0.5, -0.5])
 def test_the_feet_term_compares_in_the_bodys_heading(turn: float) -> None:
     """A MyoLeg turned about the vertical still has its feet where the reference has them,
-    relative to its pelvis and heading; the heading term sees the turn."""
+    relative to its pelvis and heading."""
     import dataclasses
 
     env = MuscleEnv(_scene_3d(noise=0.0))
@@ -243,7 +243,4 @@ def test_the_feet_term_compares_in_the_bodys_heading(turn: float) -> None:
     turned = dataclasses.replace(imitation.pose_of(ref), pelvis_rotation=ref.pelvis_rotation + turn)
     env.sim.set_pose(turned)
     state = env.sim.state()
-    kernels = imitation.track(state, state, env.sim, 1).kernels
-    assert kernels["imitate_feet"] > 0.95
-    scale = env.scene.task.imitate.scales.pelvis_heading
-    assert kernels["imitate_pelvis_heading"] == pytest.approx(np.exp(-scale * turn**2), rel=0.05)
+    assert imitation.track(state, state, env.sim, 1).kernels["imitate_feet"] > 0.95

@@ -26,7 +26,6 @@ class ImitationWeights(StrictSpec):
     feet: NonNegative = 0.15
     pelvis_height: NonNegative = 0.1
     pelvis_pitch: NonNegative = 0.05
-    pelvis_heading: NonNegative = 0.0
     pelvis_speed: NonNegative = 0.1
 
 
@@ -39,9 +38,6 @@ class ImitationScales(StrictSpec):
     feet: Positive = Field(default=40.0, description="1/m^2; sum over feet of m^2")
     pelvis_height: Positive = Field(default=50.0, description="1/m^2")
     pelvis_pitch: Positive = Field(default=10.0, description="1/rad^2; pitch (and list) error")
-    pelvis_heading: Positive = Field(
-        default=10.0, description="1/rad^2; heading error (the pelvis's turn about the vertical)"
-    )
     pelvis_speed: Positive = Field(default=2.0, description="s^2/m^2; forward speed error")
 
 

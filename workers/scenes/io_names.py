@@ -27,8 +27,7 @@ def observation_layout(
 ) -> list[str]:
     """The observation's entry names, in order, for ``scene``'s task and the given kept dofs,
     feet and muscles (see ``workers.env`` for units): ``q:<dof>``, ``qd:<dof>``; locomotion:
-    ``pelvis_height``, ``pelvis_up_{x,y,z}``, with ``observe_heading``
-    ``pelvis_forward_{x,y,z}``, ``pelvis_vel_{x,y,z}``,
+    ``pelvis_height``, ``pelvis_up_{x,y,z}``, ``pelvis_vel_{x,y,z}``,
     ``pelvis_angvel_{x,y,z}``, ``grf:<foot>``; ``act:<muscle>``, ``prev_exc:<muscle>``;
     ``target_speed`` (locomotion) or ``reach_target``; with obstacles the observed spheres
     (``obstacle_names``); with the gait clock ``phase_sin``, ``phase_cos``,
@@ -37,8 +36,6 @@ def observation_layout(
     names = [f"q:{d}" for d in dofs] + [f"qd:{d}" for d in dofs]
     if locomotion:
         names += ["pelvis_height", *(f"pelvis_up_{a}" for a in XYZ)]
-        if scene.observe_heading:
-            names += [f"pelvis_forward_{a}" for a in XYZ]
         names += [f"pelvis_vel_{a}" for a in XYZ] + [f"pelvis_angvel_{a}" for a in XYZ]
         names += [f"grf:{f}" for f in feet]
     names += [f"act:{m}" for m in muscles]

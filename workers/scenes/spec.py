@@ -208,11 +208,6 @@ class Scene(_Strict):
         description="the policy's action: excitations, or joint targets for a reflex layer",
     )
     episode_s: Annotated[float, Field(gt=0, le=600)] = 10.0
-    observe_heading: bool = Field(
-        default=False,
-        description="locomotion: observe the pelvis's forward axis in the world [3], its "
-        "heading; for bodies whose pelvis can turn about the vertical",
-    )
     fidelity: Fidelity = "default"
     fidelity_tolerance: Annotated[float, Field(gt=0)] | None = Field(
         default=None, description="rad: RMS joint-angle error allowed with fidelity: auto"
@@ -259,8 +254,6 @@ class Scene(_Strict):
                     f"fidelity.timestep {profile.timestep} s does not divide the control "
                     f"period 1/{self.control_hz} s"
                 )
-        if self.observe_heading and self.task.kind != "locomotion":
-            raise ValueError("observe_heading: a heading is observed in locomotion tasks only")
         if self.action.targets:
             self._check_reflex()
         return self

@@ -63,22 +63,3 @@ def test_no_simulator_is_imported_to_ask() -> None:
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
-
-
-@pytest.mark.parametrize(
-    ("name", "backend"), [("walk-3d", "mujoco"), ("walk-2d", "mujoco"), ("walk-2d", "opensim")]
-)
-def test_a_scene_that_observes_its_heading_sees_it_face_ahead_at_rest(
-    name: str, backend: str
-) -> None:
-    scene = load_scene(name).model_copy(update={"observe_heading": True})
-    env = MuscleEnv(scene, backend)
-    try:
-        obs, _ = env.reset(seed=0)
-        assert observation_names(scene, backend) == env.obs_names
-        heading = [env.obs_names.index(f"pelvis_forward_{a}") for a in "xyz"]
-        forward = [0.0, 0.0, 0.0]
-        forward[env.sim.forward_axis] = 1.0
-        assert obs[heading] == pytest.approx(forward, abs=0.05)
-    finally:
-        env.close()

@@ -50,13 +50,6 @@ def _assert_one_line(exc: SpecError, path: Path, *fragments: str) -> None:
             ["timestep", "control period"],
         ),
         (lambda r: r.update(colour="blue"), ["colour", "Extra inputs"]),
-        (
-            lambda r: r.update(
-                observe_heading=True,
-                task={"kind": "reach", "reach_dof": "hip_flexion_r", "reach_range": [0.1, 0.5]},
-            ),
-            ["observe_heading", "locomotion"],
-        ),
     ],
 )
 def test_bad_scene_file_fails_with_one_line(tmp_path: Path, edit, fragments: list[str]) -> None:
