@@ -1,10 +1,12 @@
 """Render an ``EvaluationReport`` for people (rich): means ± the half-width of their 95 %
-interval, rates with their 95 % Wilson interval. Imitation scenes add two columns, the
-tracking error (rad) and the share of episodes that kept the gait; obstacle scenes three,
-the share of episodes that touched an obstacle and the fall rate among those that did and
-those that did not; other scenes' tables are as they were. Where the summary or sweep table
-(one row per mode or sweep point) is wider than the terminal, it turns on its side (one row
-per quantity), so that nothing is cut or folded at 80 columns."""
+interval, rates with their 95 % Wilson interval. Where a pelvis turned about the vertical (a
+3-D body; a planar one cannot) the tables add the turn, deg (per episode signed,
+counter-clockwise seen from above; per mode its mean size). Imitation scenes add two
+columns, the tracking error (rad) and the share of episodes that kept the gait; obstacle
+scenes three, the share of episodes that touched an obstacle and the fall rate among those
+that did and those that did not; other scenes' tables are as they were. Where the summary or
+sweep table (one row per mode or sweep point) is wider than the terminal, it turns on its
+side (one row per quantity), so that nothing is cut or folded at 80 columns."""
 
 from __future__ import annotations
 
@@ -50,6 +52,12 @@ def _oriented(title: str, headers: list[str], rows: list[list[str]], console: Co
     return tall
 
 
+def _turning(report: Any) -> bool:
+    """Whether any episode of the report (modes and sweep) turned about the vertical."""
+    results = [*report.results.values(), *(p.result for p in report.sweep)]
+    return any(e.turned_deg != 0.0 for r in results for e in r.episodes)
+
+
 def _imitating(report: Any) -> bool:
     """Whether any result of the report (modes and sweep) tracked a motion."""
     results = [*report.results.values(), *(p.result for p in report.sweep)]
@@ -83,8 +91,9 @@ OBSTACLE_HEADERS = ["touched an obstacle", "falls if touched", "falls if not"]
 def render_episodes(report: Any) -> list[Table]:
     """One table per mode: every episode of an ``EvaluationReport``."""
     tables = []
-    imitating, obstacles = _imitating(report), _with_obstacles(report)
-    extra = ["tracking\nrad", "kept\ngait"] if imitating else []
+    turning, imitating, obstacles = _turning(report), _imitating(report), _with_obstacles(report)
+    extra = ["turned\ndeg"] if turning else []
+    extra += ["tracking\nrad", "kept\ngait"] if imitating else []
     extra += ["first touch\ns"] if obstacles else []
     for mode, r in report.results.items():
         episodes = table(
@@ -112,6 +121,8 @@ def render_episodes(report: Any) -> list[Table]:
                 f"{e.effort:.3f}",
                 f"{e.return_:.1f}",
             ]
+            if turning:
+                cells.append(f"{e.turned_deg:+.0f}")
             if imitating:
                 error = "-" if e.tracking_error_rad is None else f"{e.tracking_error_rad:.3f}"
                 cells += [error, "-" if e.kept_gait is None else "yes" if e.kept_gait else "no"]
@@ -132,8 +143,9 @@ def render(report: Any, console: Console) -> Group:
         f"{report.scene} on {report.backend}; seeds {report.seed}.."
         f"{report.seed + len(first.episodes) - 1}; means ± 95 % intervals"
     )
-    imitating, obstacles = _imitating(report), _with_obstacles(report)
-    extra = ["tracking rad", "kept gait"] if imitating else []
+    turning, imitating, obstacles = _turning(report), _imitating(report), _with_obstacles(report)
+    extra = ["turned deg"] if turning else []
+    extra += ["tracking rad", "kept gait"] if imitating else []
     extra += OBSTACLE_HEADERS if obstacles else []
     headers = [
         "mode",
@@ -163,6 +175,7 @@ def render(report: Any, console: Console) -> Group:
                 _ci(r.effort, ".3f"),
                 _ci(r.return_, ".1f"),
                 _health(r.health),
+                *([_ci(r.turned_deg, ".0f")] if turning else []),
                 *(_tracking(r) if imitating else []),
                 *(_obstacles(r) if obstacles else []),
             ]
@@ -191,6 +204,7 @@ def render(report: Any, console: Console) -> Group:
                     _ci(r.mean_speed_m_s),
                     _ci(r.return_, ".1f"),
                     _health(r.health),
+                    *([_ci(r.turned_deg, ".0f")] if turning else []),
                     *(_tracking(r) if imitating else []),
                     *(_obstacles(r) if obstacles else []),
                 ]

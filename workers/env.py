@@ -16,11 +16,14 @@ joint_targets``, targets [n_dofs] in [0, 1] around a base pose that the reflex l
 (``workers.reflex``) turns into excitations (``prev_exc`` then holds the step's mean
 excitations, and the effort terms use them).
 
-Scenes with the gait clock (``workers.gait_clock``) report ``info["clock"] = {"phase",
-"mirrored"}`` on reset and every step; ``reference_state()`` is the clock's reference state
-now. Imitation scenes (``workers.imitation``) also start episodes in the motion, add the
-tracking terms to the reward, end the episode when the pose error passes the scene's bound,
-and report ``info["imitation"] = {"phase", "pose_error_rad", "kept", "mirrored"}``.
+Every step's info holds ``distance`` (m the pelvis went forward since the reset), ``turned``
+(rad the pelvis turned about the vertical since the reset, counter-clockwise seen from above;
+exactly 0 on a planar body), ``sim_time`` (s) and ``step``. Scenes with the gait clock
+(``workers.gait_clock``) report ``info["clock"] = {"phase", "mirrored"}`` on reset and every
+step; ``reference_state()`` is the clock's reference state now. Imitation scenes
+(``workers.imitation``) also start episodes in the motion, add the tracking terms to the
+reward, end the episode when the pose error passes the scene's bound, and report
+``info["imitation"] = {"phase", "pose_error_rad", "kept", "mirrored"}``.
 
 On scenes with obstacles ``touching_obstacle()`` says whether a foot touches one now (the
 evaluation asks after every step, so that it can tell the falls that came after a touch
@@ -45,6 +48,7 @@ from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.scenes.io_names import action_layout, observation_layout
 from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.base import HEALTHY, Health, SimState
+from gaitforge.workers.sim.pose import pelvis_frame, turn_about_up
 
 GRAVITY = 9.81
 
@@ -96,6 +100,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         self._obs = np.zeros(len(self.obs_names), dtype=np.float32)
         self._steps = 0
         self._start_forward = 0.0
+        self._start_frame = np.eye(3)
 
     # ---- gymnasium API ----------------------------------------------------------------
 
@@ -132,6 +137,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
                 "kept": True,
             }
         self._start_forward = float(self._state.pelvis_pos[self.sim.forward_axis])
+        self._start_frame = pelvis_frame(self._state.pelvis_up, self._state.pelvis_forward)
         self._obs = self._observe(self._state)
         return self._obs.copy(), info
 
@@ -292,9 +298,16 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         """m the pelvis has gone forward since the reset."""
         return float(s.pelvis_pos[self.sim.forward_axis]) - self._start_forward
 
+    def _turned(self, s: SimState) -> float:
+        """rad the pelvis has turned about the vertical since the reset (counter-clockwise
+        seen from above; 0 for a planar body)."""
+        frame = pelvis_frame(s.pelvis_up, s.pelvis_forward)
+        return turn_about_up(self._start_frame, frame, self.sim.up_axis)
+
     def _episode_info(self, s: SimState) -> dict:
         return {
             "distance": self._distance(s),
+            "turned": self._turned(s),
             "sim_time": s.time,
             "step": self._steps,
         }

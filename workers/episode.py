@@ -44,6 +44,8 @@ class EpisodeSummary:
         return_: sum of the step rewards (the scene's weighted reward terms).
         distance_m: pelvis forward displacement since reset, m (at the last healthy state if
             the simulator failed).
+        turned_rad: the pelvis's turn about the vertical since reset, rad, counter-clockwise
+            seen from above (0 on a planar body; at the last healthy state likewise).
         fell: the episode ended by a fall (pelvis below ``task.min_pelvis_height``).
         health: the health cause of the last step ("ok" unless the simulator failed).
         terminated: the env ended the episode (a fall or a simulator failure).
@@ -57,6 +59,7 @@ class EpisodeSummary:
     sim_time_s: float
     return_: float
     distance_m: float
+    turned_rad: float
     fell: bool
     health: str
     terminated: bool
@@ -177,6 +180,7 @@ def run_episode(
             sim_time_s=float(info.get("sim_time", 0.0)),
             return_=float(total),
             distance_m=float(info.get("distance", 0.0)),
+            turned_rad=float(info.get("turned", 0.0)),
             fell=bool(info.get("fell", False)),
             health=str(info.get("health", HEALTHY)),
             terminated=bool(terminated),

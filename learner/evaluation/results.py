@@ -2,9 +2,12 @@
 the speed-against-safety sweep's points, and a checkpoint's report; JSON out.
 
 Units: distance m (pelvis forward displacement, end minus start), speed m/s (distance over
-episode time), time s (control steps / control_hz), effort 1 (mean over steps and muscles of
-excitation^2, the excitation as applied, clipped to [0, 1]), effort_sum (sum of excitation^2
-over steps and muscles), return (sum of the scene's weighted reward terms).
+episode time), turned deg (the pelvis's turn about the vertical, end against start,
+counter-clockwise seen from above; over N episodes the mean of its size: a 3-D walker that
+turns loses distance, and this says why; 0 on a planar body), time s (control steps /
+control_hz), effort 1 (mean over steps and muscles of excitation^2, the excitation as
+applied, clipped to [0, 1]), effort_sum (sum of excitation^2 over steps and muscles), return
+(sum of the scene's weighted reward terms).
 
 Imitation scenes (``task.imitate``; the env reports ``info["imitation"]`` every step) add the
 tracking error, rad: per episode the RMS over its steps of the step's pose error (itself the
@@ -49,6 +52,8 @@ class EpisodeResult:
         time_s: simulated time, s (steps / control_hz).
         distance_m: pelvis forward displacement, end minus start, m.
         mean_speed_m_s: distance_m / time_s, m/s.
+        turned_deg: the pelvis's turn about the vertical, end against start, deg
+            (counter-clockwise seen from above).
         fell: ended by a fall (pelvis below the scene's ``min_pelvis_height``).
         health: the health cause the episode ended with ("ok" unless the simulator failed).
         truncated: reached the episode's length (``episode_s``).
@@ -71,6 +76,7 @@ class EpisodeResult:
     time_s: float
     distance_m: float
     mean_speed_m_s: float
+    turned_deg: float
     fell: bool
     health: str
     truncated: bool
@@ -111,6 +117,7 @@ class EpisodeResult:
             time_s=time_s,
             distance_m=distance,
             mean_speed_m_s=distance / time_s if time_s > 0 else 0.0,
+            turned_deg=math.degrees(summary.turned_rad),
             fell=summary.fell,
             health=summary.health,
             truncated=ran_out,
@@ -137,6 +144,8 @@ class ModeResult:
     episodes: list[EpisodeResult]
     distance_m: Stat
     mean_speed_m_s: Stat
+    turned_deg: Stat
+    """the size of the episodes' turns, deg"""
     time_s: Stat
     steps: Stat
     return_: Stat
@@ -197,6 +206,7 @@ class ModeResult:
             episodes=episodes,
             distance_m=stat("distance_m"),
             mean_speed_m_s=stat("mean_speed_m_s"),
+            turned_deg=Stat.of([abs(e.turned_deg) for e in episodes]),
             time_s=stat("time_s"),
             steps=stat("steps"),
             return_=stat("return_"),

@@ -434,6 +434,21 @@ def test_other_scenes_have_no_tracking_columns(walk: tuple[Path, Scene], tmp_pat
     assert det["episodes"][0]["tracking_error_rad"] is None
     assert "touched" not in printed and det["touched_rate"] is None
     assert det["episodes"][0]["obstacle_contact_steps"] is None
+    assert "turned" not in printed and det["episodes"][0]["turned_deg"] == 0.0  # planar
+
+
+def test_a_3d_body_reports_how_far_its_pelvis_turned(tmp_path: Path) -> None:
+    scene = load_scene(short_scene(tmp_path, "walk-3d", episode_s=0.6))
+    env = MuscleEnv(scene)
+    policy = relaxed_policy(len(env.obs_names), len(env.act_names))
+    env.close()
+    run = tmp_path / "run"
+    save(run / "checkpoints", policy, scene)
+    printed, det = evaluate_run_dir(run, tmp_path / "eval.json", episodes=2)
+    turns = [e["turned_deg"] for e in det["episodes"]]
+    assert any(t != 0.0 for t in turns)
+    assert det["turned_deg"]["mean"] == pytest.approx(np.mean(np.abs(turns)))
+    assert "turned deg" in printed and f"{turns[0]:+.0f}" in printed
 
 
 def test_obstacle_scenes_tell_the_falls_after_a_touch_from_the_others(tmp_path: Path) -> None:

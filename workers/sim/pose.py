@@ -55,3 +55,24 @@ def pelvis_pitch_list(
     c = opensim_to_world(up_axis, forward_axis)
     x, y, z = c.T @ np.asarray(pelvis_up, float)  # (-sin t cos l, cos t cos l, sin l)
     return float(np.arctan2(-x, y)), float(np.arcsin(np.clip(z, -1.0, 1.0)))
+
+
+def pelvis_frame(pelvis_up: np.ndarray, pelvis_forward: np.ndarray) -> np.ndarray:
+    """[3, 3] world-from-pelvis rotation (columns: the pelvis's forward, up and right axes in
+    the world) of a pelvis whose up and forward axes point along ``pelvis_up`` and
+    ``pelvis_forward`` ([3], world, unit, orthogonal)."""
+    forward, up = np.asarray(pelvis_forward, float), np.asarray(pelvis_up, float)
+    return np.column_stack([forward, up, np.cross(forward, up)])
+
+
+def turn_about_up(start: np.ndarray, end: np.ndarray, up_axis: int) -> float:
+    """The angle (rad, in (-pi, pi], positive counter-clockwise seen from above) by which a
+    frame turned about the world's up axis from ``start`` to ``end`` ([3, 3] world-from-body
+    rotations, :func:`pelvis_frame`): the twist of the relative rotation about the vertical,
+    whatever it tipped besides. A rotation about a horizontal axis only, which is all a planar
+    pelvis can do, turns by exactly 0."""
+    rel = np.asarray(end, float) @ np.asarray(start, float).T
+    # rel - rel.T = 2 sin(angle) [axis]_x and 1 + trace = 4 cos^2(angle / 2): their ratio
+    # along the up axis is tan of half the twist
+    axial = (rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1])[up_axis]
+    return float(2.0 * np.arctan2(axial, 1.0 + np.trace(rel)))
