@@ -52,16 +52,19 @@ def _oriented(title: str, headers: list[str], rows: list[list[str]], console: Co
     return tall
 
 
+def _all_results(report: Any) -> list[Any]:
+    """The mode results of a report, its sweep's included."""
+    return [*report.results.values(), *(p.result for p in report.sweep)]
+
+
 def _turning(report: Any) -> bool:
     """Whether any episode of the report (modes and sweep) turned about the vertical."""
-    results = [*report.results.values(), *(p.result for p in report.sweep)]
-    return any(e.turned_deg != 0.0 for r in results for e in r.episodes)
+    return any(e.turned_deg != 0.0 for r in _all_results(report) for e in r.episodes)
 
 
 def _imitating(report: Any) -> bool:
     """Whether any result of the report (modes and sweep) tracked a motion."""
-    results = [*report.results.values(), *(p.result for p in report.sweep)]
-    return any(r.tracking_error_rad is not None for r in results)
+    return any(r.tracking_error_rad is not None for r in _all_results(report))
 
 
 def _tracking(r: Any) -> list[str]:
@@ -73,8 +76,7 @@ def _tracking(r: Any) -> list[str]:
 
 def _with_obstacles(report: Any) -> bool:
     """Whether any result of the report (modes and sweep) ran among obstacles."""
-    results = [*report.results.values(), *(p.result for p in report.sweep)]
-    return any(r.touched_rate is not None for r in results)
+    return any(r.touched_rate is not None for r in _all_results(report))
 
 
 def _obstacles(r: Any) -> list[str]:
