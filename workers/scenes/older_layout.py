@@ -35,6 +35,10 @@ RETIRED_SETTINGS: tuple[tuple[str, object, str], ...] = (
     ),
     ("obstacles.observe_behind", 0, "no scene observed the spheres passed"),
     ("task.reward.obstacle_touch", 0.0, "no scene weighed it; evaluation still reports touches"),
+    ("observe_muscles", True, "leaving the muscles' states out did not help MyoLeg learn"),
+    ("observe_heading", False, "observing the pelvis's heading did not help MyoLeg learn"),
+    ("task.imitate.weights.pelvis_heading", 0.0, "tracking the heading did not help MyoLeg"),
+    ("task.imitate.scales.pelvis_heading", 10.0, "its term did not help MyoLeg"),
 )
 """Scene settings no longer read: (dotted field, the value that meant "off", why retired).
 Older files and checkpoints that hold one at that value load without it."""
@@ -82,7 +86,7 @@ def _without_retired_settings(raw: dict[str, Any]) -> dict[str, Any]:
             if name not in parent:
                 continue
             value = parent.pop(name)
-            if value != default or isinstance(value, bool):
+            if value != default or isinstance(value, bool) != isinstance(default, bool):
                 raise ValueError(f"{dotted}: retired ({reason}); remove it")
     return raw
 

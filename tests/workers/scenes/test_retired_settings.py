@@ -68,6 +68,10 @@ def test_each_retired_setting_at_its_former_default_is_dropped_on_load() -> None
         ("task.imitate.tempo_speed_exponent", 0.0),
         ("obstacles.observe_behind", 2),
         ("task.reward.obstacle_touch", 1.0),
+        ("observe_muscles", False),
+        ("observe_heading", True),
+        ("observe_heading", 0),  # not the boolean it was
+        ("task.imitate.weights.pelvis_heading", 0.1),
     ],
 )
 def test_a_retired_setting_at_another_value_is_refused_naming_it(
@@ -85,7 +89,7 @@ def test_a_retired_setting_at_another_value_is_refused_naming_it(
 def test_the_shipped_policies_stored_scenes_load_without_the_retired_settings() -> None:
     metas = sorted(POLICIES.glob("*/meta.json"))
     assert len(metas) == 5
-    retired = {dotted.rsplit(".", 1)[1] for dotted, _, _ in RETIRED_SETTINGS}
+    retired = {dotted.split(".")[-1] for dotted, _, _ in RETIRED_SETTINGS}
     for meta in metas:
         stored = json.loads(meta.read_text())["scene"]
         dumped = json.dumps(Scene.model_validate(stored).model_dump(mode="json"))
