@@ -64,7 +64,9 @@ Score = tuple[int, float, float]
 
 def evaluation_metrics(result: ModeResult) -> dict[str, float]:
     """A deterministic evaluation as the metrics a promotion rule tests (each episode's
-    figure averaged over the evaluation's episodes), keyed ``eval_<metric>``."""
+    figure averaged over the evaluation's episodes), keyed ``eval_<metric>``; and, for the
+    logs only, ``eval_turned``: the mean size of the pelvis's turn about the vertical, deg
+    (a 3-D walker that turns loses distance)."""
     return {
         "eval_return": result.return_.mean,
         "eval_distance": result.distance_m.mean,
@@ -72,6 +74,7 @@ def evaluation_metrics(result: ModeResult) -> dict[str, float]:
         "eval_fall_rate": result.fall_rate.value,
         "eval_survival": result.survival_rate.value,
         "eval_length": result.time_s.mean,
+        "eval_turned": result.turned_deg.mean,
     }
 
 

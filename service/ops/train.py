@@ -248,8 +248,9 @@ def start_line(training: Training) -> str:
 
 def status_line(m: dict) -> str:
     """One line of an iteration's metrics: stage, env steps, speed, return, falls, and the
-    stage's deterministic evaluation where one ran (``learner.evaluation.stage_judge``), with
-    its confirmation on fresh episodes where it passed (promoted only if that passes too)."""
+    stage's deterministic evaluation where one ran (``learner.evaluation.stage_judge``; the
+    pelvis's mean turn where it turned), with its confirmation on fresh episodes where it
+    passed (promoted only if that passes too)."""
     verdict = f" ({m['verdict']})" if m.get("verdict") else ""
     evaluated = ""
     if "eval_fall_rate" in m:
@@ -257,6 +258,8 @@ def status_line(m: dict) -> str:
             f"; evaluated: return {m['eval_return']:.1f}, speed {m['eval_speed']:.2f} m/s, "
             f"falls {100 * m['eval_fall_rate']:.0f} %"
         )
+        if m.get("eval_turned"):
+            evaluated += f", turned {m['eval_turned']:.0f} deg"
     confirmation = f"{CONFIRMATION_PREFIX}eval_fall_rate"
     if confirmation in m:
         evaluated += (

@@ -180,6 +180,10 @@ def test_the_status_line_gives_an_evaluation_and_its_confirmation_on_fresh_episo
         "; evaluated: return 350.0, speed 3.05 m/s, falls 8 %; on fresh episodes: speed "
         "2.98 m/s, falls 12 %"
     )
+    turned = {**evaluated, "eval_turned": 0.0}  # a planar body
+    assert train_ops.status_line(turned) == train_ops.status_line(evaluated)
+    turned["eval_turned"] = 41.6
+    assert "falls 8 %, turned 42 deg; on fresh" in train_ops.status_line(turned)
 
 
 def test_evaluation_errors_are_typed(tmp_path: Path) -> None:
