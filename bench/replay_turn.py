@@ -47,7 +47,9 @@ CONTACT_VARIANTS: dict[str, ModelChange] = {
 }
 
 
-def replay(scene: Scene, episodes: int, seed: int, change: ModelChange | None = None) -> list:
+def replay(
+    scene: Scene, episodes: int, seed: int, change: ModelChange | None = None
+) -> list[EpisodeSummary]:
     """``episodes`` replays of ``scene`` from seeds ``seed``.. on MuJoCo, every action 0.5,
     after ``change`` to the compiled model; their summaries."""
     with EpisodeRunner(scene) as runner:
