@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 from gaitforge.workers.episode import EpisodeRunner, EpisodeSummary, run_episode
 from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.sim.mujoco_build import FLOOR
 from rich.console import Console
 from rich.table import Table
 
@@ -35,7 +36,7 @@ def _stiff_friction(model: mujoco.MjModel) -> None:
 
 
 def _torsional_friction(model: mujoco.MjModel) -> None:
-    floor = model.geom("floor").id
+    floor = model.geom(FLOOR).id
     model.geom_condim[floor] = 6
     model.geom_friction[floor] = [model.geom_friction[floor][0], 0.02, 0.001]
 

@@ -59,7 +59,7 @@ def _all_results(report: Any) -> list[Any]:
 
 def _turning(report: Any) -> bool:
     """Whether any episode of the report (modes and sweep) turned about the vertical."""
-    return any(e.turned_deg != 0.0 for r in _all_results(report) for e in r.episodes)
+    return any(r.turned for r in _all_results(report))
 
 
 def _imitating(report: Any) -> bool:

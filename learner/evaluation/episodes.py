@@ -150,7 +150,7 @@ def evaluate_policy(
         100 * result.fall_rate.value,
         result.return_.mean,
     )
-    if any(e.turned_deg != 0.0 for e in results):
+    if result.turned:
         logger.info("%s: the pelvis turned %.0f deg on average", label, result.turned_deg.mean)
     if result.tracking_error_rad is not None and result.kept_gait_rate is not None:
         logger.info(

@@ -171,6 +171,11 @@ class ModeResult:
     fall_rate_untouched: Rate | None = None
     """obstacle scenes: falls among the episodes that touched none (None elsewhere)"""
 
+    @property
+    def turned(self) -> bool:
+        """Some episode's pelvis turned about the vertical (a planar body's never does)."""
+        return any(e.turned_deg != 0.0 for e in self.episodes)
+
     @classmethod
     def of(
         cls,
