@@ -163,6 +163,8 @@ def plot_runs(runs: list[Run], out: Path) -> None:
                 boundary_colour = training_colour if several else "grey"
                 ax.axvline(row["first_env_steps"] / 1e6, color=boundary_colour, ls="--", lw=0.7)
             ax.set_ylabel(title, fontsize="small")
+            if training == "fall_rate":
+                ax.set_ylim(-0.03, 1.03)
     first = runs[0]
     for position, row in enumerate(first.rows):
         index = row["stage"]
