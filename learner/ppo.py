@@ -187,16 +187,20 @@ def ppo_update(
     generator: torch.Generator | None = None,
 ) -> dict[str, float]:
     """Several epochs of minibatch PPO on ``batch`` with ``cfg`` (``settings.at(progress)``:
-    its ``lr`` is the optimizer's business, set by the caller); returns the last losses and
-    KL."""
+    its ``lr`` is the optimizer's business, set by the caller); returns the last epoch's
+    losses and approximate KL (the mean of its minibatches'; with mirror images in the batch
+    also the KL of the sampled ones and of the images apart: ``approx_kl_sampled``,
+    ``approx_kl_mirrored``)."""
     n = batch["obs"].shape[0]
     adv = batch["advantage"]
     adv = (adv - adv.mean()) / (adv.std() + 1e-8)
     proximal_logp, behaviour_weight = _proximal(policy, batch, cfg.decoupled)
+    mirrored = batch.get("mirrored")
     stats: dict[str, float] = {}
     for epoch in range(cfg.epochs):
         order = torch.randperm(n, generator=generator)
         kls = []
+        sample_kl = torch.zeros(n, dtype=torch.float64)
         for idx in order.chunk(cfg.minibatches(n)):
             logp, entropy, value = policy.evaluate(batch["obs"][idx], batch["action"][idx])
             log_ratio = logp - proximal_logp[idx]
@@ -211,7 +215,9 @@ def ppo_update(
                 torch.nn.utils.clip_grad_norm_(group, cfg.max_grad_norm)
             optimizer.step()
             with torch.no_grad():
-                kls.append(((ratio - 1) - log_ratio).mean().item())
+                kl = (ratio - 1) - log_ratio
+                kls.append(kl.mean().item())
+                sample_kl[idx] = kl.to(sample_kl.dtype)
         stats = {
             "policy_loss": policy_loss.item(),
             "value_loss": value_loss.item(),
@@ -220,6 +226,9 @@ def ppo_update(
             "epochs": epoch + 1,
             "behaviour_weight": behaviour_weight.mean().item(),
         }
+        if mirrored is not None:
+            stats["approx_kl_sampled"] = sample_kl[~mirrored].mean().item()
+            stats["approx_kl_mirrored"] = sample_kl[mirrored].mean().item()
         if cfg.target_kl is not None and stats["approx_kl"] > cfg.target_kl:
             break
     return stats

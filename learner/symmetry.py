@@ -88,9 +88,10 @@ class MirrorMap:
 def add_mirrored(
     batch: dict[str, torch.Tensor], mirror: MirrorMap, policy
 ) -> dict[str, torch.Tensor]:
-    """``batch`` with each sample's mirror image appended (sizes double). The mirrored
-    samples keep their advantage and return; their behaviour log-probability is the current
-    policy's (the one about to be updated), so their first PPO ratio is 1."""
+    """``batch`` with each sample's mirror image appended (sizes double), and ``"mirrored"``
+    [2N] bool marking the images. The mirrored samples keep their advantage and return;
+    their behaviour log-probability is the current policy's (the one about to be updated), so
+    their first PPO ratio is 1."""
     obs, action = mirror.obs(batch["obs"]), mirror.action(batch["action"])
     logp, _, value = policy.evaluate(obs, action)
     extra = {
@@ -99,4 +100,7 @@ def add_mirrored(
         "logp": logp.to(batch["logp"].dtype),
         "value": value.to(batch["value"].dtype),
     }
-    return {key: torch.cat([tensor, extra.get(key, tensor)]) for key, tensor in batch.items()}
+    doubled = {key: torch.cat([tensor, extra.get(key, tensor)]) for key, tensor in batch.items()}
+    n = batch["obs"].shape[0]
+    doubled["mirrored"] = torch.arange(2 * n) >= n
+    return doubled

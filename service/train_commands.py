@@ -86,10 +86,13 @@ class TrainDisplay:
             f"{m['speed']:.2f} m/s   falls {100 * m['fall_rate']:.0f} %   survival "
             f"{100 * m['survival']:.0f} %",
         )
+        kl = f"kl {m['approx_kl']:.4f}"
+        if "approx_kl_mirrored" in m:
+            kl += f" (sampled {m['approx_kl_sampled']:.4f}, mirrored {m['approx_kl_mirrored']:.4g})"
         table.add_row(
             "ppo",
-            f"kl {m['approx_kl']:.4f}   entropy {m['entropy']:.2f}   "
-            f"value loss {m['value_loss']:.3g}   lr {m['lr']:.2e}",
+            f"{kl}   entropy {m['entropy']:.2f}   value loss {m['value_loss']:.3g}   "
+            f"lr {m['lr']:.2e}",
         )
         table.add_row("health (this batch)", health)
         return table

@@ -8,6 +8,7 @@ import pytest
 import torch
 from gaitforge.learner.job import Job
 from gaitforge.learner.policy import GaussianPolicy
+from gaitforge.learner.ppo import PPOSettings, ppo_update
 from gaitforge.learner.symmetry import MirrorMap, add_mirrored
 from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.env import MuscleEnv
@@ -98,6 +99,40 @@ def test_the_mirrored_batch_doubles_and_keeps_advantages() -> None:
     torch.testing.assert_close(doubled["obs"][n:], mirror.obs(batch["obs"]))
     logp, _, _ = policy.evaluate(doubled["obs"][n:], doubled["action"][n:])
     torch.testing.assert_close(doubled["logp"][n:], logp.detach())
+
+
+def test_the_update_reports_the_kl_of_the_mirror_images_apart() -> None:
+    """A policy that acts differently on the two sides (right muscles near 0.9, left near
+    0.1, noise 0.05) puts the mirror images of its own samples far in its tails: one update
+    moves their probabilities by orders of magnitude more than its samples' (the KL that the
+    images of an asymmetric policy bring into an update)."""
+    env, mirror = _map("walk-2d")
+    muscles = env.sim.muscle_names
+    policy = GaussianPolicy(len(env.obs_names), len(muscles), init_std=0.05)
+    with torch.no_grad():
+        side = torch.tensor([2.0 if m.endswith("_r") else -2.0 for m in muscles])
+        policy.actor[-1].bias.copy_(side)
+    generator = torch.Generator().manual_seed(0)
+    n = 512
+    obs = torch.randn(n, len(env.obs_names), generator=generator)
+    with torch.no_grad():
+        action, logp, value = policy.act(obs)
+    batch = {
+        "obs": obs,
+        "action": action,
+        "logp": logp,
+        "value": value,
+        "advantage": torch.randn(n, generator=generator),
+        "return": torch.randn(n, generator=generator),
+    }
+    doubled = add_mirrored(batch, mirror, policy)
+    assert doubled["mirrored"].sum() == n and not doubled["mirrored"][:n].any()
+    optimizer = torch.optim.Adam(policy.parameters(), lr=1e-3)
+    cfg = PPOSettings(epochs=2, minibatch_size=256, target_kl=None)
+    stats = ppo_update(policy, optimizer, doubled, cfg, generator)
+    assert stats["approx_kl_mirrored"] > 100 * stats["approx_kl_sampled"], stats
+    alone = ppo_update(policy, optimizer, batch, cfg, generator)
+    assert "approx_kl_mirrored" not in alone and "approx_kl_sampled" not in alone
 
 
 def test_a_stage_may_turn_mirroring_off(tmp_path: Path) -> None:

@@ -10,8 +10,11 @@ from pathlib import Path
 import pytest
 import typer
 from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint
+from gaitforge.learner.job import Job
+from gaitforge.learner.trainer import Trainer
 from gaitforge.service.cli import app
-from gaitforge.service.train_commands import resume_command
+from gaitforge.service.train_commands import TrainDisplay, resume_command
+from rich.console import Console
 from typer.testing import CliRunner
 
 runner = CliRunner()
@@ -160,3 +163,26 @@ def test_a_bad_override_is_one_line_naming_it(
     result = runner.invoke(app, _train_args(tmp_path, *extra), env={"COLUMNS": "300"})
     assert result.exit_code == 2, result.output
     assert message in result.output and "Traceback" not in result.output
+
+
+def test_a_mirrored_run_reports_the_kl_of_its_images_apart(tmp_path: Path) -> None:
+    """With ``ppo.mirror`` an iteration's metrics (TensorBoard's ``train/*``) carry the KL of
+    the sampled actions and of their mirror images apart, and the live table shows both."""
+    job = Job.model_validate(
+        {
+            "name": "mirrored",
+            "ppo": {"batch_env_steps": 256, "minibatch_size": 128, "epochs": 1, "mirror": True},
+            "workers": {"num_workers": 0},
+            "stages": [{"scene": "stand-2d", "env_steps": 10_000}],
+        }
+    )
+    trainer = Trainer(job, tmp_path, tensorboard=False)
+    trainer.run(max_iterations=1)
+    metrics = trainer.history[-1]
+    assert metrics["approx_kl_sampled"] >= 0 and metrics["approx_kl_mirrored"] >= 0
+    display = TrainDisplay(job, [0])
+    display.update(metrics)
+    console = Console(record=True, width=200)
+    console.print(display)
+    shown = console.export_text()
+    assert f"mirrored {metrics['approx_kl_mirrored']:.4g}" in shown, shown
