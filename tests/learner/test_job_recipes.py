@@ -35,11 +35,16 @@ def test_the_recipes_are_stages_of_the_curriculum() -> None:
 
 
 def test_the_3d_walk_is_the_walk_recipe_on_myolegs_scenes_at_less_noise() -> None:
+    """learn-to-walk.yaml on MyoLeg's scenes, with a third of its starting noise and no mirror
+    images in the walk stage."""
     planar, _ = load_job(EXAMPLES / "learn-to-walk.yaml")
     myoleg, scenes = load_job(EXAMPLES / "learn-to-walk-3d.yaml")
     assert [s.name for s in scenes] == ["imitate-walk-3d+standing-starts", "walk-3d+clock"]
     assert all(s.body == "myoleg" and s.action.kind == "joint_targets" for s in scenes)
-    for mine, theirs in zip(myoleg.stages, planar.stages, strict=True):
+    assert planar.stage_ppo(1).mirror and not myoleg.stage_ppo(1).mirror
+    assert myoleg.stage_ppo(0) == planar.stage_ppo(0)
+    walk = myoleg.stages[1].model_copy(update={"ppo": planar.stages[1].ppo})
+    for mine, theirs in zip([myoleg.stages[0], walk], planar.stages, strict=True):
         assert mine.model_copy(update={"scene": theirs.scene}) == theirs
     assert myoleg.network.init_std == pytest.approx(planar.network.init_std / 3)
     network = myoleg.network.model_copy(update={"init_std": planar.network.init_std})
