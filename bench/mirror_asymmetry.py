@@ -24,13 +24,14 @@ from pathlib import Path
 import numpy as np
 import torch
 from gaitforge.learner.checkpoint import load_policy
-from gaitforge.learner.checkpoint_meta import META_FILE
+from gaitforge.learner.checkpoint_meta import META_FILE, CheckpointError, CheckpointMeta
 from gaitforge.learner.curriculum import StageIO
-from gaitforge.learner.evaluation.evaluate import resolve_checkpoint
+from gaitforge.learner.evaluation.evaluate import EvaluationError, resolve_checkpoint
 from gaitforge.learner.policy import ActorCritic
 from gaitforge.learner.symmetry import MirrorMap
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.spec_io import SpecError
 from rich.console import Console
 from rich.table import Table
 
@@ -47,10 +48,24 @@ class Samples:
     mirror: MirrorMap
 
 
-def play(policy: ActorCritic, scene: Scene, episodes: int, seed: int) -> Samples:
-    """``episodes`` episodes of ``policy`` on ``scene`` (MuJoCo) from seeds ``seed``..,
-    actions sampled with a generator seeded with ``seed``."""
+def play(
+    policy: ActorCritic, obs_names: list[str] | None, scene: Scene, episodes: int, seed: int
+) -> Samples:
+    """``episodes`` episodes of ``policy`` (trained on inputs ``obs_names``; None: unnamed,
+    only their number is known) on ``scene`` (MuJoCo) from seeds ``seed``.., actions sampled
+    with a generator seeded with ``seed``.
+
+    Raises:
+        ValueError: the scene observes other inputs than the policy's, or has no sides.
+    """
     io = StageIO(scene, "mujoco")
+    fits = (
+        io.obs_names == list(obs_names)
+        if obs_names is not None
+        else len(io.obs_names) == policy.norm.mean.numel()
+    )
+    if not fits:
+        raise ValueError(f"scene {scene.name!r} observes other inputs than the policy was given")
     mirror = MirrorMap.from_names(io.obs_names, io.act_names, io.lateral_axis)
     generator = torch.Generator().manual_seed(seed)
     observations, actions = [], []
@@ -112,13 +127,17 @@ def one_update_kl(before: ActorCritic, after: ActorCritic, samples: Samples) -> 
     return result
 
 
-def checkpoint_scene(path: Path, scene: str | None) -> tuple[ActorCritic, Scene, int]:
-    """The policy at checkpoint (or run directory) ``path``, the scene it is played on
-    (``scene``, else its own) and its env steps."""
+def checkpoint_scene(path: Path, scene: str | None) -> tuple[ActorCritic, CheckpointMeta, Scene]:
+    """The policy at checkpoint (or run directory) ``path``, its metadata and the scene it is
+    played on (``scene``, else its own).
+
+    Raises:
+        EvaluationError, CheckpointError, SpecError: no such checkpoint or scene.
+    """
     ckpt = resolve_checkpoint(path)
     policy, meta = load_policy(ckpt)
     chosen = load_scene(scene) if scene else meta.scene_spec(ckpt / META_FILE)
-    return policy, chosen.resolved(), meta.env_steps
+    return policy, meta, chosen.resolved()
 
 
 def main() -> None:
@@ -149,23 +168,26 @@ def main() -> None:
     ):
         table.add_column(column, justify="right")
     last: tuple[ActorCritic, Samples] | None = None
-    for path in args.checkpoints:
-        policy, scene, env_steps = checkpoint_scene(path, args.scene)
-        samples = play(policy, scene, args.episodes, args.seed)
-        last = (policy, samples)
-        a = asymmetry(policy, samples)
-        table.add_row(
-            path.name,
-            f"{env_steps:,}",
-            str(len(samples.obs)),
-            f"{a['noise']:.3f}",
-            f"{a['gap_mean']:.3f}, {a['gap_max']:.3f}",
-            f"{a['sampled_z']:.1f}",
-            f"{a['image_z']:.1f}",
-        )
+    try:
+        for path in args.checkpoints:
+            policy, meta, scene = checkpoint_scene(path, args.scene)
+            samples = play(policy, meta.obs_names, scene, args.episodes, args.seed)
+            last = (policy, samples)
+            a = asymmetry(policy, samples)
+            table.add_row(
+                path.name,
+                f"{meta.env_steps:,}",
+                str(len(samples.obs)),
+                f"{a['noise']:.3f}",
+                f"{a['gap_mean']:.3f}, {a['gap_max']:.3f}",
+                f"{a['sampled_z']:.1f}",
+                f"{a['image_z']:.1f}",
+            )
+        after = None if args.update_to is None else checkpoint_scene(args.update_to, args.scene)[0]
+    except (EvaluationError, CheckpointError, SpecError, ValueError) as exc:
+        parser.error(str(exc))
     console.print(table)
-    if args.update_to is not None and last is not None:
-        after, _, _ = checkpoint_scene(args.update_to, args.scene)
+    if after is not None and last is not None:
         kl = one_update_kl(last[0], after, last[1])
         update = Table(title=f"One update: {args.checkpoints[-1].name} -> {args.update_to.name}")
         for column in ("actions", "approx KL", "median |log ratio|"):

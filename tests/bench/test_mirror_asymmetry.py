@@ -70,3 +70,15 @@ def test_a_symmetric_policy_has_no_gap_and_a_one_sided_one_puts_its_images_in_it
     spread = 2 * torch.sigmoid(torch.tensor(2.0)).item() - 1  # sigmoid(2) - sigmoid(-2)
     assert gap == f"{spread:.3f}, {spread:.3f}"
     assert float(sampled) < 4 < spread / 0.05 - 4 < float(images)
+
+
+def test_a_missing_checkpoint_or_a_scene_of_other_inputs_is_one_line(
+    tmp_path: Path, run_bench: RunBench
+) -> None:
+    missing = run_bench("mirror_asymmetry.py", str(tmp_path / "nothing"))
+    assert missing.returncode == 2 and "Traceback" not in missing.stderr
+    assert str(tmp_path / "nothing") in missing.stderr
+    checkpoint = _constant_policy(tmp_path / "planar", 0.0)
+    other = run_bench("mirror_asymmetry.py", str(checkpoint), "--scene", "walk-3d+clock")
+    assert other.returncode == 2 and "Traceback" not in other.stderr
+    assert "observes other inputs" in other.stderr
