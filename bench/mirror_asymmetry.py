@@ -26,10 +26,10 @@ import torch
 from gaitforge.learner.checkpoint import load_policy
 from gaitforge.learner.checkpoint_meta import META_FILE, CheckpointError, CheckpointMeta
 from gaitforge.learner.curriculum import StageIO
+from gaitforge.learner.evaluation.episodes import make_runner
 from gaitforge.learner.evaluation.evaluate import EvaluationError, resolve_checkpoint
 from gaitforge.learner.policy import ActorCritic
 from gaitforge.learner.symmetry import MirrorMap
-from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.spec_io import SpecError
 from rich.console import Console
@@ -56,20 +56,15 @@ def play(
     with a generator seeded with ``seed``.
 
     Raises:
-        ValueError: the scene observes other inputs than the policy's, or has no sides.
+        EvaluationError: the scene's sizes are not the policy's (``make_runner``).
+        ValueError: the scene's body has no sides.
     """
     io = StageIO(scene, "mujoco")
-    fits = (
-        io.obs_names == list(obs_names)
-        if obs_names is not None
-        else len(io.obs_names) == policy.norm.mean.numel()
-    )
-    if not fits:
-        raise ValueError(f"scene {scene.name!r} observes other inputs than the policy was given")
     mirror = MirrorMap.from_names(io.obs_names, io.act_names, io.lateral_axis)
     generator = torch.Generator().manual_seed(seed)
     observations, actions = [], []
-    env = MuscleEnv(scene)
+    runner = make_runner(policy, scene, "mujoco", obs_names)
+    env = runner.env
     try:
         for episode in range(episodes):
             obs, _ = env.reset(seed=seed + episode)
@@ -85,7 +80,7 @@ def play(
                 obs, _, terminated, truncated, _ = env.step(action.numpy().astype(np.float64))
                 done = terminated or truncated
     finally:
-        env.close()
+        runner.close()
     return Samples(torch.stack(observations), torch.stack(actions), mirror)
 
 

@@ -81,4 +81,4 @@ def test_a_missing_checkpoint_or_a_scene_of_other_inputs_is_one_line(
     checkpoint = _constant_policy(tmp_path / "planar", 0.0)
     other = run_bench("mirror_asymmetry.py", str(checkpoint), "--scene", "walk-3d+clock")
     assert other.returncode == 2 and "Traceback" not in other.stderr
-    assert "observes other inputs" in other.stderr
+    assert "the policy expects observation size" in other.stderr
