@@ -46,19 +46,26 @@ def test_mirroring_twice_is_the_identity_and_swaps_sides(scene: str) -> None:
     torch.testing.assert_close(flipped[:, a], action[:, b])
 
 
-def test_the_mirror_image_of_a_turned_leaning_pelvis_is_the_mirrored_pelvis() -> None:
-    """MyoLeg's pelvis turned, listed and spinning one way, mirrored, reads as the pelvis
-    turned, listed and spinning the other way: up axis and angular velocity."""
+def test_the_mirror_image_of_a_posed_myoleg_is_the_mirrored_pose() -> None:
+    """MyoLeg posed one way (the legs apart, the pelvis turned, listed and spinning), its
+    observation mirrored, reads as MyoLeg posed the mirrored way: the two sides' joint axes
+    mean the same motion, and the pelvis's up axis and angular velocity flip as they should."""
     env = MuscleEnv(load_scene("walk-3d"))
     lateral = 3 - env.sim.up_axis - env.sim.forward_axis
     mirror = MirrorMap.from_names(env.obs_names, env.sim.muscle_names, lateral)
     pelvis = [i for i, n in enumerate(env.obs_names) if n.startswith("pelvis_up")]
     pelvis += [i for i, n in enumerate(env.obs_names) if n.startswith("pelvis_angvel")]
+    dofs = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_angle", "ankle_angle")
+    one_leg = dict(zip(dofs, (0.4, 0.1, 0.15, -0.5, 0.1), strict=True))
+    other_leg = dict(zip(dofs, (-0.2, -0.05, 0.0, -0.1, -0.15), strict=True))
 
     def observed(side: float) -> torch.Tensor:
         env.reset(seed=0)
+        right, left = (one_leg, other_leg) if side > 0 else (other_leg, one_leg)
+        coordinates = {f"{dof}_r": angle for dof, angle in right.items()}
+        coordinates |= {f"{dof}_l": angle for dof, angle in left.items()}
         pose = Pose(
-            coordinates={},
+            coordinates=coordinates,
             pelvis_pitch=0.1,
             pelvis_list=side * 0.15,
             pelvis_rotation=side * 0.4,
@@ -69,10 +76,9 @@ def test_the_mirror_image_of_a_turned_leaning_pelvis_is_the_mirrored_pelvis() ->
 
     turned_left, turned_right = observed(1.0), observed(-1.0)
     assert turned_left[pelvis].abs().min() < 1.0  # not all axis-aligned
-    torch.testing.assert_close(
-        mirror.obs(turned_left)[pelvis], turned_right[pelvis], atol=1e-4, rtol=0
-    )
+    torch.testing.assert_close(mirror.obs(turned_left), turned_right, atol=1e-4, rtol=0)
     assert not torch.allclose(turned_left[pelvis], turned_right[pelvis], atol=1e-2)
+    assert not torch.allclose(turned_left, mirror.obs(turned_left), atol=1e-2)
     env.close()
 
 
