@@ -2,7 +2,8 @@
 its stages, the episodes behind each promotion rule, and the decision to move on.
 
 The trainer feeds every fragment's finished episodes to :class:`CurriculumState`; after each
-update it asks :meth:`CurriculumState.verdict` whether the stage is over: its promotion rules
+update it asks :meth:`CurriculumState.verdict` whether the stage is over (a
+``learner.stage_verdict.StageVerdict``): its promotion rules
 passed (each training rule over a full window of episodes, each evaluation rule on the
 deterministic evaluation just run) or its env-step budget is spent. The state is plain data,
 saved in each checkpoint's ``meta.json`` so that a resumed run keeps its window.
@@ -16,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from gaitforge.learner.job import Job, PromotionRule, Stage
 from gaitforge.learner.stage_spec import EVALUATION_PREFIX
+from gaitforge.learner.stage_verdict import GOES_ON, Outcome, RuleFigure, StageVerdict
 from gaitforge.learner.symmetry import MirrorMap
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
@@ -28,9 +30,6 @@ from gaitforge.workers.scenes.io_names import (
 from gaitforge.workers.spec_io import SpecError
 
 WINDOW_MAX = 10_000
-PROMOTED = "promoted: "
-"""how a verdict of promotion starts"""
-BUDGET_SPENT = "budget spent"
 
 
 class StageShortfallError(RuntimeError):
@@ -161,26 +160,27 @@ class CurriculumState:
             for m in ("return", "distance", "speed", "fall_rate", "survival", "length")
         }
 
-    def verdict(self, stage: Stage, evaluation: dict[str, float] | None = None) -> str | None:
-        """Why the stage ends now (``"promoted: ..."`` or ``"budget spent"``), or None.
-
-        Promoted when all the stage's rules pass: each training rule on the mean over its
-        window of episodes (once the window is full), each evaluation rule (``eval.*``) on
-        ``evaluation``, the ``eval_*`` metrics of the stage's deterministic evaluation just
-        run (None where none ran now: a stage with evaluation rules promotes only at an
-        evaluation)."""
+    def verdict(self, stage: Stage, evaluation: dict[str, float] | None = None) -> StageVerdict:
+        """Whether the stage ends now, on its figures: promoted when all the stage's rules
+        pass (each training rule on the mean over its window of episodes, once the window is
+        full; each evaluation rule, ``eval.*``, on ``evaluation``, the ``eval_*`` metrics of
+        the stage's deterministic evaluation just run, None where none ran now: a stage with
+        evaluation rules promotes only at an evaluation); else its budget spent once its env
+        steps reach it; else it goes on. A stage that fails is told apart by its judge
+        (``learner.evaluation.training_hooks.StageJudging.decide``), which names the
+        shortfall."""
         rules = stage.promote
         figures = self._figures(rules, evaluation)
         if figures is not None and all(
-            rule.passes(figure) for rule, figure in zip(rules, figures, strict=True)
+            rule.passes(f) for rule, f in zip(rules, figures, strict=True)
         ):
-            return PROMOTED + ", ".join(
-                f"{rule.metric} {figure:.3g} {rule.op} {rule.value:g}"
-                for rule, figure in zip(rules, figures, strict=True)
+            return StageVerdict(
+                Outcome.PROMOTED,
+                tuple(RuleFigure(rule, f) for rule, f in zip(rules, figures, strict=True)),
             )
         if self.stage_env_steps >= stage.env_steps:
-            return BUDGET_SPENT
-        return None
+            return StageVerdict(Outcome.BUDGET_SPENT)
+        return GOES_ON
 
     def shortfall(self, stage: Stage, name: str, evaluation: dict[str, float]) -> str:
         """Why stage ``name`` ended unpromoted, in one line: each rule with its figure (a

@@ -37,19 +37,14 @@ import time
 from pathlib import Path
 from typing import Any
 
-from gaitforge.learner.curriculum import BUDGET_SPENT, StageShortfallError
-from gaitforge.learner.evaluation.training_hooks import Recordings, StageJudging
-from gaitforge.learner.hooks import (
-    BlendRamp,
-    Checkpoints,
-    IterationCallback,
-    MetricsReport,
-    TrainingHook,
-)
+from gaitforge.learner.curriculum import StageShortfallError
+from gaitforge.learner.evaluation.training_hooks import StageJudging, record_due
+from gaitforge.learner.hooks import Checkpoints, IterationCallback, MetricsReport, ramp_blend
 from gaitforge.learner.job import Job, resolve_scenes
 from gaitforge.learner.policy import ActorCritic
 from gaitforge.learner.run_log import batch_stats, iteration_metrics
 from gaitforge.learner.run_state import RunState
+from gaitforge.learner.stage_verdict import Outcome, StageVerdict
 from gaitforge.learner.transitions import stage_network
 from gaitforge.workers.fragment import Fragment, StopRequested
 from gaitforge.workers.scenes import Scene
@@ -105,16 +100,7 @@ class Trainer:
         self.judging = StageJudging(self.state)
         self.state.restore()
         self.judging.resume(self.state.env_steps)
-        checkpoints = Checkpoints()
-        # an iteration's end in this order: a checkpoint holds its network's evaluation and
-        # follows the metrics' report, a recording names its checkpoint
-        self.hooks: list[TrainingHook] = [
-            BlendRamp(),
-            self.judging,
-            self.report,
-            checkpoints,
-            Recordings(checkpoints),
-        ]
+        self.checkpoints = Checkpoints()
 
     @property
     def history(self) -> list[dict]:
@@ -166,18 +152,18 @@ class Trainer:
                     self.iterate()
                 except StopRequested:
                     break
-            for hook in self.hooks:
-                hook.on_run_end(run)
+            self.checkpoints.at_run_end(run)
         finally:
             run.rollouts.close()
-            for hook in self.hooks:
-                hook.close()
+            self.report.close()
         return self.history
 
     def iterate(self) -> dict:
-        """One iteration: sample a batch, update the policy on it, publish the new weights
-        (the hooks' ``after_update`` between the last two, their ``on_iteration_end`` after);
-        then the next stage if this one ended. Returns the iteration's metrics."""
+        """One iteration: sample a batch, update the policy on it, ramp a blend, publish the
+        new weights; then the stage's verdict (``StageJudging.decide``), the metrics'
+        report, the checkpoint and the recording where due, in that order (a checkpoint
+        holds its network's evaluation, a recording names its checkpoint); then the next
+        stage if this one ended. Returns the iteration's metrics."""
         run = self.state
         ppo = run.stage_ppo
         start = time.perf_counter()
@@ -187,22 +173,23 @@ class Trainer:
         cfg = ppo.at(run.stage_progress)
         batch = run.ppo.compute_returns(fragments, cfg, run.mirrors[run.curriculum.stage])
         losses = run.ppo.update(batch, fragments, cfg)
-        for hook in self.hooks:
-            hook.after_update(run)
+        ramp_blend(run)
         run.iteration += 1
         if not self._stop.is_set():  # stopping: no more rollouts (and a local Ray may be gone)
             run.rollouts.publish(run.policy)
         elapsed_s = time.perf_counter() - start
         metrics = iteration_metrics(run, cfg, losses, stats, sampled_s, elapsed_s)
-        metrics["verdict"] = run.curriculum.verdict(run.stage)
-        for hook in self.hooks:
-            hook.on_iteration_end(run, metrics)
-        if metrics["verdict"] == BUDGET_SPENT and run.stage.if_not_promoted == "fail":
-            ended_with = evaluation_ended_with(metrics)
-            shortfall = run.curriculum.shortfall(run.stage, metrics["stage_name"], ended_with)
-            raise StageShortfallError(shortfall)
-        if metrics["verdict"] is not None:
-            self._next_stage(metrics["verdict"])
+        verdict = self.judging.decide(run, metrics)
+        if verdict.kept is not None:
+            run.switch_policy(verdict.kept.network, run.stage_io)
+        self.report.add(metrics)
+        checkpoint = self.checkpoints.at_iteration_end(run, metrics, verdict)
+        record_due(run, verdict, checkpoint)
+        if verdict.outcome is Outcome.FAILED:
+            assert verdict.shortfall is not None
+            raise StageShortfallError(verdict.shortfall)
+        if verdict.ends:
+            self._next_stage(verdict)
         return metrics
 
     # ---- stages (their networks: learner/transitions.py) ----------------------------------
@@ -231,19 +218,12 @@ class Trainer:
         run.lineage.append(run.lineage_entry(index, stage.transition))
         logger.info("stage %d (%s): %s", index, run.scene.name, stage.transition)
 
-    def _next_stage(self, verdict: str) -> None:
+    def _next_stage(self, verdict: StageVerdict) -> None:
         """The stage ended (``verdict`` says why): the curriculum moves on and the workers
         go on in the next stage's scene."""
         run = self.state
-        logger.info("stage %d (%s) ends: %s", run.curriculum.stage, run.scene.name, verdict)
+        stage, scene = run.curriculum.stage, run.scene.name
+        logger.info("stage %d (%s) ends: %s", stage, scene, verdict.text)
         run.curriculum.advance()
         if not run.done:
             run.rollouts.set_scene(run.scene, run.backend, run.policy)
-
-
-def evaluation_ended_with(metrics: dict) -> dict[str, float]:
-    """The ``eval_*`` metrics of the network a stage ends with, from its last iteration's
-    ``metrics``: the best evaluated network's (``kept_eval_*``) where the stage went back to
-    it, else the last evaluation's (empty without one)."""
-    kept = {k.removeprefix("kept_"): v for k, v in metrics.items() if k.startswith("kept_eval_")}
-    return kept or {k: v for k, v in metrics.items() if k.startswith("eval_")}

@@ -41,11 +41,12 @@ from gaitforge.learner.checkpoint import (
     save_checkpoint,
 )
 from gaitforge.learner.checkpoint_meta import CheckpointMeta
-from gaitforge.learner.curriculum import PROMOTED, StageIO
+from gaitforge.learner.curriculum import StageIO
 from gaitforge.learner.evaluation.episodes import evaluate_policy
 from gaitforge.learner.evaluation.results import ModeResult
 from gaitforge.learner.job import PromotionRule, Stage, StageEvaluation, evaluation_scene
 from gaitforge.learner.policy import ActorCritic, build_policy
+from gaitforge.learner.stage_verdict import KeptNetwork, StageVerdict
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.spec_io import SpecError
 
@@ -218,41 +219,46 @@ class StageJudge:
                 shutil.rmtree(other, ignore_errors=True)
         return True
 
-    def promoted_on_evaluation(self, verdict: str | None) -> bool:
-        """Whether ``verdict`` (given at an evaluation) promotes the stage on it: the stage
-        has evaluation rules (``eval.*``), which pass only on an evaluation."""
-        on_evaluation = any(rule.on_evaluation for rule in self.rules)
-        return on_evaluation and verdict is not None and verdict.startswith(PROMOTED)
+    @property
+    def promotes_on_evaluation(self) -> bool:
+        """The stage has evaluation rules (``eval.*``): it is promoted only at an
+        evaluation, on it (and on its confirmation)."""
+        return any(rule.on_evaluation for rule in self.rules)
 
     def judge(
-        self, policy: ActorCritic, metrics: dict, meta: CheckpointMeta, env_steps: int
-    ) -> ActorCritic | None:
+        self,
+        policy: ActorCritic,
+        verdict: StageVerdict,
+        metrics: dict,
+        meta: CheckpointMeta,
+        env_steps: int,
+    ) -> KeptNetwork | None:
         """Keep ``policy``, just evaluated, if it is the best so far (its iteration's
-        ``metrics`` hold the evaluation and the stage's ``verdict``; ``meta`` is its
-        checkpoint's, the run at ``env_steps``). At the end of a ``keep_best`` stage (a
-        verdict) whose last network was not its best, returns the best network to end with
-        (``metrics`` then also name it: ``kept_eval_*``, ``kept_best_from_env_steps``);
-        otherwise None, and always when the stage was promoted on this evaluation: it ends
-        with the network that passed."""
+        ``metrics`` hold the evaluation; ``meta`` is its checkpoint's, the run at
+        ``env_steps``). At the end of a ``keep_best`` stage (``verdict`` ends it) whose last
+        network was not its best, returns the best network to end with (``metrics`` then
+        also name it: ``kept_eval_*``, ``kept_best_from_env_steps``); otherwise None, and
+        always when the stage was promoted on this evaluation: it ends with the network that
+        passed."""
         kept = self.offer(policy, metrics, meta, env_steps)
-        verdict = metrics["verdict"]
-        if verdict is None or not self.spec.keep_best or kept:
+        if not verdict.ends or not self.spec.keep_best or kept:
             return None
-        if self.promoted_on_evaluation(verdict):
+        if self.promotes_on_evaluation and verdict.promoted:
             return None
         best = self.best_network()
         if best is None:
             return None
         network, meta = best
+        evaluation = {k: v for k, v in meta.metrics.items() if k.startswith("eval_")}
         # eval_* stay the last network's; kept_eval_* are the network the stage ends with
-        metrics.update({f"kept_{k}": v for k, v in meta.metrics.items() if k.startswith("eval_")})
+        metrics.update({f"kept_{k}": v for k, v in evaluation.items()})
         metrics["kept_best_from_env_steps"] = meta.env_steps
         logger.info(
             "stage %d ends with its best evaluated network, from %d env steps",
             self.index,
             meta.env_steps,
         )
-        return network
+        return KeptNetwork(network, meta.env_steps, evaluation)
 
     def best_network(self) -> tuple[ActorCritic, CheckpointMeta] | None:
         """The best network kept (and its checkpoint's meta), or None if none was."""

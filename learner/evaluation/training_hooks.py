@@ -1,31 +1,34 @@
-"""The trainer's hooks that run the policy outside training: stage judging on deterministic
-evaluations (``learner.evaluation.stage_judge``) and MCAP recordings of the checkpoints
-(``learner.evaluation.recording``)."""
+"""What the trainer does at an iteration's end that runs the policy outside training: the
+stage's verdict, judged on deterministic evaluations too (``learner.evaluation.stage_judge``),
+and MCAP recordings of the checkpoints (``learner.evaluation.recording``)."""
 
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 from pathlib import Path
 
-from gaitforge.learner.curriculum import PROMOTED
 from gaitforge.learner.evaluation.stage_judge import CONFIRMATION_PREFIX, StageJudge
-from gaitforge.learner.hooks import Checkpoints, TrainingHook, recording_due
+from gaitforge.learner.hooks import recording_due
 from gaitforge.learner.policy import ActorCritic
 from gaitforge.learner.run_state import RunState
+from gaitforge.learner.stage_verdict import Outcome, StageVerdict
 from gaitforge.workers.episode import EpisodeRunner
 from gaitforge.workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
 
 
-class StageJudging(TrainingHook):
-    """The deterministic evaluations of every stage of ``run`` with ``evaluate``
-    (:class:`StageJudge`, keeping its best network in ``run_dir/best/stage-<i>``): after the
-    stage's first update, every ``evaluate.every_env_steps`` and at its end, into the
-    iteration's metrics (``eval_*``). Each evaluation judges the stage's promotion rules again,
-    its evaluation rules (``eval.*``) on it, into ``metrics["verdict"]``; where they pass, a
-    confirmation on fresh episodes (``confirmation_eval_*``) must pass them too. A ``keep_best``
-    stage that ends with a network worse than its best goes on from the best, unless it was
+class StageJudging:
+    """Where every stage of ``run`` stands after an iteration (:meth:`decide`, the one place
+    that says whether a stage goes on, is promoted, has spent its budget or fails), with the
+    deterministic evaluations of each stage with ``evaluate`` (:class:`StageJudge`, keeping
+    its best network in ``run_dir/best/stage-<i>``): after the stage's first update, every
+    ``evaluate.every_env_steps`` and at its end, into the iteration's metrics (``eval_*``).
+    Each evaluation judges the stage's promotion rules again, its evaluation rules
+    (``eval.*``) on it; where they pass, a confirmation on fresh episodes
+    (``confirmation_eval_*``) must pass them too. A ``keep_best`` stage that ends with a
+    network worse than its best ends with the best (the verdict's ``kept``), unless it was
     promoted on that evaluation.
 
     Raises:
@@ -53,50 +56,57 @@ class StageJudging(TrainingHook):
         for judge in self.judges.values():
             judge.resume(run_env_steps)
 
-    def on_iteration_end(self, run: RunState, metrics: dict) -> None:
-        judge = self.judges.get(run.curriculum.stage)
-        stage_end = metrics["verdict"] is not None
-        if judge is None or not (stage_end or judge.due(run.curriculum.stage_env_steps)):
-            return
+    def decide(self, run: RunState, metrics: dict) -> StageVerdict:
+        """The verdict on ``run``'s stage after the iteration whose ``metrics`` these are:
+        on its training figures, then, where an evaluation is due or the stage ends, on its
+        evaluation (and confirmation), with the network it ends with. Adds the evaluations'
+        metrics and the verdict's text (``verdict``) to ``metrics``."""
+        stage, curriculum = run.stage, run.curriculum
+        verdict = curriculum.verdict(stage)
+        judge = self.judges.get(curriculum.stage)
+        if judge is not None and (verdict.ends or judge.due(curriculum.stage_env_steps)):
+            verdict = self._evaluated(judge, run, metrics)
+        if verdict.outcome is Outcome.BUDGET_SPENT and stage.if_not_promoted == "fail":
+            name = metrics["stage_name"]
+            verdict = verdict.failed(curriculum.shortfall(stage, name, verdict.ended_with()))
+        metrics["verdict"] = verdict.text
+        return verdict
+
+    @staticmethod
+    def _evaluated(judge: StageJudge, run: RunState, metrics: dict) -> StageVerdict:
+        """The verdict at an evaluation of ``run``'s policy: on the evaluation, and where
+        its evaluation rules promote on it, on a confirmation on fresh episodes too (the
+        stage is promoted only if the rules pass there as well); with the best network kept
+        so far where a ``keep_best`` stage ends worse than it."""
         evaluation = judge.evaluate(run.policy, run.curriculum.stage_env_steps)
         metrics.update(evaluation)
         run.curriculum.evaluation = evaluation
-        metrics["verdict"] = run.curriculum.verdict(run.stage, evaluation)
-        if judge.promoted_on_evaluation(metrics["verdict"]):
-            self._confirm(judge, run, metrics)
-        best = judge.judge(run.policy, metrics, run.meta(metrics), run.env_steps)
-        if best is not None:
-            run.switch_policy(best, run.stage_io)
-
-    @staticmethod
-    def _confirm(judge: StageJudge, run: RunState, metrics: dict) -> None:
-        """Play ``run``'s policy, which passed its evaluation, on fresh episodes; the stage is
-        promoted only if the rules pass there too (``metrics``' verdict then names both)."""
-        passed = metrics["verdict"]
-        confirmation = judge.confirm(run.policy, run.iteration)
-        metrics.update({f"{CONFIRMATION_PREFIX}{k}": v for k, v in confirmation.items()})
-        confirmed = run.curriculum.verdict(run.stage, confirmation)
-        if judge.promoted_on_evaluation(confirmed):
-            metrics["verdict"] = f"{passed}; confirmed: {confirmed.removeprefix(PROMOTED)}"
-            return
-        metrics["verdict"] = confirmed
+        verdict = run.curriculum.verdict(run.stage, evaluation).with_evaluations(evaluation)
+        if judge.promotes_on_evaluation and verdict.promoted:
+            confirmation = judge.confirm(run.policy, run.iteration)
+            metrics.update({f"{CONFIRMATION_PREFIX}{k}": v for k, v in confirmation.items()})
+            confirmed = run.curriculum.verdict(run.stage, confirmation)
+            if confirmed.promoted:
+                verdict = replace(verdict, confirmed=confirmed.figures)
+            else:
+                verdict = confirmed
+            verdict = verdict.with_evaluations(evaluation, confirmation)
+        metrics["verdict"] = verdict.text  # the kept network's meta holds it
+        kept = judge.judge(run.policy, verdict, metrics, run.meta(metrics), run.env_steps)
+        return verdict if kept is None else verdict.with_kept(kept)
 
 
-class Recordings(TrainingHook):
-    """An MCAP recording of one deterministic episode of the policy at each stage's end and
-    every ``checkpoint.record_every_iters`` iterations, in ``run_dir/recordings``, named
-    after the checkpoint it shows (``checkpoints`` writes one wherever a recording is due)."""
-
-    def __init__(self, checkpoints: Checkpoints) -> None:
-        self.checkpoints = checkpoints
-
-    def on_iteration_end(self, run: RunState, metrics: dict) -> None:
-        if not recording_due(run.job.checkpoint, run.iteration, metrics["verdict"]):
-            return
-        checkpoint = self.checkpoints.written
-        assert checkpoint is not None, "Checkpoints writes one wherever a recording is due"
-        path = run.run_dir / "recordings" / f"{checkpoint.name}-{run.scene.name}.mcap"
-        record_policy(run.policy, run.scene, run.backend, checkpoint, path, run.job.seed)
+def record_due(run: RunState, verdict: StageVerdict, checkpoint: Path | None) -> Path | None:
+    """An MCAP recording of one deterministic episode of ``run``'s policy where one is due
+    (each stage's end, and every ``checkpoint.record_every_iters`` iterations), in
+    ``run_dir/recordings``, named after ``checkpoint``, the one the iteration wrote
+    (``learner.hooks.Checkpoints`` writes one wherever a recording is due). Returns its path,
+    or None where none was due or it failed."""
+    if not recording_due(run.job.checkpoint, run.iteration, verdict):
+        return None
+    assert checkpoint is not None, "Checkpoints writes one wherever a recording is due"
+    path = run.run_dir / "recordings" / f"{checkpoint.name}-{run.scene.name}.mcap"
+    return record_policy(run.policy, run.scene, run.backend, checkpoint, path, run.job.seed)
 
 
 def record_policy(

@@ -30,14 +30,14 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
     state = CurriculumState()
     for fell in (False, False, False):
         state.episodes.append(EpisodeStats(1.0, 2.0, 10.0, fell, not fell))
-    assert state.verdict(stage) is None, "3 episodes < a window of 4"
+    assert state.verdict(stage).text is None, "3 episodes < a window of 4"
     state.episodes.append(EpisodeStats(1.0, 0.5, 2.0, True, False))
-    assert state.verdict(stage) == "promoted: fall_rate 0.25 <= 0.25"
+    assert state.verdict(stage).text == "promoted: fall_rate 0.25 <= 0.25"
     assert state.window_mean("speed", 4) == pytest.approx((0.2 * 3 + 0.25) / 4)
     state.episodes.append(EpisodeStats(1.0, 0.5, 2.0, True, False))
-    assert state.verdict(stage) is None
+    assert state.verdict(stage).text is None
     state.stage_env_steps = 1000
-    assert state.verdict(stage) == "budget spent"
+    assert state.verdict(stage).text == "budget spent"
     both = Stage.model_validate(
         {
             "scene": "walk-2d",
@@ -46,9 +46,9 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
         }
     )
     assert both.promote[1].metric == "fall_rate"
-    assert state.verdict(both) is None, "speed passes, falls 2 of 2 do not"
+    assert state.verdict(both).text is None, "speed passes, falls 2 of 2 do not"
     state.episodes.append(EpisodeStats(1.0, 3.0, 10.0, False, True))
-    assert state.verdict(both) == "promoted: speed 0.275 >= 0.2, fall_rate 0.5 <= 0.5"
+    assert state.verdict(both).text == "promoted: speed 0.275 >= 0.2, fall_rate 0.5 <= 0.5"
     assert CurriculumState.from_json(state.to_json()).to_json() == state.to_json()
 
 

@@ -125,15 +125,16 @@ def test_a_stage_with_evaluation_rules_must_evaluate(tmp_path: Path) -> None:
 def test_an_evaluation_rule_is_judged_only_on_an_evaluation() -> None:
     stage = _stage("eval.fall_rate <= 0.1")
     state = CurriculumState()
-    assert state.verdict(stage) is None, "no evaluation now"
-    assert state.verdict(stage, _evaluation(fall_rate=0.2)) is None
+    assert state.verdict(stage).text is None, "no evaluation now"
+    assert state.verdict(stage, _evaluation(fall_rate=0.2)).text is None
     assert (
-        state.verdict(stage, _evaluation(fall_rate=0.05)) == "promoted: eval.fall_rate 0.05 <= 0.1"
+        state.verdict(stage, _evaluation(fall_rate=0.05)).text
+        == "promoted: eval.fall_rate 0.05 <= 0.1"
     )
     state.stage_env_steps = stage.env_steps
-    assert state.verdict(stage) == "budget spent"
-    assert state.verdict(stage, _evaluation(fall_rate=0.2)) == "budget spent"
-    assert state.verdict(stage, _evaluation(fall_rate=0.0)).startswith("promoted: ")
+    assert state.verdict(stage).text == "budget spent"
+    assert state.verdict(stage, _evaluation(fall_rate=0.2)).text == "budget spent"
+    assert state.verdict(stage, _evaluation(fall_rate=0.0)).text.startswith("promoted: ")
 
 
 def test_training_and_evaluation_rules_must_all_pass_at_an_evaluation() -> None:
@@ -141,13 +142,13 @@ def test_training_and_evaluation_rules_must_all_pass_at_an_evaluation() -> None:
     state = CurriculumState()
     passing = _evaluation(fall_rate=0.0)
     state.episodes.append(EpisodeStats(1.0, 3.0, 10.0, False, True))
-    assert state.verdict(stage, passing) is None, "the training window is not full"
+    assert state.verdict(stage, passing).text is None, "the training window is not full"
     state.episodes.append(EpisodeStats(1.0, 0.5, 10.0, False, True))
-    assert state.verdict(stage, passing) is None, "training speed 0.175 < 0.2"
+    assert state.verdict(stage, passing).text is None, "training speed 0.175 < 0.2"
     state.episodes.append(EpisodeStats(1.0, 5.0, 10.0, False, True))
-    assert state.verdict(stage) is None, "the training rule passes, but no evaluation now"
-    assert state.verdict(stage, _evaluation(fall_rate=0.5)) is None
-    assert state.verdict(stage, passing) == (
+    assert state.verdict(stage).text is None, "the training rule passes, but no evaluation now"
+    assert state.verdict(stage, _evaluation(fall_rate=0.5)).text is None
+    assert state.verdict(stage, passing).text == (
         "promoted: speed 0.275 >= 0.2, eval.fall_rate 0 <= 0.1"
     )
 
