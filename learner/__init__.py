@@ -1,6 +1,6 @@
 """The learner: PPO through a job's curriculum of stages (``trainer``, its state in
-``run_state`` and hooks in ``hooks``, ``job``, ``curriculum``), policy blending, cloning and
-fresh networks at stage transitions (``policy``, ``distil``, ``transitions``), mirror symmetry
+``run_state`` and hooks in ``hooks``, ``job``, ``curriculum``), policy blending at
+stage transitions (``policy``, ``transitions``), mirror symmetry
 and checkpoints. Evaluation, recordings, videos and shipping are the ``evaluation``
 sub-package. ``workers`` never imports this package.
 """

@@ -2,7 +2,7 @@
 
 Validated once, early (``load_job``): every scene must load, each stage's scene must run on
 the job's backend, and a network change between stages needs a transition that builds a new
-network (``blend``, ``distil`` or ``scratch``). Errors are one line naming the file and field.
+network (``blend``). Errors are one line naming the file and field.
 
     name: walk-2d
     backend: mujoco
@@ -17,9 +17,6 @@ network (``blend``, ``distil`` or ``scratch``). Errors are one line naming the f
         network: {hidden: [128, 128]}
         transition: blend
         blend: {ramp_env_steps: 200000}
-
-An imitation stage may start from the motion's recorded muscle excitations, cloned into the
-actor's mean (``warm_start: {excitations: walk}``, :class:`WarmStartSpec`).
 """
 
 from __future__ import annotations
@@ -38,7 +35,6 @@ from gaitforge.learner.stage_spec import (
     StageEvaluation,
     StagePPO,
     StrictSpec,
-    WarmStartSpec,
 )
 from gaitforge.workers.overrides import set_fields
 from gaitforge.workers.scenes import Scene, load_scene
@@ -63,9 +59,7 @@ __all__ = [
     "Stage",
     "StageEvaluation",
     "StagePPO",
-    "WarmStartSpec",
     "WorkersSpec",
-    "check_warm_start",
     "evaluation_scene",
     "job_changes",
     "load_job",
@@ -126,7 +120,7 @@ class Job(StrictSpec):
     statistics start the first stage, for fine-tuning a trained policy on another scene or
     backend (the optimizer, curriculum and env-step count start afresh); e.g.
     ``examples/policies/walk-2d``. The first stage may then grow a new network from it
-    (``transition: blend``, ``distil`` or ``scratch`` with its own ``network``), as a later
+    (``transition: blend`` with its own ``network``), as a later
     stage grows one from the stage before"""
     init_from_action_std: Annotated[float, Field(gt=0, le=1)] | None = None
     """with ``init_from``: the action noise's standard deviation (action units) the loaded
@@ -149,7 +143,7 @@ class Job(StrictSpec):
         if (first.transition != "continue" or first.network is not None) and not self.init_from:
             raise ValueError(
                 "stages.0: the first stage uses the job's network (no transition); a transition "
-                "(blend, distil, scratch) there needs init_from, the network it starts from"
+                "(blend) there needs init_from, the network it starts from"
             )
         if first.action_std is not None:
             raise ValueError(
@@ -363,8 +357,6 @@ def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> lis
             scenes.append(scene.resolved())
         except ValueError as exc:
             raise SpecError(f"{source}: stages.{i}.scene: {exc}") from None
-        if stage.warm_start is not None:
-            check_warm_start(scenes[-1], stage.warm_start, f"{source}: stages.{i}.warm_start")
         if stage.evaluate is not None and stage.evaluate.scene is not None:
             where = f"{source}: stages.{i}.evaluate.scene"
             ref = _scene_ref(stage.evaluate.scene, base)
@@ -401,35 +393,3 @@ def evaluation_scene(
         return scene.resolved()
     except ValueError as exc:
         raise SpecError(f"{where}: {exc}") from None
-
-
-def check_warm_start(scene: Scene, spec: WarmStartSpec, where: str) -> None:
-    """The stage's scene imitates its clock's motion (it observes the phase and starts in
-    the motion) and the body has recorded excitations for ``spec.excitations``.
-
-    Raises:
-        SpecError: ``where`` (file and field), what is wrong and what is allowed.
-    """
-    from gaitforge.learner.clone_excitations import ExcitationError, excitation_table
-
-    clock = getattr(scene.task, "clock", None)
-    if clock is None or getattr(scene.task, "imitate", None) is None:
-        raise SpecError(
-            f"{where}: scene {scene.name!r} imitates no motion (task.clock and task.imitate); "
-            "a warm start from recorded excitations needs an imitation scene (e.g. "
-            "imitate-walk-2d)"
-        )
-    if scene.action.targets:
-        raise SpecError(
-            f"{where}: scene {scene.name!r} acts by joint targets (action.kind joint_targets); "
-            "a warm start from recorded excitations needs action.kind excitations"
-        )
-    if spec.excitations != clock.motion:
-        raise SpecError(
-            f"{where}.excitations: {spec.excitations!r}: the excitations must be those of the "
-            f"motion the scene imitates ({clock.motion!r}), whose phase it observes"
-        )
-    try:
-        excitation_table(scene.body, spec.excitations)
-    except ExcitationError as exc:
-        raise SpecError(f"{where}.excitations: {exc}") from None

@@ -1,6 +1,6 @@
 """A job's stages as its file writes them: the scene and budget of each, promotion rules,
-the network and the transition that builds it, blending, warm starts, in-training
-evaluations and the stage's own PPO schedules (``learner.job`` holds the job around them)."""
+the network and the transition that builds it, blending, in-training evaluations and the
+stage's own PPO schedules (``learner.job`` holds the job around them)."""
 
 from __future__ import annotations
 
@@ -162,33 +162,9 @@ class BlendSpec(StrictSpec):
     ramp_env_steps: Annotated[int, Field(ge=1)] = 200_000
     """alpha goes linearly from 0 to 1 over this many env steps of the stage"""
     critic_warmup_env_steps: Annotated[int, Field(ge=0)] = 8192
-    """env steps of pi_old's rollouts the new critic (and, for distil, actor) is fitted to"""
+    """env steps of pi_old's rollouts the new critic is fitted to before alpha ramps"""
     fit_epochs: Annotated[int, Field(ge=1, le=1000)] = 50
     """passes of the fit over that data"""
-    clone_actor: bool = False
-    """``blend`` only: fit pi_new's actor to pi_old's actions too (as ``distil`` does)
-    before alpha ramps, so that the blend moves from pi_old towards its clone rather than
-    towards an untrained network"""
-
-
-class WarmStartSpec(StrictSpec):
-    """Before PPO, fit the actor's mean excitation to a motion's recorded (CMC) excitations
-    as a function of the gait phase in the observation (behavioural cloning,
-    ``learner.clone_excitations``): roll out in the stage's imitation scene (episodes start
-    inside the motion), label each observation with the excitations at its phase, fit the
-    mean by squared error; then roll out the fitted policy and fit again (``rounds``)."""
-
-    excitations: Annotated[str, Field(max_length=MAX_NAME_LENGTH)]
-    """the motion whose recorded excitations are cloned (e.g. ``walk``): the motion the
-    stage's scene imitates (``task.clock.motion``), whose phase it observes"""
-    env_steps: Annotated[int, Field(ge=1)] = 8192
-    """env steps of rollouts per round (they count in the stage's env steps)"""
-    rounds: Annotated[int, Field(ge=1, le=10)] = 2
-    """rollout-and-fit rounds: the first rolls out the initial policy, the next ones the
-    policy fitted so far (DAgger-like), on all the observations gathered"""
-    epochs: Annotated[int, Field(ge=1, le=1000)] = 30
-    """passes of each fit over the observations"""
-    lr: Annotated[float, Field(gt=0, le=1)] = 1e-3
 
 
 class StageEvaluation(StrictSpec):
@@ -274,11 +250,11 @@ class Stage(StrictSpec):
     stage's end is written first)"""
     network: NetworkSpec | None = None
     """a new network for this stage (needs a building transition); None keeps the current"""
-    transition: Literal["continue", "blend", "distil", "scratch"] = "continue"
+    transition: Literal["continue", "blend"] = "continue"
+    """``continue``: the network goes on (widened with zero weights where the stage
+    observes more); ``blend``: a new ``network`` is blended in from the current one
+    (policy blending: alpha ramps 0 -> 1 over ``blend.ramp_env_steps``)"""
     blend: BlendSpec = BlendSpec()
-    warm_start: WarmStartSpec | None = None
-    """clone a motion's recorded excitations into the actor's mean when the stage starts
-    (after its transition); None: no warm start"""
     evaluate: StageEvaluation | None = None
     """deterministic evaluations on a scene during the stage, and the best network kept at
     its end; None: none"""
@@ -316,21 +292,10 @@ class Stage(StrictSpec):
     @model_validator(mode="after")
     def _transition_fits(self) -> Stage:
         if self.network is not None and self.transition == "continue":
-            raise ValueError(
-                "network: a new network needs transition blend, distil or scratch (not continue)"
-            )
+            raise ValueError("network: a new network needs transition blend (not continue)")
         if self.action_std is not None and self.transition != "continue":
             raise ValueError(
                 "action_std: only with transition continue (a new network starts at its "
                 "network's init_std)"
-            )
-        if self.blend.clone_actor and self.transition != "blend":
-            raise ValueError(
-                "blend.clone_actor: only with transition blend (distil always clones the actor)"
-            )
-        if self.warm_start is not None and self.transition == "blend":
-            raise ValueError(
-                "warm_start: not with transition blend (pi_old acts at first); use distil, "
-                "scratch or continue"
             )
         return self

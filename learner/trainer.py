@@ -6,26 +6,25 @@ samples at least ``ppo.batch_env_steps`` env steps of fragments from the rollout
 (``learner.sampling.Rollouts``), updates the policy on them (``learner.ppo.PPO``: GAE returns,
 on the mirrored batch too with ``ppo.mirror``, then the clipped epochs, then the
 normaliser, which must not change before: the behaviour log-probabilities were taken with
-the old statistics) and publishes the new weights. Everything else is a hook
-(``learner.hooks.TrainingHook``), in this order: a blend's alpha ramps 0 -> 1 over
-``blend.ramp_env_steps`` and then collapses to pi_new, before the weights are published
-(``learner.hooks.BlendRamp``); at the iteration's end a stage with ``evaluate`` is judged on
-deterministic evaluations and may end with its best network
-(``learner.evaluation.training_hooks.StageJudging``), the metrics are kept and reported
-(``learner.hooks.MetricsReport``), a checkpoint is written every ``checkpoint.every_iters``
-iterations and at each stage end (``learner.hooks.Checkpoints``) and a recording where one is
-due (``learner.evaluation.training_hooks.Recordings``).
+the old statistics) and publishes the new weights. Around that, in this order: a blend's
+alpha ramps 0 -> 1 over ``blend.ramp_env_steps`` and then collapses to pi_new, before the
+weights are published (``learner.hooks.ramp_blend``); at the iteration's end the stage's
+verdict is decided in one place (``learner.evaluation.training_hooks.StageJudging.decide``,
+a ``learner.stage_verdict.StageVerdict``: goes on, promoted, budget spent or failed; a stage
+with ``evaluate`` judged on deterministic evaluations too, and possibly ending with its best
+network), the metrics are kept and reported (``learner.hooks.MetricsReport``), a checkpoint
+is written every ``checkpoint.every_iters`` iterations and at each stage end
+(``learner.hooks.Checkpoints``) and a recording where one is due
+(``learner.evaluation.training_hooks.record_due``). Each reads the verdict; none changes it.
 
-The run's state (``learner.run_state.RunState``) is where the curriculum is: after each
-update the curriculum decides whether the stage is over (its promotion rule passed or its
-budget is spent); the next stage's scene is pushed to the live workers and, when the stage is
-entered, its transition (``continue``, ``blend``, ``distil``, ``scratch``) builds its network
-(``learner.transitions``; a job's ``init_from`` checkpoint is the first stage's pi_old); then
-a stage with ``warm_start`` clones a motion's recorded excitations into the actor's mean, the
-first stage included. Warm-up rollouts count as env steps of the stage, so transitions
-compare at equal env steps. A stage with ``if_not_promoted: fail`` that spends its budget
-unpromoted ends the run (``StageShortfallError``, naming each rule and how far it fell short)
-once its end's checkpoint is written; resumed, such a run goes on with the next stage.
+The run's state (``learner.run_state.RunState``) is where the curriculum is: when a stage
+ends, the next stage's scene is pushed to the live workers and, when the stage is entered,
+its transition (``continue`` or ``blend``) builds its network (``learner.transitions``; a
+job's ``init_from`` checkpoint is the first stage's pi_old). A blend's warm-up rollouts count
+as env steps of the stage, so transitions compare at equal env steps. A stage with
+``if_not_promoted: fail`` that spends its budget unpromoted ends the run
+(``StageShortfallError``, naming each rule and how far it fell short) once its end's
+checkpoint is written; resumed, such a run goes on with the next stage.
 ``Trainer`` resumes from the newest checkpoint in ``run_dir/checkpoints``.
 """
 
@@ -209,7 +208,7 @@ class Trainer:
 
         # every network that acted was switched to; the last is the stage's
         run.ppo.policy = stage_network(
-            run.policy, run.obs_names, index, self.job, io, run.scene, switch, rollout
+            run.policy, run.obs_names, index, self.job, io, switch, rollout
         )
         run.curriculum.entered = True
         if index == 0 and stage.transition == "continue":

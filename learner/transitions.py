@@ -1,18 +1,12 @@
-"""The networks a curriculum stage's transition builds (``learner.trainer`` calls these when a
-stage is entered):
+"""The networks a curriculum stage's transition builds (``learner.trainer`` calls
+:func:`stage_network` when a stage is entered):
 
 - ``continue``: the same network, widened with zero weights if the observation grew
   (``learner.policy.widen_inputs`` on :func:`collapsed`);
-- ``scratch``: a fresh network (:func:`fresh_network`);
 - a job's ``init_from``: the first network from a checkpoint (:func:`network_from_checkpoint`);
-- ``blend`` and ``distil``: :func:`warm_start` rolls pi_old out on the new stage (as a blend
-  at alpha 0), fits pi_new's critic (and for ``distil``, or ``blend`` with
-  ``blend.clone_actor``, its actor) to that data, and returns
-  the blend (``blend``: alpha then ramps 0 -> 1, :func:`ramp_alpha`) or pi_new (``distil``).
-
-After the transition, a stage with ``warm_start`` clones a motion's recorded excitations into
-the actor's mean (:func:`excitation_warm_start`, ``learner.clone_excitations``).
-:func:`stage_network` runs both for a stage being entered.
+- ``blend``: :func:`blend_in` rolls pi_old out on the new stage (as a blend at alpha 0), fits
+  pi_new's critic to that data (:func:`fit_critic`), and returns the blend (alpha then ramps
+  0 -> 1, :func:`ramp_alpha`).
 """
 
 from __future__ import annotations
@@ -25,9 +19,7 @@ from pathlib import Path
 import torch
 from gaitforge.learner.checkpoint import load_policy
 from gaitforge.learner.checkpoint_meta import CheckpointMeta
-from gaitforge.learner.clone_excitations import SideGuess, clone_excitations, excitation_table
 from gaitforge.learner.curriculum import StageIO
-from gaitforge.learner.distil import fit_student
 from gaitforge.learner.job import Job, NetworkSpec, Stage
 from gaitforge.learner.policy import (
     ActorCritic,
@@ -38,7 +30,6 @@ from gaitforge.learner.policy import (
 )
 from gaitforge.learner.ppo import PPOSettings, batch_from_fragments
 from gaitforge.workers.fragment import Fragment
-from gaitforge.workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
 
@@ -57,31 +48,23 @@ def stage_network(
     index: int,
     job: Job,
     io: StageIO,
-    scene: Scene,
     switch: Switch,
     rollout: Rollout,
 ) -> ActorCritic:
     """The network stage ``index`` of ``job`` starts with, from ``policy`` (observing
-    ``obs_names``): its transition's, then its ``warm_start``'s. Each network that acts in
-    between, and the one returned, is passed to ``switch`` (``rollout`` for the warm starts'
-    own rollouts on the stage's ``scene``). The first stage's ``continue`` keeps ``policy``
-    as built for it (fresh or ``init_from``)."""
+    ``obs_names``), by its transition. Each network that acts in between, and the one
+    returned, is passed to ``switch`` (``rollout`` for the blend's own rollouts). The first
+    stage's ``continue`` keeps ``policy`` as built for it (fresh or ``init_from``)."""
     stage = job.stages[index]
-    net = stage.network or job.network
     if stage.transition == "continue":
         if index > 0:
             policy, changed = continued(policy, obs_names, io, index, stage.action_std)
             if changed:
                 switch(policy)
-    else:
-        if stage.transition == "scratch":
-            policy = fresh_network(io, net)
-        else:
-            policy = warm_start(policy, obs_names, io, stage, net, job.ppo, rollout, job.seed)
-        switch(policy)
-    if stage.warm_start is not None:
-        policy = excitation_warm_start(policy, io, stage, scene, job.ppo, rollout, job.seed)
-        switch(policy)
+        return policy
+    net = stage.network or job.network
+    policy = blend_in(policy, obs_names, io, stage, net, job.ppo, rollout, job.seed)
+    switch(policy)
     return policy
 
 
@@ -172,7 +155,7 @@ def network_from_checkpoint(
     return policy, meta
 
 
-def warm_start(
+def blend_in(
     teacher: ActorCritic,
     teacher_obs_names: list[str],
     io: StageIO,
@@ -181,12 +164,10 @@ def warm_start(
     ppo: PPOSettings,
     rollout: Rollout,
     seed: int,
-) -> ActorCritic:
-    """``blend`` and ``distil``: pi_new (``net``) fitted to pi_old's (``teacher``'s)
-    rollouts on the new stage, ``stage.blend.critic_warmup_env_steps`` of them (its critic
-    to their returns; its actor to pi_old's mean actions for ``distil`` and for ``blend``
-    with ``stage.blend.clone_actor``); returns the
-    blend of the two at alpha 0 (``blend``) or pi_new alone (``distil``)."""
+) -> BlendedPolicy:
+    """``blend``: pi_new (``net``) with its critic fitted to pi_old's (``teacher``'s)
+    rollouts on the new stage, ``stage.blend.critic_warmup_env_steps`` of them; returns the
+    blend of the two at alpha 0."""
     student = fresh_network(io, net)
     old_inputs = [io.obs_names.index(n) for n in teacher_obs_names]
     blended = BlendedPolicy(teacher.describe(), student.describe(), old_inputs)
@@ -197,20 +178,40 @@ def warm_start(
     student.norm.update(batch["obs"])
     with torch.no_grad():
         student.log_std.copy_(blended.distribution(batch["obs"][:1]).stddev.log()[0])
-        teacher_mean = blended.distribution(batch["obs"]).mean
-    fit = fit_student(
-        student,
-        batch["obs"],
-        batch["return"],
-        teacher_mean if stage.transition == "distil" or stage.blend.clone_actor else None,
-        epochs=stage.blend.fit_epochs,
-        seed=seed,
+    value_mse = fit_critic(
+        student, batch["obs"], batch["return"], epochs=stage.blend.fit_epochs, seed=seed
     )
-    logger.info("warm start (%s): %s", stage.transition, fit)
-    if stage.transition == "distil":
-        return student
+    logger.info("blend: the new critic fitted to pi_old's returns, value mse %.4g", value_mse)
     blended.new.load_state_dict(student.state_dict())
     return blended
+
+
+def fit_critic(
+    student: GaussianPolicy,
+    obs: torch.Tensor,
+    returns: torch.Tensor,
+    epochs: int = 50,
+    minibatch: int = 256,
+    lr: float = 1e-3,
+    seed: int = 0,
+) -> float:
+    """Regress ``student``'s value on ``returns`` [N] from ``obs`` [N, obs_dim] by squared
+    error (the normaliser is used as it is, not updated; only the critic changes). Returns
+    the last epoch's mean squared error."""
+    generator = torch.Generator().manual_seed(seed)
+    optimizer = torch.optim.Adam(list(student.critic.parameters()), lr=lr)
+    obs, returns = obs.float(), returns.float()
+    value_mse = 0.0
+    for _ in range(epochs):
+        value_mse = 0.0
+        chunks = torch.randperm(len(obs), generator=generator).split(minibatch)
+        for idx in chunks:
+            loss = (student.value(obs[idx]) - returns[idx]).pow(2).mean()
+            value_mse += loss.item() / len(chunks)
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+    return value_mse
 
 
 def ramp_alpha(policy: ActorCritic, stage_env_steps: int, blend_start: int, ramp: int) -> bool:
@@ -222,46 +223,3 @@ def ramp_alpha(policy: ActorCritic, stage_env_steps: int, blend_start: int, ramp
     alpha = (stage_env_steps - blend_start) / ramp
     policy.set_alpha(alpha)
     return alpha >= 1.0
-
-
-def excitation_warm_start(
-    policy: ActorCritic,
-    io: StageIO,
-    stage: Stage,
-    scene: Scene,
-    ppo: PPOSettings,
-    rollout: Rollout,
-    seed: int,
-) -> GaussianPolicy:
-    """``stage.warm_start``: ``policy`` (collapsed to one network) with its actor's mean fitted
-    to the recorded excitations of ``stage.warm_start.excitations`` at the observed phase,
-    and its critic to the returns of the fitted policy's rollouts (``rollout`` gathers them
-    on the stage's ``scene``)."""
-    from gaitforge.workers.motions import load_motion  # lazy: only warm starts need it
-
-    spec = stage.warm_start
-    assert spec is not None
-    student = collapsed(policy)
-    sides = SideGuess(load_motion(scene.body, spec.excitations))
-    report = clone_excitations(
-        student,
-        io.obs_names,
-        io.act_names,
-        excitation_table(scene.body, spec.excitations),
-        rollout,
-        ppo,
-        sides,
-        env_steps=spec.env_steps,
-        rounds=spec.rounds,
-        epochs=spec.epochs,
-        lr=spec.lr,
-        seed=seed,
-    )
-    logger.info(
-        "warm start from the %s excitations: action mse %.4f -> %.4f over %d observations",
-        spec.excitations,
-        report["action_mse_before"],
-        report["action_mse"],
-        int(report["observations"]),
-    )
-    return student

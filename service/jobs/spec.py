@@ -3,7 +3,7 @@ as data only, then written into a job's folder for its trainer.
 
 Data only: a stage's ``scene`` is a catalogue name or an inline scene (a mapping validated as a
 ``Scene``); names that reach the file system (the scene, an inline scene's ``body`` and
-``task.clock.motion``, ``warm_start.excitations``, ``evaluate.scene``) must be plain names,
+``task.clock.motion``, ``evaluate.scene``) must be plain names,
 never paths; ``workers.ray_address`` is refused (the service decides where jobs run);
 anything not in the schema is refused, as are more rollout actors than the cluster has CPUs
 (where the caller knows them: ``max_num_workers``). Then the job is written into a scratch
@@ -219,11 +219,6 @@ def _check_data_only(raw: dict, errors: list[tuple[str, str]]) -> dict[int, Scen
             problem := _ref_problem(judged_scene, "a catalogue scene (base or base+option+...)")
         ):
             errors.append((f"stages.{i}.evaluate.scene", problem))
-        warm = stage.get("warm_start")
-        if isinstance(warm, dict) and isinstance(warm.get("excitations"), str):
-            what = "the name of a motion shipped for the body"
-            if problem := _name_problem(warm["excitations"], what):
-                errors.append((f"stages.{i}.warm_start.excitations", problem))
     seen: dict[str, tuple[int, Scene]] = {}
     for i, scene in inline.items():
         first = seen.setdefault(scene.name, (i, scene))

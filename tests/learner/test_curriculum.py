@@ -77,7 +77,7 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
         (
             "stages: [{scene: walk-2d, env_steps: 9}, {scene: run-2d, env_steps: 9, "
             "network: {hidden: [8]}}]",
-            "a new network needs transition blend, distil or scratch",
+            "a new network needs transition blend",
         ),
         (
             "stages: [{scene: walk-2d, env_steps: 9, fidelity: warp}]",
@@ -94,7 +94,7 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
         ),
         (
             "stages: [{scene: walk-2d, env_steps: 9}, {scene: run-2d, env_steps: 9, "
-            "transition: scratch, action_std: 0.3}]",
+            "transition: blend, network: {hidden: [8]}, action_std: 0.3}]",
             "stages.1: action_std: only with transition continue",
         ),
         (

@@ -61,12 +61,10 @@ def test_the_action_noise_may_start_anew(tmp_path: Path) -> None:
         Job.model_validate(elbow_job().model_dump() | {"init_from_action_std": 0.25})
 
 
-@pytest.mark.parametrize("transition", ["blend", "distil", "scratch"])
-def test_the_first_stage_may_grow_a_network_from_the_checkpoint(
-    tmp_path: Path, transition: str
-) -> None:
+def test_the_first_stage_may_grow_a_network_from_the_checkpoint(tmp_path: Path) -> None:
     """As between stages: the checkpoint's network is pi_old of a blend (acting exactly as
-    it did at alpha 0), the teacher of a distillation, or replaced by a fresh network."""
+    it did at alpha 0)."""
+    transition = "blend"
     source = _trained(tmp_path)
     loaded, _ = load_policy(source)
     job = _job(source)
@@ -80,10 +78,9 @@ def test_the_first_stage_may_grow_a_network_from_the_checkpoint(
     trainer = Trainer(Job.model_validate(job.model_dump()), tmp_path / "grown", tensorboard=False)
     trainer.run(max_iterations=1)
     assert [entry["transition"] for entry in trainer.lineage] == ["init_from", transition]
-    if transition == "blend":
-        assert isinstance(trainer.policy, BlendedPolicy)
-        assert trainer.policy.old.hidden == loaded.hidden
-        trainer.run(max_iterations=3)  # alpha reaches 1: pi_old is dropped
+    assert isinstance(trainer.policy, BlendedPolicy)
+    assert trainer.policy.old.hidden == loaded.hidden
+    trainer.run(max_iterations=3)  # alpha reaches 1: pi_old is dropped
     assert isinstance(trainer.policy, GaussianPolicy) and trainer.policy.hidden == (32, 16)
     _, meta = load_checkpoint(latest_checkpoint(tmp_path / "grown" / "checkpoints"))
     assert [entry.transition for entry in meta.lineage] == ["init_from", transition]

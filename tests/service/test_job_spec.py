@@ -70,15 +70,13 @@ def test_a_bad_inline_scene_is_refused_naming_its_field(changes: dict, field: st
     assert error.field == field, error.errors
 
 
-def test_an_inline_motion_or_excitations_path_is_refused() -> None:
+def test_an_inline_motion_path_is_refused() -> None:
     scene = _scene("my-imitation", base="imitate-walk-2d")
     scene["task"]["clock"]["motion"] = "/data/walk.yaml"
     assert _refused(_stage(scene)).field == "stages.0.scene.task.clock.motion"
     scene = _scene("my-run", base="run-2d+clock")
     scene["task"]["clock"]["lead_in"]["motion"] = "/data/walk.yaml"
     assert _refused(_stage(scene)).field == "stages.0.scene.task.clock.lead_in.motion"
-    warm = {"warm_start": {"excitations": "../walk.yaml"}}
-    assert _refused(_stage("imitate-walk-2d", **warm)).field == "stages.0.warm_start.excitations"
 
 
 def test_an_evaluation_scene_is_a_catalogue_name_that_fits_the_stage() -> None:
