@@ -1,16 +1,14 @@
 """Gymnasium environment over one scene on one simulator backend.
 
-Observation (float32, names in ``env.obs_names``), in this order:
-    dof angles [n_dofs] (rad or m) and speeds [n_dofs];
-    locomotion only: pelvis height (m), pelvis up axis in world [3], pelvis linear [3] (m/s)
-    and angular [3] (rad/s) velocity, normal ground force per foot [n_feet] (body weights);
-    muscle activations [n_muscles]; previous excitations [n_muscles];
-    task: target speed (m/s; the episode's draw with ``task.target_speed_range``) or reach
-    target (rad); with obstacles, the scene's ``obstacles.observe_ahead`` nearest spheres
-    ahead of the pelvis (one whose far edge it has not passed): forward distance from the
-    pelvis, centre height, radius (m; 0, 0, 0 for each that does not exist); with the gait
-    clock (``task.clock``): its phase as ``phase_sin``, ``phase_cos``, and ``phase_mirror``
-    (+1 in a mirrored episode, -1 otherwise).
+Observation (float32, names in ``env.obs_names``): the parts of
+``workers.scenes.io_names.OBSERVATION`` the scene observes, in that table's order (their
+names, sizes and units there), each read by its reader in :data:`OBSERVATION_READERS`. The
+target speed is the scene's or the episode's draw with ``task.target_speed_range`` (0
+without one), the reach target the episode's draw from ``task.reach_range`` (else 0); the
+observed spheres are the scene's ``obstacles.observe_ahead`` nearest ahead of the pelvis
+(one whose far edge it has not passed), nearest first, with 0, 0, 0 for each that does not
+exist; ``phase_mirror`` is +1 in a mirrored episode of the gait clock (``task.clock``), -1
+otherwise.
 Action (``env.act_names``): excitations [n_muscles] in [0, 1]; or, with ``action.kind:
 joint_targets``, targets [n_dofs] in [0, 1] around a base pose that the reflex layer
 (``workers.reflex``) turns into excitations (``prev_exc`` then holds the step's mean
@@ -36,6 +34,8 @@ observation repeated.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import gymnasium as gym
 import numpy as np
 from gaitforge.workers.bodies.topology import topology_for
@@ -45,12 +45,16 @@ from gaitforge.workers.motions import MotionState
 from gaitforge.workers.reflex import ReflexLayer
 from gaitforge.workers.rewards import StepContext, reward_terms, term_names, weighted
 from gaitforge.workers.scenes import Scene, load_scene
-from gaitforge.workers.scenes.io_names import action_layout, observation_layout
+from gaitforge.workers.scenes.io_names import OBSERVATION, action_layout, observation_parts
 from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.base import HEALTHY, Health, SimState
 from gaitforge.workers.sim.pose import pelvis_frame, turn_about_up
 
 GRAVITY = 9.81
+
+ObservationReader = Callable[["MuscleEnv", SimState], "np.ndarray | list[float]"]
+"""Reads one part of the observation from the env and its state: as many values as the
+part's entry names (``workers.scenes.io_names.OBSERVATION``)."""
 
 
 class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
@@ -68,7 +72,6 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         self.sim = make_simulator(self.scene, backend)
         self.dt = 1.0 / self.scene.control_hz
         task = self.scene.task
-        self._locomotion = task.kind == "locomotion"
         self._reach_index = (
             self.sim.dof_names.index(task.reach_dof) if task.reach_dof is not None else None
         )
@@ -84,7 +87,12 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             else None
         )
         self._imitation_info: dict = {}
-        self.obs_names = self._observation_names()
+        parts = observation_parts(
+            self.scene, self.sim.dof_names, self.sim.foot_names, self.sim.muscle_names
+        )
+        self.obs_names = [name for _, names in parts for name in names]
+        self._obs_parts = tuple((key, len(names)) for key, names in parts)
+        """(key, size) of each part of the observation, in order"""
         n_mus = len(self.sim.muscle_names)
         self.observation_space = gym.spaces.Box(
             -np.inf, np.inf, (len(self.obs_names),), dtype=np.float32
@@ -138,7 +146,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             }
         self._start_forward = float(self._state.pelvis_pos[self.sim.forward_axis])
         self._start_frame = pelvis_frame(self._state.pelvis_up, self._state.pelvis_forward)
-        self._obs = self._observe(self._state)
+        self._obs = self._observe(self._state, check=True)
         return self._obs.copy(), info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
@@ -236,27 +244,23 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
 
     # ---- observation --------------------------------------------------------------------
 
-    def _observation_names(self) -> list[str]:
-        sim = self.sim
-        return observation_layout(self.scene, sim.dof_names, sim.foot_names, sim.muscle_names)
+    def _observe(self, s: SimState, check: bool = False) -> np.ndarray:
+        """The observation [n_obs] (float32) in state ``s``: each part the scene observes,
+        read by its reader, in ``OBSERVATION``'s order.
 
-    def _observe(self, s: SimState) -> np.ndarray:
-        parts = [s.dof_pos, s.dof_vel]
-        if self._locomotion:
-            parts += [
-                [s.pelvis_pos[self.sim.up_axis]],
-                s.pelvis_up,
-                s.pelvis_vel,
-                s.pelvis_angvel,
-                s.foot_forces / self._weight,
-            ]
-        parts += [s.activations, self._prev_excitation]
-        parts.append([self._target_speed or 0.0] if self._locomotion else [self._reach_target])
-        if self.scene.obstacles is not None:
-            parts.append(self._observed_obstacles(s))
-        if self.clock is not None:
-            parts.append(self.clock.observe(self._steps))
-        return np.concatenate([np.ravel(p) for p in parts]).astype(np.float32)
+        Raises:
+            RuntimeError: with ``check`` (on reset), a part's reader read another count of
+                values than the part has names.
+        """
+        parts = [np.ravel(OBSERVATION_READERS[key](self, s)) for key, _ in self._obs_parts]
+        if check:
+            for (key, size), part in zip(self._obs_parts, parts, strict=True):
+                if part.size != size:
+                    raise RuntimeError(
+                        f"scene {self.scene.name!r} on {self.backend}: observation part "
+                        f"{key!r} read {part.size} values for its {size} names"
+                    )
+        return np.concatenate(parts).astype(np.float32)
 
     def _observed_obstacles(self, s: SimState) -> np.ndarray:
         """[3 * observe_ahead]: see the module's docstring."""
@@ -311,3 +315,34 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             "sim_time": s.time,
             "step": self._steps,
         }
+
+
+def _gait_phase(env: MuscleEnv, s: SimState) -> list[float]:
+    assert env.clock is not None
+    return env.clock.observe(env._steps)
+
+
+OBSERVATION_READERS: dict[str, ObservationReader] = {
+    "dof_pos": lambda env, s: s.dof_pos,
+    "dof_vel": lambda env, s: s.dof_vel,
+    "pelvis_height": lambda env, s: [s.pelvis_pos[env.sim.up_axis]],
+    "pelvis_up": lambda env, s: s.pelvis_up,
+    "pelvis_vel": lambda env, s: s.pelvis_vel,
+    "pelvis_angvel": lambda env, s: s.pelvis_angvel,
+    "foot_forces": lambda env, s: s.foot_forces / env._weight,
+    "activations": lambda env, s: s.activations,
+    "prev_excitation": lambda env, s: env._prev_excitation,
+    "target_speed": lambda env, s: [env._target_speed or 0.0],
+    "reach_target": lambda env, s: [env._reach_target],
+    "obstacles": lambda env, s: env._observed_obstacles(s),
+    "gait_phase": _gait_phase,
+}
+"""The reader of each part of ``workers.scenes.io_names.OBSERVATION``, by its key (the
+order is the table's; every key has one reader, checked on import)."""
+
+if set(OBSERVATION_READERS) != {entry.key for entry in OBSERVATION}:
+    raise RuntimeError(
+        "workers.env: the observation's readers "
+        f"{sorted(OBSERVATION_READERS)} are not one per part of "
+        f"workers.scenes.io_names.OBSERVATION {[entry.key for entry in OBSERVATION]}"
+    )

@@ -1,5 +1,7 @@
 """Observation and action names from the scene alone equal the built env's, for every
-catalogue scene on every backend; asking needs no simulator."""
+catalogue scene on every backend (the pruning plan's dofs, feet and muscles are those the
+simulator built), and the env reads as many values for each part of the observation table
+as the part has names; asking needs no simulator."""
 
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import catalogue, load_scene
 from gaitforge.workers.scenes.compose import FORMER_NAMES
 from gaitforge.workers.scenes.io_names import (
+    OBSERVATION,
     action_names,
     lateral_axis,
     needs_planar_muscles,
@@ -30,6 +33,8 @@ def test_names_equal_the_built_envs(name: str, backend: str) -> None:
     env = MuscleEnv(scene, backend)
     try:
         assert observation_names(scene, backend, planar) == env.obs_names
+        obs, _ = env.reset(seed=0)  # counts each part's values against its names
+        assert obs.shape == (len(env.obs_names),)
         assert action_names(scene, backend, planar) == env.act_names
         if not scene.action.targets:
             assert env.act_names == env.sim.muscle_names
@@ -37,6 +42,17 @@ def test_names_equal_the_built_envs(name: str, backend: str) -> None:
         assert lateral_axis(scene.body) == 3 - env.sim.up_axis - env.sim.forward_axis
     finally:
         env.close()
+
+
+def test_each_part_has_its_own_key_and_names() -> None:
+    keys = [entry.key for entry in OBSERVATION]
+    assert len(set(keys)) == len(keys)
+    for name in SCENES:
+        scene = load_scene(name)
+        for backend in scene.backends:
+            planar = planar_muscles_of(scene) if needs_planar_muscles(scene, backend) else None
+            names = observation_names(scene, backend, planar)
+            assert len(set(names)) == len(names), (name, backend)
 
 
 def test_a_planar_scene_on_mujoco_asks_for_the_measured_muscles() -> None:
