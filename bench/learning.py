@@ -329,7 +329,7 @@ def main() -> None:
     for task_arg, budget in zip(args.tasks, minutes, strict=True):
         job_file = Path(task_arg) if task_arg.endswith((".yaml", ".yml")) else None
         task = job_file.stem if job_file else task_arg
-        job, scenes = load_job(job_file or EXAMPLES / f"{task}.yaml")
+        job, scenes, _ = load_job(job_file or EXAMPLES / f"{task}.yaml")
         rules = job.stages[-1].promote
         runs = {}
         for seed in [] if args.no_gaitforge else args.seeds:

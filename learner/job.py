@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, NamedTuple
 
 from gaitforge.learner.ppo import PPOSettings
 from gaitforge.learner.stage_spec import (
@@ -37,15 +37,14 @@ from gaitforge.learner.stage_spec import (
     StrictSpec,
 )
 from gaitforge.workers.overrides import set_fields
-from gaitforge.workers.scenes import Scene, load_scene
+from gaitforge.workers.scenes import BackendMismatch, Scene, load_scene
 from gaitforge.workers.spec_io import (
     SpecError,
-    format_validation_error,
     read_yaml_mapping,
     validate_model,
 )
 from gaitforge.workers.spec_types import Name, Ref, Seed
-from pydantic import Field, ValidationError, model_validator
+from pydantic import Field, model_validator
 
 __all__ = [
     "MAX_NUM_WORKERS",
@@ -54,6 +53,7 @@ __all__ = [
     "BlendSpec",
     "CheckpointSpec",
     "Job",
+    "LoadedJob",
     "NetworkSpec",
     "PromotionRule",
     "Stage",
@@ -63,7 +63,9 @@ __all__ = [
     "evaluation_scene",
     "job_changes",
     "load_job",
+    "prepare_job",
     "resolve_scenes",
+    "scaled_budgets",
     "with_evaluation_paths",
 ]
 
@@ -101,6 +103,16 @@ class CheckpointSpec(StrictSpec):
     only)"""
 
 
+class LoadedJob(NamedTuple):
+    """A job validated once, with each stage's scenes resolved once."""
+
+    job: Job
+    scenes: list[Scene]
+    """each stage's scene, as it trains"""
+    judged: dict[int, Scene]
+    """stage index -> the scene it is judged on, for the stages with ``evaluate.scene``"""
+
+
 class Job(StrictSpec):
     """A training job: the first network, PPO, workers, checkpoints and the stages."""
 
@@ -120,12 +132,9 @@ class Job(StrictSpec):
     statistics start the first stage, for fine-tuning a trained policy on another scene or
     backend (the optimizer, curriculum and env-step count start afresh); e.g.
     ``examples/policies/walk-2d``. The first stage may then grow a new network from it
-    (``transition: blend`` with its own ``network``), as a later
-    stage grows one from the stage before"""
-    init_from_action_std: Annotated[float, Field(gt=0, le=1)] | None = None
-    """with ``init_from``: the action noise's standard deviation (action units) the loaded
-    network starts with, in place of the one it was trained down to (a fine-tune that must
-    learn something new explores again); None keeps the checkpoint's"""
+    (``transition: blend`` with its own ``network``), as a later stage grows one from the
+    stage before; the first stage's ``action_std`` starts the loaded network's action noise
+    anew"""
     stages: list[Stage] = Field(min_length=1, max_length=MAX_STAGES)
 
     def stage_backend(self, index: int) -> str:
@@ -145,13 +154,11 @@ class Job(StrictSpec):
                 "stages.0: the first stage uses the job's network (no transition); a transition "
                 "(blend) there needs init_from, the network it starts from"
             )
-        if first.action_std is not None:
+        if first.action_std is not None and self.init_from is None:
             raise ValueError(
-                "stages.0.action_std: the first stage starts at network.init_std, or with "
-                "init_from at init_from_action_std"
+                "stages.0.action_std: the first stage starts at network.init_std; only a "
+                "network loaded with init_from has its noise started anew"
             )
-        if self.init_from_action_std is not None and self.init_from is None:
-            raise ValueError("init_from_action_std: only with init_from (a network to reset)")
         return self
 
 
@@ -195,25 +202,62 @@ def _entry_label(entry: Any) -> str:
     return repr(entry)
 
 
-def load_job(path: Path, overrides: dict[str, Any] | None = None) -> tuple[Job, list[Scene]]:
+def load_job(
+    path: Path, overrides: dict[str, Any] | None = None, budget_scale: float = 1.0
+) -> LoadedJob:
     """Read and check a job file (:func:`read_job_fields`: its ``extends`` followed, then
-    ``overrides`` set by dotted path); returns the job and each stage's resolved scene (with
-    the stage's scene overrides applied).
+    ``overrides`` set by dotted path, then every budget times ``budget_scale``), validated
+    once; returns the job and each stage's scenes, resolved once (:func:`resolve_scenes`).
 
     Raises:
         SpecError: one line naming the file, the field and what is allowed.
     """
-    job = validate_model(read_job_fields(path, overrides), Job, str(path))
+    raw = scaled_budgets(read_job_fields(path, overrides), budget_scale)
+    return prepare_job(raw, path.parent, str(path))
+
+
+def prepare_job(raw: dict[str, Any], base: Path, source: str) -> LoadedJob:
+    """Job fields ``raw`` (relative paths from ``base``) validated once, ``init_from`` and the
+    evaluation scenes' paths made absolute, each stage's scenes resolved once.
+
+    Raises:
+        SpecError: one line naming ``source``, the field and what is allowed.
+    """
+    job = validate_model(raw, Job, source)
     if job.init_from is not None:
-        start = (path.parent / job.init_from).resolve()
+        start = (base / job.init_from).resolve()
         if not (start / "meta.json").is_file():
             raise SpecError(
-                f"{path}: init_from: {job.init_from!r}: no checkpoint there (a directory with "
-                "meta.json and policy.safetensors, as the trainer writes them)"
+                f"{source}: init_from: {job.init_from!r}: no checkpoint there (a directory "
+                "with meta.json and policy.safetensors, as the trainer writes them)"
             )
         job = job.model_copy(update={"init_from": str(start)})
-    job = with_evaluation_paths(job, path.parent)
-    return job, resolve_scenes(job, base=path.parent, source=str(path))
+    job = with_evaluation_paths(job, base)
+    scenes, judged = resolve_scenes(job, base=base, source=source)
+    return LoadedJob(job, scenes, judged)
+
+
+def scaled_budgets(raw: dict[str, Any], scale: float) -> dict[str, Any]:
+    """Job fields ``raw`` with every stage's env-step budget and blend ramp (its default
+    where the stage gives none) times ``scale`` (at least 1), before validation: a smoke run
+    at a fraction of a recipe's budget. Fields that are not numbers are left for validation
+    to name."""
+    if scale == 1.0:
+        return raw
+    stages = []
+    for stage in raw.get("stages") or []:
+        if isinstance(stage, dict):
+            stage = dict(stage)
+            if isinstance(stage.get("env_steps"), int):
+                stage["env_steps"] = max(1, round(stage["env_steps"] * scale))
+            blend = stage.get("blend")
+            blend = dict(blend) if isinstance(blend, dict) else {}
+            ramp = blend.get("ramp_env_steps", BlendSpec().ramp_env_steps)
+            if isinstance(ramp, int):
+                blend["ramp_env_steps"] = max(1, round(ramp * scale))
+                stage["blend"] = blend
+        stages.append(stage)
+    return {**raw, "stages": stages} if "stages" in raw else raw
 
 
 def read_job_fields(
@@ -226,9 +270,9 @@ def read_job_fields(
     that job's fields (its paths made relative to this file), and this file's fields go over
     them (mappings merged: ``ppo: {lr: 1e-4}`` keeps the other PPO settings); ``stages``
     given as a list of names picks those stages of the other job, in order (its stages are
-    named by ``name``, else their scene). A picked first stage's ``action_std`` becomes
-    ``init_from_action_std`` (the noise the loaded network starts with). ``set: {dotted
-    path: value}`` then sets single fields (``stages.0.action: {kind: joint_targets}``).
+    named by ``name``, else their scene), each as it is written there. ``set: {dotted path:
+    value}`` then sets single fields (``stages.0.scene_set: {action: {kind:
+    joint_targets}}``).
 
     Raises:
         SpecError: the file or the one it extends does not read, a cycle of ``extends``, an
@@ -250,9 +294,6 @@ def read_job_fields(
         picked = raw.pop("stages", None)
         if isinstance(picked, list) and picked and all(isinstance(n, str) for n in picked):
             base["stages"] = _pick_stages(base.get("stages") or [], picked, path)
-            first_std = base["stages"][0].pop("action_std", None)
-            if first_std is not None:
-                base["init_from_action_std"] = first_std
         elif picked is not None:
             base["stages"] = picked
         raw = set_fields(base, raw, where=str(path))
@@ -326,42 +367,64 @@ def with_evaluation_paths(job: Job, base: Path) -> Job:
     return job.model_copy(update={"stages": stages})
 
 
-def resolve_scenes(job: Job, base: Path = Path("."), source: str = "job") -> list[Scene]:
-    """Each stage's scene, checked against the job's backend and resolved on this machine
-    (``Scene.resolved``: named, saved and ``auto`` fidelity profiles become concrete ones),
-    so that actors on any node and the checkpoints get the profile chosen here."""
-    scenes = []
+def resolve_scenes(
+    job: Job, base: Path = Path("."), source: str = "job"
+) -> tuple[list[Scene], dict[int, Scene]]:
+    """Each stage's scene and, for a stage with ``evaluate.scene``, the scene it is judged
+    on, loaded with the stage's ``scene_set`` (the one way a stage changes its scene),
+    checked against the stage's backend and resolved on this machine (``Scene.resolved``:
+    named, saved and ``auto`` fidelity profiles become concrete ones), so that actors on any
+    node and the checkpoints get the profile chosen here. A stage that sets scene fields or
+    its own backend has its scenes checked on that backend only. Returns the stages' scenes
+    and stage index -> evaluation scene.
+
+    Raises:
+        SpecError: naming ``source`` and the stage's field.
+    """
+    scenes: list[Scene] = []
+    judged: dict[int, Scene] = {}
     for i, stage in enumerate(job.stages):
-        ref = _scene_ref(stage.scene, base)
-        try:
-            scene = load_scene(ref, stage.scene_set)
-        except SpecError as exc:
-            field = "scene_set" if stage.scene_set and _loads(ref) else "scene"
-            raise SpecError(f"{source}: stages.{i}.{field}: {exc}") from None
         backend = job.stage_backend(i)
-        if backend not in scene.backends:
-            whose = f"stages.{i}.backend" if stage.backend else "the job's backend"
-            raise SpecError(
-                f"{source}: stages.{i}.scene: {scene.name!r} runs on {scene.backends}, "
-                f"not on {whose} {backend!r}"
-            )
-        overrides = {k: v for k in ("fidelity", "control_hz", "action") if (v := getattr(stage, k))}
-        if overrides or stage.backend:  # checked on the stage's backend only
-            raw = {**scene.model_dump(), **overrides, "backends": [backend]}
-            try:
-                scene = Scene.model_validate(raw)
-            except ValidationError as err:
-                message = format_validation_error(f"{source}: stages.{i}", err)
-                raise SpecError(message.replace(": <root>:", ":")) from None
-        try:
-            scenes.append(scene.resolved())
-        except ValueError as exc:
-            raise SpecError(f"{source}: stages.{i}.scene: {exc}") from None
+        where = f"{source}: stages.{i}"
+        whose = f"stages.{i}.backend" if stage.backend else "the job's backend"
+        scenes.append(_stage_scene(_scene_ref(stage.scene, base), stage, backend, where, whose))
         if stage.evaluate is not None and stage.evaluate.scene is not None:
-            where = f"{source}: stages.{i}.evaluate.scene"
             ref = _scene_ref(stage.evaluate.scene, base)
-            evaluation_scene(ref, backend, where, stage.scene_set)
-    return scenes
+            judged[i] = evaluation_scene(ref, backend, f"{where}.evaluate.scene", stage)
+    return scenes, judged
+
+
+def _stage_scene(ref: str, stage: Stage, backend: str, where: str, whose: str) -> Scene:
+    """Scene ``ref`` as stage ``stage`` sets it, resolved; on ``backend`` (``whose``, as an
+    error names it) alone where the stage sets scene fields or a backend of its own.
+
+    Raises:
+        SpecError: ``where`` and the stage's ``scene`` or ``scene_set`` field.
+    """
+    only = backend if stage.scene_set or stage.backend else None
+    try:
+        scene = load_scene(ref, stage.scene_set, only)
+    except BackendMismatch as exc:
+        raise SpecError(
+            f"{where}.scene: {_name(ref)!r} runs on {exc.backends}, not on {whose} {backend!r}"
+        ) from None
+    except SpecError as exc:
+        field = "scene_set" if stage.scene_set and _loads(ref) else "scene"
+        problem = str(exc).replace(": <root>:", ":")  # a check of the whole scene
+        raise SpecError(f"{where}.{field}: {problem}") from None
+    if backend not in scene.backends:
+        raise SpecError(
+            f"{where}.scene: {scene.name!r} runs on {scene.backends}, not on {whose} {backend!r}"
+        )
+    try:
+        return scene.resolved()
+    except ValueError as exc:
+        raise SpecError(f"{where}.scene: {exc}") from None
+
+
+def _name(ref: str) -> str:
+    """A scene reference as an error names it: a catalogue name, or a file's stem."""
+    return Path(ref).stem if ref.endswith((".yaml", ".yml")) else ref
 
 
 def _loads(ref: str) -> bool:
@@ -373,18 +436,20 @@ def _loads(ref: str) -> bool:
     return True
 
 
-def evaluation_scene(
-    ref: str, backend: str, where: str, scene_set: dict[str, Any] | None = None
-) -> Scene:
-    """A stage's evaluation scene (``evaluate.scene`` with the stage's ``scene_set``), loaded
-    and resolved for ``backend`` (that it takes the stage's policy is checked with the
-    stage's names: ``learner.evaluation.stage_judge.judged_scene``).
+def evaluation_scene(ref: str, backend: str, where: str, stage: Stage) -> Scene:
+    """A stage's evaluation scene (``evaluate.scene`` set as the stage sets its own scene),
+    loaded and resolved for ``backend`` (that it takes the stage's policy is checked with
+    the stage's names: ``learner.evaluation.stage_judge.judged_scene``).
 
     Raises:
         SpecError: ``where`` (file and field): the scene does not load or runs elsewhere.
     """
+    only = backend if stage.scene_set or stage.backend else None
     try:
-        scene = load_scene(ref, scene_set)
+        scene = load_scene(ref, stage.scene_set, only)
+    except BackendMismatch as exc:
+        message = f"{where}: {_name(ref)!r} runs on {exc.backends}, not on {backend!r}"
+        raise SpecError(message) from None
     except SpecError as exc:
         raise SpecError(f"{where}: {exc}") from None
     if backend not in scene.backends:

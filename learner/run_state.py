@@ -237,7 +237,7 @@ class RunState:
         """The first network from checkpoint ``path`` (``job.init_from``; see
         :func:`network_from_checkpoint`), with a fresh optimizer and the lineage naming it."""
         policy, meta = network_from_checkpoint(
-            path, self.io[0], self.scenes[0].name, self.job.init_from_action_std
+            path, self.io[0], self.scenes[0].name, self.job.stages[0].action_std
         )
         self.ppo = self.new_ppo(policy)
         self.lineage = [{**self.lineage_entry(0, "init_from"), "source": str(path)}]

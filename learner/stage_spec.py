@@ -8,8 +8,6 @@ import re
 from typing import Annotated, Any, Literal
 
 from gaitforge.learner.ppo import EntropyWeight, LearningRate
-from gaitforge.workers.scenes.action import ActionSpec
-from gaitforge.workers.scenes.profiles import Fidelity
 from gaitforge.workers.spec_types import MAX_NAME_LENGTH, SPEC_VALUES, Name, Ref
 from pydantic import (
     BaseModel,
@@ -44,6 +42,8 @@ MAX_PROMOTION_RULES = 16
 """the most promotion rules one stage may have"""
 MAX_SCENE_SET = 64
 """the most scene fields one stage may set"""
+SCENE_FIELDS_OF_OLD = ("fidelity", "control_hz", "action")
+"""scene fields older job files set on a stage itself, now keys of its ``scene_set``"""
 
 
 class StrictSpec(BaseModel):
@@ -225,21 +225,16 @@ class Stage(StrictSpec):
     scene_set: dict[Annotated[str, Field(max_length=MAX_NAME_LENGTH)], Any] = Field(
         default_factory=dict, max_length=MAX_SCENE_SET
     )
-    """scene fields set by dotted path (``{task.target_speed: 2.5}``), on the stage's scene
-    and on its evaluation scene"""
+    """scene fields set by dotted path, on the stage's scene and on its evaluation scene: the
+    one way a stage changes its scene (``{task.target_speed: 2.5}``; ``{control_hz: 25}``,
+    a lower rate repeating each action over more simulator steps, the 2017 entrants' frame
+    skip; ``{fidelity: fast}``, a fidelity curriculum; ``{action: {kind: joint_targets}}``,
+    joint targets through a reflex layer instead of excitations)"""
     name: Name | None = None
     """defaults to the scene's name"""
     backend: Literal["mujoco", "opensim"] | None = None
     """the stage's simulator (default: the job's ``backend``): train fast on MuJoCo, then
     finish on OpenSim in a later stage"""
-    fidelity: Fidelity | None = None
-    """overrides the scene's fidelity profile (a fidelity curriculum changes only this)"""
-    control_hz: Annotated[float, Field(gt=0, le=1000)] | None = None
-    """overrides the scene's control rate: a lower rate repeats each action over more
-    simulator steps (the 2017 entrants' frame skip), which shortens the credit horizon"""
-    action: ActionSpec | None = None
-    """overrides the scene's action space (``workers.scenes.action``): joint targets through
-    a reflex layer instead of excitations"""
     env_steps: Annotated[int, Field(ge=1)]
     """the stage's budget; it ends at the budget even if the rule never passed"""
     promote: list[PromotionRule] = Field(default_factory=list, max_length=MAX_PROMOTION_RULES)
@@ -262,8 +257,22 @@ class Stage(StrictSpec):
     """the stage's learning-rate and entropy schedules, where they differ from the job's"""
     action_std: Annotated[float, Field(gt=0, le=1)] | None = None
     """with transition ``continue``: the action noise's standard deviation (action units)
-    the network starts the stage with, in place of the one the stage before trained it down
-    to (a stage that must learn something new explores again); None keeps it"""
+    the network starts the stage with, in place of the one the stage before (or, in the
+    first stage, the job's ``init_from`` checkpoint) trained it down to (a stage that must
+    learn something new explores again); None keeps it"""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _scene_fields_in_scene_set(cls, raw: object) -> object:
+        """A scene field written on the stage itself is named with where it goes."""
+        if isinstance(raw, dict):
+            for name in SCENE_FIELDS_OF_OLD:
+                if name in raw:
+                    raise ValueError(
+                        f"{name}: a scene field; set it in the stage's scene_set "
+                        f"(scene_set: {{{name}: {raw[name]!r}}})"
+                    )
+        return raw
 
     @field_validator("promote", mode="before")
     @classmethod

@@ -65,7 +65,9 @@ class Trainer:
             recordings to ``run_dir/recordings``, a judged stage's best network to
             ``run_dir/best``.
         scenes: each stage's resolved scene (``learner.job.load_job`` gives them); None
-            resolves them relative to the working directory.
+            resolves them (and ``judged``) relative to the working directory.
+        judged: stage index -> its resolved evaluation scene, for the stages with
+            ``evaluate.scene`` (``load_job`` gives them too).
         on_iteration: called with each iteration's metrics (a progress display).
         tensorboard: write TensorBoard scalars.
     """
@@ -86,17 +88,18 @@ class Trainer:
         job: Job,
         run_dir: Path,
         scenes: list[Scene] | None = None,
+        judged: dict[int, Scene] | None = None,
         on_iteration: IterationCallback | None = None,
         tensorboard: bool = True,
     ) -> None:
         self.job = job
         self.run_dir = run_dir
-        # resolved here, on the driver: actors and checkpoints get concrete fidelity profiles
-        scenes = [s.resolved() for s in scenes] if scenes is not None else resolve_scenes(job)
+        if scenes is None:  # resolved here, on the driver, once
+            scenes, judged = resolve_scenes(job)
         self._stop = threading.Event()
         self.state = RunState(job, run_dir, scenes, self._stop)
         self.report = MetricsReport(run_dir / "tb", tensorboard, on_iteration)
-        self.judging = StageJudging(self.state)
+        self.judging = StageJudging(self.state, judged or {})
         self.state.restore()
         self.judging.resume(self.state.env_steps)
         self.checkpoints = Checkpoints()

@@ -44,7 +44,7 @@ from gaitforge.learner.checkpoint_meta import CheckpointMeta
 from gaitforge.learner.curriculum import StageIO
 from gaitforge.learner.evaluation.episodes import evaluate_policy
 from gaitforge.learner.evaluation.results import ModeResult
-from gaitforge.learner.job import PromotionRule, Stage, StageEvaluation, evaluation_scene
+from gaitforge.learner.job import PromotionRule, Stage, StageEvaluation
 from gaitforge.learner.policy import ActorCritic, build_policy
 from gaitforge.learner.stage_verdict import KeptNetwork, StageVerdict
 from gaitforge.workers.scenes import Scene
@@ -95,20 +95,28 @@ def _score(metrics: dict[str, float], prefix: str, rules: list[PromotionRule]) -
 
 
 def judged_scene(
-    stage: Stage, index: int, trained_scene: Scene, trained_io: StageIO, backend: str
+    stage: Stage,
+    index: int,
+    trained_scene: Scene,
+    trained_io: StageIO,
+    backend: str,
+    scene: Scene | None,
 ) -> Scene:
-    """The scene stage ``index`` (with ``evaluate``) is judged on: ``evaluate.scene``, or the
-    stage's own scene as trained (``trained_scene``, whose names are ``trained_io``).
+    """The scene stage ``index`` (with ``evaluate``) is judged on: its ``evaluate.scene``,
+    resolved where the job was loaded (``scene``; ``learner.job.resolve_scenes``), or the
+    stage's own scene as trained (``trained_scene``, whose names are ``trained_io`` on the
+    stage's ``backend``).
 
     Raises:
-        SpecError: ``stages.<index>.evaluate.scene`` does not load, runs on another backend,
-            or observes or actuates other names than the stage's scene.
+        SpecError: ``stages.<index>.evaluate.scene`` is missing, or observes or actuates
+            other names than the stage's scene.
     """
     assert stage.evaluate is not None
     if stage.evaluate.scene is None:
         return trained_scene
     where = f"stages.{index}.evaluate.scene"
-    scene = evaluation_scene(stage.evaluate.scene, backend, where, stage.scene_set)
+    if scene is None:
+        raise SpecError(f"{where}: not resolved with the job (learner.job.resolve_scenes)")
     judged = StageIO(scene, backend)
     if (judged.obs_names, judged.act_names) != (trained_io.obs_names, trained_io.act_names):
         raise SpecError(
@@ -125,24 +133,13 @@ class StageJudge:
     Args:
         stage: the stage; its ``evaluate`` says what, how often and whether to keep the best.
         index: its index in the job.
-        trained_scene: the stage's scene as trained (the evaluation scene by default).
-        trained_io: its observation and muscle names.
+        scene: the scene it is judged on (:func:`judged_scene`).
         backend: the stage's simulator.
         best_dir: where the best network so far is kept (``run_dir/best/stage-<index>``).
-
-    Raises:
-        SpecError: ``stages.<index>.evaluate.scene`` does not load, runs on another backend,
-            or observes or actuates other names than the stage.
     """
 
     def __init__(
-        self,
-        stage: Stage,
-        index: int,
-        trained_scene: Scene,
-        trained_io: StageIO,
-        backend: str,
-        best_dir: Path,
+        self, stage: Stage, index: int, scene: Scene, backend: str, best_dir: Path
     ) -> None:
         assert stage.evaluate is not None
         self.spec: StageEvaluation = stage.evaluate
@@ -150,7 +147,7 @@ class StageJudge:
         self.rules = stage.promote
         self.backend = backend
         self.best_dir = best_dir
-        self.scene = judged_scene(stage, index, trained_scene, trained_io, backend)
+        self.scene = scene
         self.best: Score | None = None
         self._evaluated_at: int | None = None
         """the number of ``every_env_steps`` intervals of the stage at the last evaluation"""

@@ -8,7 +8,7 @@ import logging
 from dataclasses import replace
 from pathlib import Path
 
-from gaitforge.learner.evaluation.stage_judge import CONFIRMATION_PREFIX, StageJudge
+from gaitforge.learner.evaluation.stage_judge import CONFIRMATION_PREFIX, StageJudge, judged_scene
 from gaitforge.learner.hooks import recording_due
 from gaitforge.learner.policy import ActorCritic
 from gaitforge.learner.run_state import RunState
@@ -31,17 +31,21 @@ class StageJudging:
     network worse than its best ends with the best (the verdict's ``kept``), unless it was
     promoted on that evaluation.
 
+    ``judged`` holds the resolved ``evaluate.scene`` of each stage that has one (stage index
+    -> scene); the others are judged on their own scene as trained.
+
     Raises:
-        SpecError: a stage's ``evaluate.scene`` does not fit it.
+        SpecError: a stage's evaluation scene does not fit it.
     """
 
-    def __init__(self, run: RunState) -> None:
+    def __init__(self, run: RunState, judged: dict[int, Scene]) -> None:
         self.judges = {
             i: StageJudge(
                 stage,
                 i,
-                run.scenes[i],
-                run.io[i],
+                judged_scene(
+                    stage, i, run.scenes[i], run.io[i], run.job.stage_backend(i), judged.get(i)
+                ),
                 run.job.stage_backend(i),
                 run.run_dir / "best" / f"stage-{i}",
             )

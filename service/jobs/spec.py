@@ -294,11 +294,12 @@ def _check_loads(spec: dict[str, Any], source: str) -> None:
         layout = JobLayout(Path(tmp), "check")
         job_file = write_job_files(layout, spec)
         try:
-            job, scenes = load_job(job_file)
+            job, scenes, judged = load_job(job_file)
             io, _ = check_stages(job, scenes)
             for i, stage in enumerate(job.stages):
                 if stage.evaluate is not None:
-                    judged_scene(stage, i, scenes[i], io[i], job.stage_backend(i))
+                    backend = job.stage_backend(i)
+                    judged_scene(stage, i, scenes[i], io[i], backend, judged.get(i))
         except (SpecError, ValueError) as exc:
             text = str(exc).replace(f"{job_file}: ", "").replace(f"{layout.dir}{os.sep}", "")
             field, _, problem = text.partition(": ")

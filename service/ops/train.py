@@ -14,9 +14,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from gaitforge.learner.evaluation.stage_judge import CONFIRMATION_PREFIX
-from gaitforge.learner.job import Job, load_job, resolve_scenes, with_evaluation_paths
+from gaitforge.learner.job import LoadedJob, load_job, prepare_job, scaled_budgets
 from gaitforge.workers.overrides import set_fields
-from gaitforge.workers.spec_io import validate_model
 from gaitforge.workers.spec_types import Seed
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -24,7 +23,6 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from gaitforge.learner.trainer import Trainer
-    from gaitforge.workers.scenes import Scene
 
 logger = logging.getLogger(__name__)
 
@@ -80,71 +78,39 @@ class TrainResult(BaseModel):
     stopped: bool = Field(description="ended early by request_stop (a signal, a cancel)")
 
 
-def scale_budget(job: Job, scale: float, source: str = "job") -> Job:
-    """``job`` with every stage's env-step budget (and blend ramp) times ``scale``."""
-    return apply_overrides(job, budget_scale=scale, source=source)
-
-
-def apply_overrides(
-    job: Job,
-    workers: int | None = None,
-    address: str | None = None,
-    budget_scale: float = 1.0,
-    source: str = "job",
-) -> Job:
-    """The job with a request's overrides applied, validated again.
-
-    Raises:
-        SpecError: the result does not validate (one line naming ``source`` and the field).
-    """
-    raw = job.model_dump()
-    if workers is not None:
-        raw["workers"]["num_workers"] = workers
-    if address is not None:
-        raw["workers"]["ray_address"] = address
-    for stage in raw["stages"]:
-        stage["env_steps"] = max(1, round(stage["env_steps"] * budget_scale))
-        if stage["blend"] is not None:
-            stage["blend"]["ramp_env_steps"] = max(
-                1, round(stage["blend"]["ramp_env_steps"] * budget_scale)
-            )
-    return validate_model(raw, Job, source)
-
-
-def load_request(request: TrainRequest) -> tuple[Job, list[Scene]]:
-    """The request's job with its overrides, and each stage's resolved scene.
+def load_request(request: TrainRequest) -> LoadedJob:
+    """The request's job with its overrides (``seed``, ``workers``, ``address``, the dotted
+    ``overrides``, then ``budget_scale``), validated once, and each stage's scenes resolved
+    once.
 
     Raises:
         SpecError: a bad job file or spec, one line naming the file and the field.
     """
     overrides = dict(request.overrides)
-    if request.seed is not None:
-        overrides["seed"] = request.seed
+    for field, value in (
+        ("seed", request.seed),
+        ("workers.num_workers", request.workers),
+        ("workers.ray_address", request.address),
+    ):
+        if value is not None:
+            overrides[field] = value
     if request.job_file is not None:
-        source = str(request.job_file)
-        job, scenes = load_job(request.job_file, overrides)
-    else:
-        source = "job"
-        raw = set_fields(request.job or {}, overrides, where="overrides")
-        job = validate_model(raw, Job, source)
-        job = with_evaluation_paths(job, request.base_dir)
-        scenes = resolve_scenes(job, base=request.base_dir, source=source)
-    job = apply_overrides(job, request.workers, request.address, request.budget_scale, source)
-    return job, scenes
+        return load_job(request.job_file, overrides, request.budget_scale)
+    raw = set_fields(request.job or {}, overrides, where="overrides")
+    return prepare_job(scaled_budgets(raw, request.budget_scale), request.base_dir, "job")
 
 
 class Training:
     """A prepared run: the job, its scenes and the trainer (resumed from ``run_dir``)."""
 
-    def __init__(
-        self, job: Job, scenes: list[Scene], run_dir: Path, tensorboard: bool = True
-    ) -> None:
+    def __init__(self, loaded: LoadedJob, run_dir: Path, tensorboard: bool = True) -> None:
         from gaitforge.learner.trainer import Trainer  # lazy: imports torch
 
-        self.job = job
-        self.scenes = scenes
+        self.job, self.scenes = loaded.job, loaded.scenes
         self.run_dir = run_dir
-        self.trainer: Trainer = Trainer(job, run_dir, scenes, tensorboard=tensorboard)
+        self.trainer: Trainer = Trainer(
+            loaded.job, run_dir, loaded.scenes, loaded.judged, tensorboard=tensorboard
+        )
         self._started_ray = False
         self._stopped = False
 
@@ -228,9 +194,9 @@ def prepare_training(request: TrainRequest) -> Training:
     Raises:
         SpecError: a bad job (file, field) or a stage check failing (one line).
     """
-    job, scenes = load_request(request)
-    run_dir = request.run_dir or Path("runs") / job.name
-    return Training(job, scenes, run_dir, tensorboard=request.tensorboard)
+    loaded = load_request(request)
+    run_dir = request.run_dir or Path("runs") / loaded.job.name
+    return Training(loaded, run_dir, tensorboard=request.tensorboard)
 
 
 def start_line(training: Training) -> str:

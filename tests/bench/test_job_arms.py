@@ -70,7 +70,7 @@ def test_arm_job_sets_seed_and_overrides_and_loads_from_elsewhere(tmp_path):
     filled = tmp_path / "elsewhere" / "seed-3.yaml"
     filled.parent.mkdir()
     filled.write_text(yaml.safe_dump(job))
-    loaded, scenes = load_job(filled)
+    loaded, scenes, _ = load_job(filled)
     assert loaded.seed == 3 and loaded.ppo.gamma == 0.99
     assert [s.name for s in scenes] == ["walk-2d-clock-2s"] and scenes[0].episode_s == 2
 

@@ -27,7 +27,7 @@ def test_the_jobs_are_there() -> None:
 
 @pytest.mark.parametrize("path", JOBS, ids=lambda p: str(p.relative_to(RESULTS)))
 def test_a_kept_job_file_loads(path: Path) -> None:
-    job, scenes = load_job(path)  # init_from must be a checkpoint, each scene must load
+    job, scenes, _ = load_job(path)  # init_from must be a checkpoint, each scene must load
     assert len(scenes) == len(job.stages)
 
 

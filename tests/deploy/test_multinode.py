@@ -62,7 +62,13 @@ def _job() -> dict:
         "ppo": {"batch_env_steps": 256, "minibatch_size": 128, "epochs": 1},
         "workers": {"num_workers": 2, "envs_per_worker": 2, "fragment_length": 32},
         "checkpoint": {"every_iters": 4},
-        "stages": [{"scene": "stand-2d", "control_hz": 25, "fidelity": SAVED, "env_steps": BUDGET}],
+        "stages": [
+            {
+                "scene": "stand-2d",
+                "scene_set": {"control_hz": 25, "fidelity": SAVED},
+                "env_steps": BUDGET,
+            }
+        ],
     }
 
 

@@ -135,7 +135,7 @@ def test_a_version_0_checkpoint_loads_as_the_current_model() -> None:
 
 
 def test_the_trainer_resumes_from_a_version_0_checkpoint(tmp_path: Path) -> None:
-    job, scenes = load_job(FIXTURE / "job.yaml")
+    job, scenes, _ = load_job(FIXTURE / "job.yaml")
     raw = job.model_dump()
     raw["workers"]["num_workers"] = 0
     shutil.copytree(V0, tmp_path / "checkpoints" / V0.name)

@@ -66,7 +66,7 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
             "stages.0.promote.1.metric: Input should be",
         ),
         (
-            "stages: [{scene: walk-2d, env_steps: 9, control_hz: 30}]",
+            "stages: [{scene: walk-2d, env_steps: 9, scene_set: {control_hz: 30}}]",
             "does not divide the control period 1/30.0 s",
         ),
         ("stages: [{scene: nowhere, env_steps: 9}]", "stages.0.scene: scene 'nowhere': unknown"),
@@ -80,8 +80,8 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
             "a new network needs transition blend",
         ),
         (
-            "stages: [{scene: walk-2d, env_steps: 9, fidelity: warp}]",
-            "stages.0: fidelity: unknown profile 'warp'",
+            "stages: [{scene: walk-2d, env_steps: 9, scene_set: {fidelity: warp}}]",
+            "stages.0.scene_set: scene 'walk-2d': fidelity: unknown profile 'warp'",
         ),
         ("stages: [{scene: walk-2d, env_steps: 9}]\nppo: {lr: -1}", "ppo.lr: Input should be"),
         (
@@ -128,13 +128,13 @@ def test_stages_promote_switch_fidelity_and_are_checkpointed(tmp_path: Path) -> 
             "stages": [
                 {
                     "scene": "stand-2d",
-                    "fidelity": "fast",
+                    "scene_set": {"fidelity": "fast"},
                     "env_steps": 100_000,
                     "promote": "length >= 0 over 2",
                 },
                 {
                     "scene": "stand-2d",
-                    "fidelity": "accurate",
+                    "scene_set": {"fidelity": "accurate"},
                     "env_steps": 400,
                     "ppo": {
                         "lr": 1e-4,

@@ -24,10 +24,10 @@ def _trained(tmp_path: Path) -> Path:
     return found
 
 
-def _job(init_from: Path, scene: str = "elbow-reach", **extra) -> Job:
-    raw = elbow_job().model_dump() | extra
+def _job(init_from: Path, scene: str = "elbow-reach", action_std: float | None = None) -> Job:
+    raw = elbow_job().model_dump()
     raw["init_from"] = str(init_from)
-    raw["stages"][0]["scene"] = scene
+    raw["stages"][0].update(scene=scene, action_std=action_std)
     return Job.model_validate(raw)
 
 
@@ -50,15 +50,15 @@ def test_the_first_stage_starts_from_the_checkpoint(tmp_path: Path) -> None:
 def test_the_action_noise_may_start_anew(tmp_path: Path) -> None:
     source = _trained(tmp_path)
     loaded, _ = load_policy(source)
-    trainer = Trainer(
-        _job(source, init_from_action_std=0.25), tmp_path / "second", tensorboard=False
-    )
+    trainer = Trainer(_job(source, action_std=0.25), tmp_path / "second", tensorboard=False)
     obs = torch.randn(64, loaded.obs_dim)
     assert torch.allclose(trainer.policy.mean_action(obs), loaded.mean_action(obs), atol=1e-6)
     assert not torch.allclose(loaded.log_std.exp(), torch.tensor(0.25))
     assert torch.allclose(trainer.policy.log_std.exp(), torch.tensor(0.25))
-    with pytest.raises(ValueError, match="init_from_action_std: only with init_from"):
-        Job.model_validate(elbow_job().model_dump() | {"init_from_action_std": 0.25})
+    raw = elbow_job().model_dump()
+    raw["stages"][0]["action_std"] = 0.25
+    with pytest.raises(ValueError, match=r"stages\.0\.action_std: .* only a network loaded"):
+        Job.model_validate(raw)
 
 
 def test_the_first_stage_may_grow_a_network_from_the_checkpoint(tmp_path: Path) -> None:

@@ -15,30 +15,28 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 def test_the_recipes_are_stages_of_the_curriculum() -> None:
-    curriculum, _ = load_job(EXAMPLES / "learn-to-run.yaml")
+    curriculum, _, _ = load_job(EXAMPLES / "learn-to-run.yaml")
     for recipe, names in [
         ("learn-to-walk", ["imitate-walk", "walk"]),
         ("learn-to-run-2d", ["imitate-run", "run"]),
         ("obstacles-2d", ["obstacles"]),
         ("obstacles-2d-speeds", ["speeds"]),
     ]:
-        job, _ = load_job(EXAMPLES / f"{recipe}.yaml")
+        job, _, _ = load_job(EXAMPLES / f"{recipe}.yaml")
         by_name = {stage.name: i for i, stage in enumerate(curriculum.stages)}
         assert [stage.name for stage in job.stages] == names
         for i, name in enumerate(names):
             whole = curriculum.stages[by_name[name]]
             assert job.stage_ppo(i) == curriculum.stage_ppo(by_name[name]), (recipe, name)
-            assert job.stages[i].model_copy(update={"action_std": whole.action_std}) == whole
-        first_std = curriculum.stages[by_name[names[0]]].action_std
-        assert job.init_from_action_std == first_std  # the picked first stage's noise
+            assert job.stages[i] == whole, "a picked stage is the stage as written there"
         assert job.network == curriculum.network and job.workers == curriculum.workers
 
 
 def test_the_3d_walk_is_the_walk_recipe_on_myolegs_scenes_at_less_noise() -> None:
     """learn-to-walk.yaml on MyoLeg's scenes, with a third of its starting noise and no mirror
     images in the walk stage."""
-    planar, _ = load_job(EXAMPLES / "learn-to-walk.yaml")
-    myoleg, scenes = load_job(EXAMPLES / "learn-to-walk-3d.yaml")
+    planar, _, _ = load_job(EXAMPLES / "learn-to-walk.yaml")
+    myoleg, scenes, _ = load_job(EXAMPLES / "learn-to-walk-3d.yaml")
     assert [s.name for s in scenes] == ["imitate-walk-3d+standing-starts", "walk-3d+clock"]
     assert all(s.body == "myoleg" and s.action.kind == "joint_targets" for s in scenes)
     assert planar.stage_ppo(1).mirror and not myoleg.stage_ppo(1).mirror
@@ -56,7 +54,7 @@ def test_the_curriculum_promotes_each_task_stage_on_its_evaluation_or_ends() -> 
     """Imitation stages run their budgets; every task stage is judged on 100 deterministic
     episodes, promoted at its target and ends the job if it misses it; the walk, run and
     obstacle targets are those its README names."""
-    curriculum, _ = load_job(EXAMPLES / "learn-to-run.yaml")
+    curriculum, _, _ = load_job(EXAMPLES / "learn-to-run.yaml")
     rules = {
         stage.name: sorted(str(rule) for rule in stage.promote)
         for stage in curriculum.stages
@@ -72,11 +70,12 @@ def test_the_curriculum_promotes_each_task_stage_on_its_evaluation_or_ends() -> 
 
 
 def test_set_changes_one_field_of_the_job_it_extends() -> None:
-    plain, _ = load_job(EXAMPLES / "imitate-walk-2d.yaml")
-    targets, scenes = load_job(EXAMPLES / "imitate-walk-2d-targets.yaml")
+    plain, _, _ = load_job(EXAMPLES / "imitate-walk-2d.yaml")
+    targets, scenes, _ = load_job(EXAMPLES / "imitate-walk-2d-targets.yaml")
     assert targets.name == "imitate-walk-2d-targets"
-    assert targets.stages[0].action is not None and scenes[0].action.kind == "joint_targets"
-    assert targets.stages[0].model_copy(update={"action": None}) == plain.stages[0]
+    assert targets.stages[0].scene_set["action"] == {"kind": "joint_targets"}
+    assert scenes[0].action.kind == "joint_targets"
+    assert targets.stages[0].model_copy(update={"scene_set": {}}) == plain.stages[0]
 
 
 def write(path: Path, fields: dict) -> Path:
@@ -92,7 +91,7 @@ def test_an_extended_jobs_paths_stay_its_own(tmp_path: Path) -> None:
     stage = {"name": "slow", "scene": "scenes/slow.yaml", "env_steps": 1000}
     write(tmp_path / "recipes" / "base.yaml", {"name": "base", "stages": [stage]})
     mine = write(tmp_path / "mine" / "job.yaml", {"extends": "../recipes/base.yaml", "name": "m"})
-    job, scenes = load_job(mine, {"ppo.lr": 1.0e-4})
+    job, scenes, _ = load_job(mine, {"ppo.lr": 1.0e-4})
     assert scenes[0].task.target_speed == 1.0 and job.ppo.lr == 1.0e-4
     assert read_job_fields(mine)["stages"][0]["scene"] == "../recipes/scenes/slow.yaml"
 

@@ -51,7 +51,7 @@ def test_a_seed_outside_0_to_2_pow_32_is_refused_naming_the_field(
 def test_seeds_at_the_ends_of_the_range_load(tmp_path: Path) -> None:
     for seed in (0, SEED_LIMIT - 1):
         text = f"name: values\nseed: {seed}\nstages: [{{scene: stand-2d, env_steps: 1000}}]\n"
-        job, _ = load_job(_job_file(tmp_path, text))
+        job, _, _ = load_job(_job_file(tmp_path, text))
         assert job.seed == seed
 
 
@@ -84,11 +84,11 @@ seed: 3
 ppo: {lr: 1, gamma: 0.98, epochs: 4}
 workers: {timeout_s: 30, num_workers: 2}
 stages:
-  - {scene: stand-2d, env_steps: 1000, control_hz: 50, promote: "survival >= 1 over 5"}
+  - {scene: stand-2d, env_steps: 1000, scene_set: {control_hz: 50}, promote: "survival >= 1 over 5"}
 """
-    job, scenes = load_job(_job_file(tmp_path, text))
+    job, scenes, _ = load_job(_job_file(tmp_path, text))
     assert job.ppo.lr == 1.0 and isinstance(job.ppo.lr, float)
-    assert job.workers.timeout_s == 30.0 and job.stages[0].control_hz == 50.0
+    assert job.workers.timeout_s == 30.0
     rule = job.stages[0].promote[0]
     assert (rule.value, rule.window) == (1.0, 5)
     assert scenes[0].control_hz == 50.0

@@ -21,8 +21,13 @@ def _job() -> Job:
         {
             "name": "two-sims",
             "stages": [
-                {"scene": "stand-2d", "control_hz": 25, "env_steps": 64},
-                {"scene": "stand-2d", "control_hz": 25, "backend": "opensim", "env_steps": 64},
+                {"scene": "stand-2d", "scene_set": {"control_hz": 25}, "env_steps": 64},
+                {
+                    "scene": "stand-2d",
+                    "scene_set": {"control_hz": 25},
+                    "backend": "opensim",
+                    "env_steps": 64,
+                },
             ],
             "workers": {"num_workers": 0, "envs_per_worker": 2, "fragment_length": 16},
             "ppo": {"batch_env_steps": 32, "minibatch_size": 16, "epochs": 1},

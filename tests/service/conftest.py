@@ -82,7 +82,7 @@ def make_tiny_job(
         "ppo": {"batch_env_steps": 256, "minibatch_size": 128, "epochs": 1},
         "workers": {"num_workers": 0, "envs_per_worker": 2, "fragment_length": 64},
         "checkpoint": {"every_iters": every_iters},
-        "stages": [{"scene": "stand-2d", "control_hz": 25, "env_steps": env_steps}],
+        "stages": [{"scene": "stand-2d", "scene_set": {"control_hz": 25}, "env_steps": env_steps}],
         **extra,
     }
 

@@ -17,5 +17,5 @@ def test_there_are_examples() -> None:
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
 def test_example_job_loads(path: Path) -> None:
-    job, scenes = load_job(path)
+    job, scenes, _ = load_job(path)
     assert len(scenes) == len(job.stages) and job.name

@@ -31,7 +31,7 @@ workers: {{num_workers: 0, envs_per_worker: 2, fragment_length: 64}}
 checkpoint: {{every_iters: 2}}
 stages:
   - scene: stand-2d
-    control_hz: 25
+    scene_set: {{control_hz: 25}}
     env_steps: {env_steps}
     promote: "survival >= 0.95 over 20"
 """

@@ -133,6 +133,6 @@ def test_an_inline_scene_is_kept_written_and_loads(tmp_path: Path) -> None:
     assert job_file == layout.job_file
     assert (layout.scenes_dir / "my-stand.yaml").is_file()
     assert yaml.safe_load(job_file.read_text())["stages"][0]["scene"] == "scenes/my-stand.yaml"
-    job, scenes = load_job(job_file)
+    job, scenes, _ = load_job(job_file)
     assert [s.name for s in scenes] == ["my-stand", "stand-2d"]
     assert scenes[0].episode_s == 2.5 and job.name == "x"

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 from gaitforge.learner.evaluation.evaluate import EvaluationError
-from gaitforge.learner.job import load_job
+from gaitforge.learner.job import Job, load_job
 from gaitforge.service.ops import InputError, SpecError, validate_request
 from gaitforge.service.ops import evaluate as evaluate_ops
 from gaitforge.service.ops import fidelity as fidelity_ops
@@ -80,17 +80,19 @@ def test_a_bad_scene_or_job_is_a_spec_error_naming_file_and_field(tmp_path: Path
 
 
 def test_budget_scaling_scales_every_stage_and_blend_ramp() -> None:
-    job, _ = load_job(EXAMPLES / "gait2d-curriculum.yaml")
-    scaled = train_ops.scale_budget(job, 0.001)
-    assert [s.env_steps for s in scaled.stages] == [round(s.env_steps / 1000) for s in job.stages]
-    blends = [
-        (s.blend, t.blend)
-        for s, t in zip(job.stages, scaled.stages, strict=True)
-        if s.blend is not None
-    ]
-    assert blends and all(b.ramp_env_steps == round(a.ramp_env_steps / 1000) for a, b in blends)
-    assert all(s.env_steps >= 1 for s in train_ops.scale_budget(job, 1e-9).stages)
-    overridden = train_ops.apply_overrides(job, workers=0, address="auto")
+    path = EXAMPLES / "gait2d-curriculum.yaml"
+    job = load_job(path).job
+
+    def scaled(scale: float, **fields) -> Job:
+        request = train_ops.TrainRequest(job_file=path, budget_scale=scale, **fields)
+        return train_ops.load_request(request).job
+
+    smoke = scaled(0.001)
+    assert [s.env_steps for s in smoke.stages] == [round(s.env_steps / 1000) for s in job.stages]
+    blends = [(s.blend, t.blend) for s, t in zip(job.stages, smoke.stages, strict=True)]
+    assert all(b.ramp_env_steps == round(a.ramp_env_steps / 1000) for a, b in blends)
+    assert all(s.env_steps >= 1 for s in scaled(1e-6).stages)
+    overridden = scaled(1.0, workers=0, address="auto")
     assert overridden.workers.num_workers == 0 and overridden.workers.ray_address == "auto"
 
 

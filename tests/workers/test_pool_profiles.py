@@ -70,7 +70,7 @@ def test_auto_fidelity_steps_on_worker_nodes_with_the_drivers_profile(
             steps_per_s=1000.0,
         )
     )
-    job, scenes = load_job(_job(tmp_path))
+    job, scenes, _ = load_job(_job(tmp_path))
     scene = scenes[0]
     assert scene.is_resolved
     assert scene.fidelity == {"mujoco": PROFILE}

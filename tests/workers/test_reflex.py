@@ -138,7 +138,7 @@ def test_a_stage_can_switch_to_joint_targets(tmp_path) -> None:
         "  - scene: imitate-walk-2d\n    action: {kind: joint_targets, kp: 4.0}\n"
         "    env_steps: 1000\n"
     )
-    _, scenes = load_job(job)
+    _, scenes, _ = load_job(job)
     scene = scenes[0]
     assert scene.action.targets and scene.action.kp == 4.0 and scene.backends == ["mujoco"]
 

@@ -26,6 +26,7 @@ from gaitforge.workers.scenes.spec import Scene
 from gaitforge.workers.spec_io import SpecError, read_yaml_mapping, validate_model
 
 __all__ = [
+    "BackendMismatch",
     "PrunePlan",
     "Scene",
     "SceneOption",
@@ -50,11 +51,25 @@ def scene_fields(ref: str) -> dict[str, Any]:
     return compose(ref).raw
 
 
-def load_scene(name_or_path: str | Path, overrides: dict[str, Any] | None = None) -> Scene:
+class BackendMismatch(SpecError):
+    """A scene asked for on a backend it does not run on; ``backends`` are those it does."""
+
+    def __init__(self, message: str, backends: list[str]) -> None:
+        super().__init__(message)
+        self.backends = backends
+
+
+def load_scene(
+    name_or_path: str | Path,
+    overrides: dict[str, Any] | None = None,
+    backend: str | None = None,
+) -> Scene:
     """Load a catalogue scene (``base`` or ``base+option+...``) or a scene file by path,
-    with ``overrides`` (dotted field path -> value) set last, and check it against its body.
+    with ``overrides`` (dotted field path -> value) set last, and check it against its body;
+    with ``backend``, on that backend alone (its ``backends`` become ``[backend]``).
 
     Raises:
+        BackendMismatch: ``backend`` is not one of the scene's backends.
         SpecError: one line naming the scene or file, the field and what is allowed.
     """
     path = Path(name_or_path)
@@ -66,6 +81,11 @@ def load_scene(name_or_path: str | Path, overrides: dict[str, Any] | None = None
     else:
         source = f"scene {str(name_or_path)!r}"
         raw = compose(str(name_or_path), overrides).raw
+    if backend is not None:
+        backends = raw.get("backends", Scene.model_fields["backends"].default_factory())
+        if backend not in backends:
+            raise BackendMismatch(f"{source}: runs on {backends}, not on {backend!r}", backends)
+        raw = {**raw, "backends": [backend]}
     scene = validate_model(raw, Scene, source)
     try:
         check_names(scene, topology_for(scene.body))
