@@ -10,11 +10,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+import pytest
 
 if TYPE_CHECKING:
     from conftest import RunBench
 
 REPO = Path(__file__).resolve().parents[2]
+PRINTED_FORCE_TOL = 0.011
+"""body weights: the contact table prints forces to 0.01; two simulators' forces (each their
+own code, in a state that differs between machines) that agree far more closely can still
+round to neighbouring hundredths"""
 
 
 def test_the_same_state_on_both_simulators_gives_the_table(run_bench: RunBench) -> None:
@@ -55,9 +60,12 @@ def test_under_the_walker_mujoco_on_opensims_laws_pushes_and_pulls_as_opensim(
     )
     assert len(rows) == 4, done.stdout[-3000:]
     loaded = 0.0
-    for _, opensim_forward, opensim_up, mujoco_forward, mujoco_up in rows:
-        assert (opensim_forward, opensim_up) == (mujoco_forward, mujoco_up)
-        loaded += float(opensim_up)
+    for _, *cells in rows:
+        opensim_forward, opensim_up, mujoco_forward, mujoco_up = map(float, cells)
+        assert (opensim_forward, opensim_up) == pytest.approx(
+            (mujoco_forward, mujoco_up), abs=PRINTED_FORCE_TOL
+        )
+        loaded += opensim_up
     assert loaded > 0.5  # body weights: the feet carry the body
     moments = {
         name: [float(v) for v in re.findall(r"[+-]\d+\.\d", row)]

@@ -144,7 +144,7 @@ def test_seeded_runs_repeat_exactly_in_both_modes(walk: tuple[Path, Scene]) -> N
     run, _ = walk
     first = evaluate_checkpoint(run, episodes=2, modes=("deterministic", "stochastic"))
     again = evaluate_checkpoint(run, episodes=2, modes=("deterministic", "stochastic"))
-    assert first.to_dict() == again.to_dict()
+    assert first.to_dict() == again.to_dict()  # exactly: both in this process, same machine
     det, sto = first.results["deterministic"], first.results["stochastic"]
     assert det.episodes[0].return_ != sto.episodes[0].return_
     assert det.effort.mean < sto.effort.mean  # noise adds excitation^2 on average

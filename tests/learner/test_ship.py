@@ -67,6 +67,7 @@ def test_a_shipped_policy_keeps_the_weights_and_names_its_origin(tmp_path: Path)
     shipped, _ = load_policy(dest)
     original, _ = load_policy(source)
     obs = torch.randn(16, original.obs_dim)
+    # exactly: the same weights through the same network in this process
     assert torch.equal(shipped.mean_action(obs), original.mean_action(obs))
     trainer = Trainer(_job(dest), tmp_path / "from-shipped", tensorboard=False)
     assert trainer.lineage[0]["source"] == str(dest)

@@ -48,6 +48,7 @@ def test_any_composition_by_name_with_actions_in_minus_one_to_one() -> None:
     assert env.action_space.low.min() == -1.0 and env.action_space.shape == (6,)
     obs, _ = env.reset(seed=3)
     plain_obs, _ = plain.reset(seed=3)
+    # exactly: the wrapper is the same env in this process, its action mapped as below
     np.testing.assert_array_equal(obs, plain_obs)
     action = np.linspace(-1.0, 1.0, 6, dtype=np.float32)
     obs, reward, *_ = env.step(action)

@@ -58,6 +58,7 @@ def test_max_steps_and_the_same_seed_repeat() -> None:
     first, again = Log(), Log()
     a = run_episode(env, lambda obs: np.full(18, 0.2), 5, [first], max_steps=7)
     b = run_episode(env, lambda obs: np.full(18, 0.2), 5, [again], max_steps=7)
+    # exactly: the same seed twice in this process on this machine is the same episode
     assert a == b and a.steps == 7 and not (a.terminated or a.truncated)
     assert a.distance_m == first.last_info["distance"]
 

@@ -12,6 +12,7 @@ from gaitforge.workers.scenes import Scene, catalogue, load_scene
 from gaitforge.workers.scenes.imitate import IMITATION_TERMS
 from gaitforge.workers.sim.pose import pelvis_pitch_list
 
+from tests.tolerance import assert_close
 from tests.workers.scene_fields import scene_with
 
 
@@ -176,7 +177,9 @@ def test_mujoco_and_opensim_start_from_the_same_pose() -> None:
     envs = [MuscleEnv(scene, backend) for backend in ("mujoco", "opensim")]
     for seed in (0, 1, 2, 21):  # seed 21: the left ankle starts clipped at its limit
         a, b = (env.reset(seed=seed)[1]["imitation"] for env in envs)
-        assert a == b
+        # the phase and flags are drawn alike; the pose error is each backend's own, from
+        # coordinates that agree to the 1e-6 rad below (1e-16 apart here, not 0)
+        assert_close(a, b, abs_tol=1e-6)
         ca, cb = (env.sim.coordinates() for env in envs)
         assert ca.keys() == cb.keys()
         for name in ca:

@@ -29,7 +29,7 @@ def _rollout(env: MuscleEnv, seed: int, steps: int) -> np.ndarray:
 def test_same_seed_same_trajectory_on_opensim() -> None:
     a = _rollout(MuscleEnv("walk-2d", "opensim"), seed=4, steps=15)
     b = _rollout(MuscleEnv("walk-2d", "opensim"), seed=4, steps=15)
-    np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(a, b)  # exactly: both runs in this process, same machine
 
 
 def test_opensim_env_pickles_and_continues() -> None:

@@ -143,6 +143,7 @@ def test_the_cli_writes_a_body_file_that_loads_back_and_its_report(tmp_path: Pat
     assert result.exit_code == 0, result.output
     outcome = json.loads(result.stdout)
     body = load_body(outcome["body_file"])
+    # exactly: written and imported again in this process, so the file must lose nothing
     assert body == import_osim(MODELS / "leg6dof9musc.osim").body
     fitted = runner.invoke(app, [*args, "--json", "--overwrite"])
     assert fitted.exit_code == 0, fitted.output

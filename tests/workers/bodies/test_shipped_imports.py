@@ -9,11 +9,15 @@ import pytest
 from gaitforge.workers.bodies import load_body
 from gaitforge.workers.bodies.osim_import import import_osim
 
+from tests.tolerance import assert_close
+
 MODELS = Path(__file__).resolve().parents[3] / "examples" / "models"
 SHIPPED = {"gait2354": "gait2354_simbody.osim"}
 
 
 @pytest.mark.parametrize("body", sorted(SHIPPED))
 def test_a_shipped_import_equals_a_fresh_one(body: str) -> None:
+    """Equal but for the last digits of fitted numbers: the shipped file was written on
+    another machine, and least-squares fits (the carriers' quartics) differ there."""
     fresh = import_osim(MODELS / SHIPPED[body], name=body).body
-    assert load_body(body) == fresh
+    assert_close(load_body(body), fresh)

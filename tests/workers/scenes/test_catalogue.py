@@ -65,6 +65,7 @@ def test_gymnasium_env_checker(name: str, backend: str) -> None:
 def test_same_seed_same_trajectory(name: str, backend: str) -> None:
     a_obs, a_rew = _rollout(MuscleEnv(name, backend), seed=7, steps=40)
     b_obs, b_rew = _rollout(MuscleEnv(name, backend), seed=7, steps=40)
+    # exactly: determinism is what is tested, both runs in this process on this machine
     np.testing.assert_array_equal(a_obs, b_obs)
     np.testing.assert_array_equal(a_rew, b_rew)
     c_obs, _ = _rollout(MuscleEnv(name, backend), seed=8, steps=40)
@@ -83,6 +84,7 @@ def test_env_pickles_mid_episode_and_continues_identically(name: str, backend: s
     for action in actions:
         a = env.step(action)
         b = clone.step(action)
+        # exactly: the clone is the same state in this process, so it must step bit for bit
         np.testing.assert_array_equal(a[0], b[0])
         assert a[1:4] == b[1:4]
 

@@ -42,6 +42,7 @@ def test_a_softer_contact_sinks_deeper_and_a_range_is_drawn_per_episode() -> Non
     sim.reset(1)
     _height_after(sim, 0.05)
     copy = pickle.loads(pickle.dumps(sim))
+    # exactly: the same draw and the same steps in this process, so the same bits
     assert copy.model.geom_solref[0, 0] == drawn[1]
     assert _height_after(copy, 0.1) == _height_after(sim, 0.1)
 

@@ -267,6 +267,7 @@ def test_coupled_dof_is_an_unlimited_joint_held_by_its_fitted_polynomial() -> No
         assert eq.type == mujoco.mjtEq.mjEQ_JOINT
         assert eq.obj1id == jid
         assert eq.obj2id == mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "knee_angle")
+        # exactly: the model holds the very fit made here (same body, process and machine)
         np.testing.assert_array_equal(eq.data[:5], fits[dof].coefficients)
     assert model.jnt_limited[model.joint("knee_angle").id] == 1
     assert np.all(model.qpos0 == 0.0)  # the polynomial reads y = poly(x)
