@@ -38,7 +38,7 @@ from gaitforge.workers.fidelity.conversion import (
     OpenSimSide,
     sweep_coordinate,
 )
-from gaitforge.workers.sim.mujoco_build import build_spec
+from gaitforge.workers.sim.mujoco.build import build_spec
 
 logger = logging.getLogger(__name__)
 

@@ -53,10 +53,10 @@ from gaitforge.workers.bodies.osim_basics import (
     joints_between,
 )
 from gaitforge.workers.bodies.schema import Body
-from gaitforge.workers.sim.mjcf_couplings import CARRIER_SUFFIX
-from gaitforge.workers.sim.mjcf_lock import coupled_qpos, lock_joints
-from gaitforge.workers.sim.mujoco_build import build_spec
-from gaitforge.workers.sim.opensim_build import quiet_opensim_log
+from gaitforge.workers.sim.mujoco.build import build_spec
+from gaitforge.workers.sim.mujoco.couplings import CARRIER_SUFFIX
+from gaitforge.workers.sim.mujoco.lock import coupled_qpos, lock_joints
+from gaitforge.workers.sim.opensim.build import quiet_opensim_log
 from gaitforge.workers.spec_io import SpecError, shorten
 
 logger = logging.getLogger(__name__)

@@ -22,8 +22,8 @@ from gaitforge.workers.fidelity.conversion import (
     measure_conversion,
 )
 from gaitforge.workers.fidelity.conversion_plot import plot_conversion
-from gaitforge.workers.sim.mjcf_lock import coupled_qpos
-from gaitforge.workers.sim.mujoco_build import build_spec
+from gaitforge.workers.sim.mujoco.build import build_spec
+from gaitforge.workers.sim.mujoco.lock import coupled_qpos
 from gaitforge.workers.spec_io import SpecError
 from typer.testing import CliRunner
 
