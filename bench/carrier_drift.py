@@ -16,14 +16,14 @@ from pathlib import Path
 import mujoco
 import numpy as np
 from gaitforge.service.ops.bodies import convert
-from gaitforge.workers.sim import mjcf_couplings
-from gaitforge.workers.sim.mjcf_couplings import (
+from gaitforge.workers.sim.mujoco import couplings as mujoco_couplings
+from gaitforge.workers.sim.mujoco.build import build_spec
+from gaitforge.workers.sim.mujoco.couplings import (
     CARRIER_SUFFIX,
     COUPLING_PREFIX,
     set_coupled_qpos,
 )
-from gaitforge.workers.sim.mjcf_lock import coupled_qpos, joint_couplings, lock_joints
-from gaitforge.workers.sim.mujoco_build import build_spec
+from gaitforge.workers.sim.mujoco.lock import coupled_qpos, joint_couplings, lock_joints
 from rich.console import Console
 from rich.table import Table
 
@@ -78,7 +78,7 @@ def main() -> None:
     for column in ("armature kg", "integrator", "step ms", "excitation", "carriers", "others"):
         table.add_column(column)
     for armature in args.armature:
-        mjcf_couplings.CARRIER_ARMATURE = armature
+        mujoco_couplings.CARRIER_ARMATURE = armature
         for integrator, timestep in PROFILES:
             for excitation in ("random", "full"):
                 carriers, others = worst_drift(body, integrator, timestep, excitation, args.seconds)

@@ -42,8 +42,8 @@ import numpy as np
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.probe import ProbeResult, random_excitations
 from gaitforge.workers.scenes import Scene, catalogue, load_scene
-from gaitforge.workers.sim.mujoco import MujocoSimulator
-from gaitforge.workers.sim.mujoco_compile import INTEGRATORS, source_spec
+from gaitforge.workers.sim.mujoco.compile import INTEGRATORS, source_spec
+from gaitforge.workers.sim.mujoco.simulator import MujocoSimulator
 from rich.console import Console
 from rich.table import Table
 

@@ -20,7 +20,7 @@ import numpy as np
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.probe import process_rss_mib
 from gaitforge.workers.scenes import load_scene
-from gaitforge.workers.sim.opensim import OpenSimSimulator
+from gaitforge.workers.sim.opensim.simulator import OpenSimSimulator
 from rich.console import Console
 from rich.progress import track
 from rich.table import Table

@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 from gaitforge.workers.episode import EpisodeRunner, EpisodeSummary, run_episode
 from gaitforge.workers.scenes import Scene, load_scene
-from gaitforge.workers.sim.mujoco_build import FLOOR
+from gaitforge.workers.sim.mujoco.build import FLOOR
 from rich.console import Console
 from rich.table import Table
 

@@ -33,7 +33,7 @@ from gaitforge.workers.episode import Observer
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.base import Pose
-from gaitforge.workers.sim.opensim_muscles import OpenSimMuscles
+from gaitforge.workers.sim.osim_laws.muscles import OpenSimMuscles
 from relaxed_drop import lift  # bench/relaxed_drop.py (this script's folder is on sys.path)
 from rich.console import Console
 from rich.table import Table

@@ -46,7 +46,7 @@ class StageIO:
         planar = None
         if needs_planar_muscles(scene, backend):
             # lazy: imports mujoco
-            from gaitforge.workers.sim.mujoco_compile import planar_muscles_of
+            from gaitforge.workers.sim.mujoco.compile import planar_muscles_of
 
             planar = planar_muscles_of(scene)
         self.obs_names: list[str] = observation_names(scene, backend, planar)

@@ -29,7 +29,8 @@ def compare(
     random poses, every muscle's length and moment arms over each coordinate it spans,
     muscle forces at rest, and a relaxed drop (about 2-30 s)."""
     from gaitforge.workers.bodies.schema import Body
-    from gaitforge.workers.fidelity.conversion import load_opensim_model, measure_conversion
+    from gaitforge.workers.fidelity.conversion import measure_conversion
+    from gaitforge.workers.fidelity.conversion_sides import load_opensim_model
     from gaitforge.workers.spec_io import load_yaml_model
 
     try:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import mujoco
 import pytest
-from gaitforge.workers.sim.mjcf_models import myoleg_spec
+from gaitforge.workers.sim.mujoco.mjcf_models import myoleg_spec
 
 
 @pytest.fixture(scope="session")

@@ -17,7 +17,8 @@ Rules (each failure names the file, the line and the import):
    ``learner`` -> ``workers``. ``workers`` imports neither of the others, ``learner`` does
    not import ``service``, and none imports the top.
 3. **Layers inside workers**, by rank. A module may import a module of lower rank, or of
-   the same rank in the same package (folder); never one of higher rank, nor a same-rank
+   the same rank in the same package (a sub-package of workers with the folders below it,
+   or the modules directly in ``workers/``); never one of higher rank, nor a same-rank
    module of another package:
 
    ===  ==========  =================================================================
@@ -28,14 +29,18 @@ Rules (each failure names the file, the line and the import):
    1.5  motions     ``workers/motions/``: reference motions (gait cycles), as data
    2    scenes      ``workers/scenes/``: the spec, catalogue, pruning, fidelity profiles
                     and the saved profiles a scene names
-   3    sim         ``workers/sim/``: the simulator backends
+   3    sim         ``workers/sim/``: the simulator protocol and backend-neutral modules;
+                    the backends in its sub-packages ``mujoco/``, ``opensim/`` and
+                    ``osim_laws/`` (MuJoCo on OpenSim's laws)
    4    env         ``workers/rewards.py``, ``workers/env.py``
    5    env users   ``workers/probe.py``, the episode loop, ``workers/fidelity/``
    6    actors      ``workers/rollout.py``, ``workers/pool.py``
    ===  ==========  =================================================================
 
    A new module directly in ``workers/`` that imports gaitforge modules must be given a
-   rank in ``TOP_LEVEL_RANKS``; a new sub-package in ``PACKAGE_RANKS``.
+   rank in ``TOP_LEVEL_RANKS``; a new sub-package in ``PACKAGE_RANKS``. Inside sim, the
+   backend-neutral modules directly in ``workers/sim/`` import no backend (``SIM_BACKENDS``),
+   but for its package file, whose ``make_simulator`` picks one.
 4. **Evaluation apart in learner**: ``learner/evaluation/`` (evaluations, recordings,
    videos, shipping, stage judging) may import the rest of the learner but not the trainer;
    the rest of the learner imports none of it, but for the trainer, which imports only its
@@ -73,7 +78,11 @@ PACKAGE_ORDER = {"workers": 0, "learner": 1, "service": 2, "top": 3}
 """Top packages: a higher one may import a lower one, never the reverse."""
 
 PACKAGE_RANKS = {"bodies": 1, "motions": 1.5, "scenes": 2, "sim": 3, "fidelity": 5}
-"""Sub-packages of workers and their rank (every module inside has it)."""
+"""Sub-packages of workers and their rank (every module inside has it, sub-packages too)."""
+SIM = "gaitforge.workers.sim"
+SIM_BACKENDS = ("mujoco", "opensim", "osim_laws")
+"""The sub-packages of ``workers/sim/``: the backends (MuJoCo, OpenSim, MuJoCo on OpenSim's
+laws). The modules directly in ``workers/sim/`` are backend-neutral."""
 TOP_LEVEL_RANKS = {
     "spec_io": 0,
     "overrides": 0,
@@ -185,8 +194,13 @@ def _top(module: str) -> str:
     return parts[1] if len(parts) > 1 and parts[1] in FOLDERS else "top"
 
 
-def _package(module: str, modules: dict[str, Path]) -> str:
-    return module if _is_package(module, modules) else module.rpartition(".")[0]
+def _layer_package(module: str) -> str:
+    """The package of a workers module for the layers: its sub-package of workers (with
+    everything below it), or ``gaitforge.workers`` for the modules directly in it."""
+    parts = module.split(".")
+    if len(parts) > 2 and parts[2] in PACKAGE_RANKS:
+        return ".".join(parts[:3])
+    return ".".join(parts[:2])
 
 
 def _rank(module: str, imports_gaitforge: bool) -> int | None:
@@ -266,12 +280,39 @@ def test_workers_layers() -> None:
     for e in edges:
         src, dst = ranks[e.source], ranks[e.target]
         assert src is not None and dst is not None
-        same_package = _package(e.source, modules) == _package(e.target, modules)
+        same_package = _layer_package(e.source) == _layer_package(e.target)
         if dst > src or (dst == src and not same_package):
             wrong.append(f"{e.where()}: {e.source} (rank {src}) imports {e.target} (rank {dst})")
     assert not wrong, (
         "imports against the workers layers (rank 0 base < 1 bodies < 1.5 motions < 2 scenes < "
         "3 sim < 4 env < 5 probe/episode/fidelity < 6 rollout/pool):\n" + "\n".join(wrong)
+    )
+
+
+def test_sim_neutral_modules_import_no_backend() -> None:
+    modules = _modules()
+    found = {
+        m.removeprefix(SIM + ".")
+        for m, path in modules.items()
+        if m.rpartition(".")[0] == SIM and path.name == "__init__.py"
+    }
+    assert found == set(SIM_BACKENDS), (
+        f"sub-packages of workers/sim/: {sorted(found)}; SIM_BACKENDS lists "
+        f"{sorted(SIM_BACKENDS)} (tests/test_import_graph.py)"
+    )
+    backends = tuple(f"{SIM}.{name}" for name in SIM_BACKENDS)
+
+    def in_backend(module: str) -> bool:
+        return any(module == b or module.startswith(b + ".") for b in backends)
+
+    wrong = [
+        f"{e.where()}: {e.source} imports {e.target}"
+        for e in _edges()
+        if e.source.rpartition(".")[0] == SIM and not in_backend(e.source) and in_backend(e.target)
+    ]
+    assert not wrong, (
+        "backend-neutral modules of workers/sim/ importing a backend (only the package file's "
+        "make_simulator may):\n" + "\n".join(wrong)
     )
 
 

@@ -38,7 +38,7 @@ import mujoco
 import numpy as np
 from gaitforge.workers.env import GRAVITY
 from gaitforge.workers.episode import Observer
-from gaitforge.workers.sim.mjcf_models import leg_contact_pairs
+from gaitforge.workers.sim.mujoco.mjcf_models import leg_contact_pairs
 
 if TYPE_CHECKING:
     from gaitforge.workers.env import MuscleEnv

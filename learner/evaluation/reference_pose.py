@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from gaitforge.workers.env import MuscleEnv
     from gaitforge.workers.motions import MotionState
     from gaitforge.workers.sim.base import Pose
-    from gaitforge.workers.sim.mujoco import MujocoSimulator
+    from gaitforge.workers.sim.mujoco.simulator import MujocoSimulator
 
 logger = logging.getLogger(__name__)
 
@@ -57,7 +57,7 @@ class ReferenceBody:
     """
 
     def __init__(self, env: MuscleEnv) -> None:
-        from gaitforge.workers.sim.mujoco import MujocoSimulator  # lazy: compiles a model
+        from gaitforge.workers.sim.mujoco.simulator import MujocoSimulator  # lazy: compiles a model
 
         if "mujoco" not in env.scene.backends:
             raise ValueError(

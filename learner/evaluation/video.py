@@ -39,8 +39,8 @@ from gaitforge.learner.evaluation.video_reference import (
 )
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.episode import Act, ClosingObserver, run_episode
-from gaitforge.workers.sim.mujoco import MujocoSimulator
-from gaitforge.workers.sim.mujoco_compile import OBSTACLE_PREFIX
+from gaitforge.workers.sim.mujoco.compile import OBSTACLE_PREFIX
+from gaitforge.workers.sim.mujoco.simulator import MujocoSimulator
 
 logger = logging.getLogger(__name__)
 

@@ -12,7 +12,7 @@ import pytest
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.scenes.profiles import FidelityProfile
-from gaitforge.workers.sim.opensim import OpenSimSimulator
+from gaitforge.workers.sim.opensim.simulator import OpenSimSimulator
 
 
 def _rollout(env: MuscleEnv, seed: int, steps: int) -> np.ndarray:

@@ -3,7 +3,7 @@ OpenSim model being imported to keep the muscle's moment arm.
 
 MuJoCo has no moving sites; its builder can carry one on a light body whose slides are held
 to polynomials of the point's coordinate (``StandIn.follow``,
-``workers.sim.mjcf_couplings.add_carrier``). MuJoCo's joint equality is a quartic, and a
+``workers.sim.mujoco.couplings.add_carrier``). MuJoCo's joint equality is a quartic, and a
 least-squares quartic through OpenSim's splines misses their slope near the range's ends
 (gait10dof18musc's patellar-tendon insertion: 1.4 mm of place, but the vasti's knee moment arm
 4.4 mm RMS and 22 mm worst against OpenSim's). The moment arm is what the conversion is

@@ -2,7 +2,7 @@
 
 Neutral bodies give it from their description. MyoSuite's MJCF bodies (``MJCF_BODIES``) exist
 only as MuJoCo models: their topology is committed data, ``data/topology/<body>.yaml``,
-written from the compiled model by ``python -m gaitforge.workers.sim.mjcf_topology --write``
+written from the compiled model by ``python bench/data/mjcf_topology.py --write``
 (a test checks it against the installed myo-sim), so reading it needs no simulator.
 """
 
@@ -85,7 +85,7 @@ def _mjcf_topology(body: str) -> Topology:
     except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError) as exc:
         raise SpecError(
             f"{path}: body {body!r}: no readable topology ({exc}); write it with "
-            "python -m gaitforge.workers.sim.mjcf_topology --write"
+            "python bench/data/mjcf_topology.py --write"
         ) from None
 
 

@@ -32,13 +32,9 @@ from gaitforge.workers.bodies.schema import (
     StandIn,
     WrapObject,
 )
-from gaitforge.workers.fidelity.conversion import (
-    DEFAULT_SWEEP_POINTS,
-    MujocoSide,
-    OpenSimSide,
-    sweep_coordinate,
-)
-from gaitforge.workers.sim.mujoco_build import build_spec
+from gaitforge.workers.fidelity.conversion_sides import MujocoSide, OpenSimSide
+from gaitforge.workers.fidelity.conversion_sweeps import DEFAULT_SWEEP_POINTS, sweep_coordinate
+from gaitforge.workers.sim.mujoco.build import build_spec
 
 logger = logging.getLogger(__name__)
 

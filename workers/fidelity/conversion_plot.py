@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-from gaitforge.workers.fidelity.conversion import (
+from gaitforge.workers.fidelity.conversion_report import (
     PASS_RMS_M,
     PASS_SHARE,
     ConversionReport,

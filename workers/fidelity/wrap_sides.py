@@ -16,13 +16,9 @@ import logging
 from pathlib import Path
 
 from gaitforge.workers.bodies.schema import Body, Muscle, WrapRef
-from gaitforge.workers.fidelity.conversion import (
-    DEFAULT_SWEEP_POINTS,
-    MujocoSide,
-    OpenSimSide,
-    sweep_pairs,
-)
-from gaitforge.workers.sim.mujoco_build import build_spec
+from gaitforge.workers.fidelity.conversion_sides import MujocoSide, OpenSimSide
+from gaitforge.workers.fidelity.conversion_sweeps import DEFAULT_SWEEP_POINTS, sweep_pairs
+from gaitforge.workers.sim.mujoco.build import build_spec
 
 logger = logging.getLogger(__name__)
 

@@ -1,7 +1,7 @@
 """Reference motions: one periodic gait cycle per (body, motion), shipped as project data.
 
 ``data/<body>-<motion>.yaml`` (gait2d-walk, gait2d-run, myoleg-walk, myoleg-run) were written
-once from OpenSim's example gait data by ``python -m gaitforge.workers.sim.make_motions
+once from OpenSim's example gait data by ``python bench/data/make_motions.py
 <reference dir>``; nothing here reads the reference data. ``data/gait2d-walk-excitations.yaml``
 holds the CMC muscle excitations of the same walk on the same phase grid.
 

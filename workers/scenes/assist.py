@@ -6,7 +6,7 @@ The hold is a spring and damper on the pelvis's tilt (``upright_kp``, ``upright_
 turning the pelvis's up axis back to the world's, its yaw left free); the push is a force along
 the world's forward axis, ``propel_kv`` times how far the pelvis's forward speed falls short of
 ``task.target_speed`` (none when it is at or over it). Both act on MuJoCo scenes only
-(``workers.sim.upright``); an assisted scene trains, its unassisted twin is what a policy is
+(``workers.sim.mujoco.upright``); an assisted scene trains, its unassisted twin is what a policy is
 judged on.
 """
 

@@ -43,9 +43,10 @@ ContactModel = Annotated[
         description="MuJoCo: the contact spheres' floor contact, MuJoCo's soft constraint or "
         "'hunt-crossley': OpenSim's law (Simbody's HuntCrossleyForce with the body's contact "
         "parameters: a Hertz force growing with depth^1.5, its dissipation and its friction "
-        "against slip), applied as forces every MuJoCo step (workers.sim.hunt_crossley); "
-        "obstacles keep MuJoCo's contact, and contact_timeconst_s and contact_solimp apply "
-        "only to them. Body files only (OpenSim: ignored)",
+        "against slip), applied as forces every MuJoCo step "
+        "(workers.sim.osim_laws.hunt_crossley); obstacles keep MuJoCo's contact, and "
+        "contact_timeconst_s and contact_solimp apply only to them. Body files only (OpenSim: "
+        "ignored)",
     ),
 ]
 JointLimits = Annotated[
@@ -54,9 +55,9 @@ JointLimits = Annotated[
         description="MuJoCo: how kept dofs with a body-file passive limit are held past it, "
         "MuJoCo's joint-limit constraint or 'opensim': OpenSim's CoordinateLimitForce spring "
         "(stiffness ramping up over the limit's transition, with damping; "
-        "workers.sim.limit_springs), applied as forces every MuJoCo step. gait2d's knee goes "
-        "past its 10-degree limit on OpenSim while walking; MuJoCo's constraint stops it. "
-        "Body files only (OpenSim: ignored)",
+        "workers.sim.osim_laws.limit_springs), applied as forces every MuJoCo step. gait2d's "
+        "knee goes past its 10-degree limit on OpenSim while walking; MuJoCo's constraint "
+        "stops it. Body files only (OpenSim: ignored)",
     ),
 ]
 MuscleMinActivation = Annotated[
@@ -78,7 +79,7 @@ MuscleCurves = Annotated[
         "(OpenSim's muscle; the constants in workers.sim.muscle_curves), RMS 0.05 of "
         "isometric force off it where MuJoCo's own are 0.15 (length) and 0.14 (velocity) "
         "off, or 'opensim': no fit, Millard's own curves, with the fibre's pennation, "
-        "applied as forces every MuJoCo step (workers.sim.opensim_muscles; body files only) "
+        "applied as forces every MuJoCo step (workers.sim.osim_laws.muscles; body files only) "
         "(OpenSim: ignored)",
     ),
 ]
@@ -95,7 +96,7 @@ MusclePassive = Annotated[
         "has no pennation: its normalised length runs ahead of the fibre's past optimal "
         "length, gait2d's standing gastrocnemius 1.458 against 1.425), or 'opensim': no fit, "
         "OpenSim's own passive fibre force (its curve, pennation and fibre damping) applied "
-        "as forces every MuJoCo step (workers.sim.opensim_muscles) (OpenSim: ignored)",
+        "as forces every MuJoCo step (workers.sim.osim_laws.muscles) (OpenSim: ignored)",
     ),
 ]
 

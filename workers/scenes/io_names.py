@@ -11,7 +11,7 @@ built), and the env counts every entry's values against its names at each reset.
 
 Computed from the body's topology and the scene's pruning plan and task. One case needs a
 measurement: ``keep.planar`` on MuJoCo keeps the muscles whose moment arms act in the plane
-of the kept dofs (``workers.sim.mujoco_compile.planar_muscles_of`` measures them on the
+of the kept dofs (``workers.sim.mujoco.compile.planar_muscles_of`` measures them on the
 unpruned model; no simulator is built). :func:`needs_planar_muscles` says when; the OpenSim
 backend does not apply ``keep.planar``.
 """
@@ -204,7 +204,7 @@ def kept_plan(scene: Scene, backend: str, planar_muscles: Sequence[str] | None =
     if needs_planar_muscles(scene, backend) and planar_muscles is None:
         raise ValueError(
             f"scene {scene.name!r}: keep.planar on mujoco needs the measured planar muscles "
-            "(workers.sim.mujoco_compile.planar_muscles_of)"
+            "(workers.sim.mujoco.compile.planar_muscles_of)"
         )
     planar = list(planar_muscles) if needs_planar_muscles(scene, backend) else None
     return plan_pruning(scene, topology_for(scene.body), planar)

@@ -1,4 +1,11 @@
-"""Simulator backends behind one protocol (see ``workers.sim.base.Simulator``)."""
+"""Simulator backends behind one protocol (see ``workers.sim.base.Simulator``).
+
+The backends are sub-packages: ``mujoco`` (MuJoCo), ``opensim`` (OpenSim) and ``osim_laws``
+(MuJoCo on OpenSim's contact, joint-limit and muscle laws). The modules here are
+backend-neutral: ``base`` (the protocol and what it returns), ``faults`` (fault injection),
+``muscle_curves`` (the curves both backends fit) and ``pose`` (the pelvis's orientation);
+:func:`make_simulator` picks a backend.
+"""
 
 from __future__ import annotations
 
@@ -34,11 +41,13 @@ def make_simulator(scene: Scene, backend: str = "mujoco") -> Simulator:
 
 def _backend_simulator(scene: Scene, backend: str) -> Simulator:
     if backend == "mujoco":
-        from gaitforge.workers.sim.mujoco import MujocoSimulator
+        from gaitforge.workers.sim.mujoco.simulator import MujocoSimulator
 
         return MujocoSimulator(scene)
     if backend == "opensim":
-        from gaitforge.workers.sim.opensim import OpenSimSimulator  # lazy: imports OpenSim
+        from gaitforge.workers.sim.opensim.simulator import (
+            OpenSimSimulator,  # lazy: imports OpenSim
+        )
 
         return OpenSimSimulator(scene)
     raise ValueError(f"backend: unknown {backend!r}; allowed: ['mujoco', 'opensim']")

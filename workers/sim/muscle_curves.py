@@ -70,7 +70,7 @@ def thelen_passive_on_tendon(
 ) -> np.ndarray:
     """Thelen's passive force along the tendon, as a fraction of MuJoCo's peak force
     (``F_max cos(pennation)``), at MuJoCo's normalised lengths ``projected`` (the fibre's
-    length along the tendon over ``l_opt cos(pennation)``, ``mujoco_build``'s ``L0``).
+    length along the tendon over ``l_opt cos(pennation)``, ``mujoco.build``'s ``L0``).
 
     OpenSim's rigid-tendon Millard muscle keeps the fibre's height constant (``l_opt
     sin(pennation)``), so its fibre is ``sqrt((x cos a)^2 + sin(a)^2)`` optimal lengths long
@@ -120,7 +120,7 @@ def fit_mujoco_passive_whole(
 
 MILLARD_ACTIVE_RANGE = (0.24, 1.87)
 """MuJoCo's ``lmin``, ``lmax`` of the active force (``gainprm``; the passive force keeps its
-own, ``mujoco_build.ACTIVE_RANGE``) fitted to Millard 2012's default active force-length
+own, ``mujoco.build.ACTIVE_RANGE``) fitted to Millard 2012's default active force-length
 curve (OpenSim's ``ActiveForceLengthCurve``, the OpenSim backend's muscle) over normalised
 fibre lengths 0.5-1.6: least squares on a 0.01 grid, RMS 0.05 of isometric force. With
 Millard's own end points (0.4441, 1.8) MuJoCo's piecewise quadratic is 0.15 off and a short

@@ -29,7 +29,7 @@ import mujoco
 import numpy as np
 import pytest
 from gaitforge.workers.bodies import load_body
-from gaitforge.workers.sim.mujoco_build import build_spec
+from gaitforge.workers.sim.mujoco.build import build_spec
 
 FIXTURE = Path(__file__).resolve().parents[2] / "fixtures" / "gait2d_reference.json"
 REL_TOL = 0.05

@@ -17,11 +17,12 @@ from gaitforge.workers.bodies import load_body
 from gaitforge.workers.bodies.functions import evaluate
 from gaitforge.workers.bodies.osim_import import import_osim
 from gaitforge.workers.bodies.schema import Body, PathPoint
-from gaitforge.workers.fidelity.conversion import ConversionReport, measure_conversion
+from gaitforge.workers.fidelity.conversion import measure_conversion
+from gaitforge.workers.fidelity.conversion_report import ConversionReport
 from gaitforge.workers.scenes.prune import PrunePlan
-from gaitforge.workers.sim.mjcf_couplings import set_coupled_qpos
-from gaitforge.workers.sim.mujoco_build import build_spec
-from gaitforge.workers.sim.opensim_build import build_model
+from gaitforge.workers.sim.mujoco.build import build_spec
+from gaitforge.workers.sim.mujoco.couplings import set_coupled_qpos
+from gaitforge.workers.sim.opensim.build import build_model
 from gaitforge.workers.spec_io import SpecError
 from numpy.polynomial.polynomial import polyval
 from typer.testing import CliRunner

@@ -15,15 +15,12 @@ import typer
 from gaitforge.service.conversion_commands import compare
 from gaitforge.workers.bodies.osim_import import import_osim
 from gaitforge.workers.bodies.schema import Body
-from gaitforge.workers.fidelity.conversion import (
-    ConversionReport,
-    MujocoSide,
-    load_opensim_model,
-    measure_conversion,
-)
+from gaitforge.workers.fidelity.conversion import measure_conversion
 from gaitforge.workers.fidelity.conversion_plot import plot_conversion
-from gaitforge.workers.sim.mjcf_lock import coupled_qpos
-from gaitforge.workers.sim.mujoco_build import build_spec
+from gaitforge.workers.fidelity.conversion_report import ConversionReport
+from gaitforge.workers.fidelity.conversion_sides import MujocoSide, load_opensim_model
+from gaitforge.workers.sim.mujoco.build import build_spec
+from gaitforge.workers.sim.mujoco.lock import coupled_qpos
 from gaitforge.workers.spec_io import SpecError
 from typer.testing import CliRunner
 

@@ -22,7 +22,7 @@ from functools import cache
 import numpy as np
 import pytest
 from gaitforge.workers.motions import load_motion
-from gaitforge.workers.sim.motion_replay import Replay
+from gaitforge.workers.sim.mujoco.motion_replay import Replay
 
 FLOOR_MARGIN_M = 0.02
 STANCE_HEIGHT_M = 0.05

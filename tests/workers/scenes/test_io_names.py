@@ -20,7 +20,7 @@ from gaitforge.workers.scenes.io_names import (
     observation_names,
     world_axes,
 )
-from gaitforge.workers.sim.mujoco_compile import planar_muscles_of
+from gaitforge.workers.sim.mujoco.compile import planar_muscles_of
 
 SCENES = catalogue() + sorted(set(FORMER_NAMES.values()))
 CASES = [(name, backend) for name in SCENES for backend in load_scene(name).backends]

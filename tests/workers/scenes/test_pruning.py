@@ -6,7 +6,7 @@ import mujoco
 import pytest
 from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.scenes import Scene, load_scene
-from gaitforge.workers.sim.mujoco import MujocoSimulator
+from gaitforge.workers.sim.mujoco.simulator import MujocoSimulator
 
 GAIT2D_MUSCLES = 18
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from gaitforge.workers.bodies import load_body
 from gaitforge.workers.scenes import load_scene
-from gaitforge.workers.sim.mjcf_lock import lock_joints
-from gaitforge.workers.sim.mujoco import MujocoSimulator
-from gaitforge.workers.sim.mujoco_build import build_spec
+from gaitforge.workers.sim.mujoco.build import build_spec
+from gaitforge.workers.sim.mujoco.lock import lock_joints
+from gaitforge.workers.sim.mujoco.simulator import MujocoSimulator
 
 # OpenSim's signs: hip_flexion + is flexion, knee_angle + is extension (its range is
 # about -2.09 to 0.17), ankle_angle + is dorsiflexion.

@@ -7,17 +7,17 @@ import logging
 import mujoco
 import numpy as np
 import pytest
-from gaitforge.workers.sim.mjcf_contacts import contact_pair_mask, model_size, restrict_contacts
-from gaitforge.workers.sim.mjcf_lock import lock_joints
-from gaitforge.workers.sim.mjcf_models import (
+from gaitforge.workers.sim.mujoco.contacts import contact_pair_mask, model_size, restrict_contacts
+from gaitforge.workers.sim.mujoco.lock import lock_joints
+from gaitforge.workers.sim.mujoco.mjcf_models import (
     FLOOR,
     MYOLEG_FOOT_GEOMS,
     MYOLEG_SAGITTAL_JOINTS,
     STAND_KEY,
     myoleg_spec,
 )
-from gaitforge.workers.sim.mjcf_moment_arms import planar_muscles
-from gaitforge.workers.sim.mjcf_muscles import remove_muscles
+from gaitforge.workers.sim.mujoco.moment_arms import planar_muscles
+from gaitforge.workers.sim.mujoco.removal import remove_muscles
 from mjcf_helpers import OUT_OF_PLANE, object_names, warning_counts
 
 logger = logging.getLogger(__name__)

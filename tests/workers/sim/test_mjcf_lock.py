@@ -7,9 +7,9 @@ import logging
 import mujoco
 import numpy as np
 import pytest
-from gaitforge.workers.sim.mjcf_contacts import model_size
-from gaitforge.workers.sim.mjcf_lock import coupled_qpos, lock_joints
-from gaitforge.workers.sim.mjcf_models import STAND_KEY, myoleg_spec
+from gaitforge.workers.sim.mujoco.contacts import model_size
+from gaitforge.workers.sim.mujoco.lock import coupled_qpos, lock_joints
+from gaitforge.workers.sim.mujoco.mjcf_models import STAND_KEY, myoleg_spec
 from mjcf_helpers import object_names, warning_counts
 
 logger = logging.getLogger(__name__)

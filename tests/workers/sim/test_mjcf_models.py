@@ -5,8 +5,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
-from gaitforge.workers.sim.mjcf_lock import lock_joints
-from gaitforge.workers.sim.mjcf_models import (
+from gaitforge.workers.sim.mujoco.lock import lock_joints
+from gaitforge.workers.sim.mujoco.mjcf_models import (
     FLOOR,
     MYOLEG_FOOT_GEOMS,
     ROOT_JOINT,
@@ -15,7 +15,7 @@ from gaitforge.workers.sim.mjcf_models import (
     myoleg_spec,
     myosim_models_dir,
 )
-from gaitforge.workers.sim.mjcf_moment_arms import muscle_ids, muscle_spans
+from gaitforge.workers.sim.mujoco.moment_arms import muscle_ids, muscle_spans
 from mjcf_helpers import object_names, warning_counts
 
 

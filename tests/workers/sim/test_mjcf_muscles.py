@@ -7,9 +7,9 @@ import logging
 import mujoco
 import numpy as np
 import pytest
-from gaitforge.workers.sim.mjcf_models import MYOLEG_SAGITTAL_JOINTS, ROOT_JOINT, myoleg_spec
-from gaitforge.workers.sim.mjcf_moment_arms import muscle_spans, planar_muscles
-from gaitforge.workers.sim.mjcf_muscles import remove_muscles
+from gaitforge.workers.sim.mujoco.mjcf_models import MYOLEG_SAGITTAL_JOINTS, ROOT_JOINT, myoleg_spec
+from gaitforge.workers.sim.mujoco.moment_arms import muscle_spans, planar_muscles
+from gaitforge.workers.sim.mujoco.removal import remove_muscles
 from mjcf_helpers import OUT_OF_PLANE, object_names
 
 logger = logging.getLogger(__name__)

@@ -42,14 +42,14 @@ from gaitforge.workers.bodies.schema import (
     WrapRef,
 )
 from gaitforge.workers.scenes import load_scene
-from gaitforge.workers.sim.mjcf_couplings import (
+from gaitforge.workers.sim.mujoco.build import build_spec, quat_from_euler_xyz, quat_from_z
+from gaitforge.workers.sim.mujoco.couplings import (
     COUPLING_PREFIX,
     coupling_fits,
     set_coupled_qpos,
 )
-from gaitforge.workers.sim.mjcf_lock import lock_joints
-from gaitforge.workers.sim.mujoco import MujocoSimulator
-from gaitforge.workers.sim.mujoco_build import build_spec, quat_from_euler_xyz, quat_from_z
+from gaitforge.workers.sim.mujoco.lock import lock_joints
+from gaitforge.workers.sim.mujoco.simulator import MujocoSimulator
 
 KNEE_TX = Spline(
     x=[

@@ -19,8 +19,8 @@ import opensim
 import pytest
 from gaitforge.workers.bodies import load_body
 from gaitforge.workers.scenes import Scene, load_scene
-from gaitforge.workers.sim.mujoco_build import ACTIVE_RANGE, MUSCLE_RANGE
-from gaitforge.workers.sim.mujoco_compile import compile_scene
+from gaitforge.workers.sim.mujoco.build import ACTIVE_RANGE, MUSCLE_RANGE
+from gaitforge.workers.sim.mujoco.compile import compile_scene
 from gaitforge.workers.sim.muscle_curves import (
     FORCE_LENGTH_FIT_RANGE,
     FORCE_VELOCITY_FIT_RANGE,

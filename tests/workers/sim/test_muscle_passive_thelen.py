@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from gaitforge.workers.bodies import load_body
 from gaitforge.workers.scenes import load_scene
-from gaitforge.workers.sim.mujoco_build import ACTIVE_RANGE, MUSCLE_RANGE
-from gaitforge.workers.sim.mujoco_compile import compile_scene
+from gaitforge.workers.sim.mujoco.build import ACTIVE_RANGE, MUSCLE_RANGE
+from gaitforge.workers.sim.mujoco.compile import compile_scene
 from gaitforge.workers.sim.muscle_curves import (
     WHOLE_STRAIN_POINTS,
     fit_mujoco_fpmax,

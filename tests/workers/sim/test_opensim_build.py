@@ -13,7 +13,7 @@ poses (every dof its default, then the values below):
 * isometric force at optimal fibre length (activation 1, zero speed, each simulator posed
   so that its own path length is ``tendon_slack + l_opt cos(pennation)``) within 5 %.
   OpenSim's rigid-tendon Millard muscle gives ``F_max cos(pennation)`` along the tendon;
-  MuJoCo's muscle has no pennation, so ``mujoco_build`` sets its force to the same
+  MuJoCo's muscle has no pennation, so ``mujoco.build`` sets its force to the same
   projection (without it, ``bifemsh`` and ``soleus`` were 7.9 % and 9.4 % apart).
 """
 
@@ -32,8 +32,8 @@ from gaitforge.workers.bodies.schema import Body
 from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.scenes import load_scene, plan_pruning
 from gaitforge.workers.scenes.prune import PrunePlan
-from gaitforge.workers.sim.mujoco_build import build_spec
-from gaitforge.workers.sim.opensim_build import OpenSimBuild, build_model
+from gaitforge.workers.sim.mujoco.build import build_spec
+from gaitforge.workers.sim.opensim.build import OpenSimBuild, build_model
 
 opensim.Logger.setLevelString("error")
 

@@ -35,7 +35,7 @@ from gaitforge.workers.bodies.schema import (
     WrapRef,
 )
 from gaitforge.workers.scenes.prune import PrunePlan
-from gaitforge.workers.sim.opensim_build import OpenSimBuild, build_model, locked_values
+from gaitforge.workers.sim.opensim.build import OpenSimBuild, build_model, locked_values
 
 TOL = 1e-9  # m (and rotation matrix entries)
 KNEE_TX = Spline(x=[-2.0, -1.5, -1.0, -0.5, 0.0, 0.2], y=[-0.003, 0.002, 0.004, 0.003, 0.0, -0.001])

@@ -1,8 +1,9 @@
 """MuJoCo's forces on OpenSim's laws: ``contact_model: hunt-crossley``
-(``workers.sim.hunt_crossley``), ``joint_limits: opensim`` (``workers.sim.limit_springs``),
-``muscle_curves`` and ``muscle_passive: opensim`` (``workers.sim.opensim_muscles``).
+(``workers.sim.osim_laws.hunt_crossley``), ``joint_limits: opensim``
+(``workers.sim.osim_laws.limit_springs``), ``muscle_curves`` and ``muscle_passive: opensim``
+(``workers.sim.osim_laws.muscles``).
 
-The laws are checked against real OpenSim, gait2d as ``opensim_build`` builds it, in states
+The laws are checked against real OpenSim, gait2d as ``opensim.build`` builds it, in states
 set by hand: a heel sphere pressed into the floor while moving and turning, a knee past its
 limit while moving, every muscle active in a bent, moving pose; then the options on a real
 MuJoCo gait2d.
@@ -17,10 +18,10 @@ import pytest
 from gaitforge.workers.bodies import load_body
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.sim import make_simulator
-from gaitforge.workers.sim.hunt_crossley import hertz_coefficient, sphere_force
-from gaitforge.workers.sim.limit_springs import limit_torque
-from gaitforge.workers.sim.mujoco_compile import compile_scene
-from gaitforge.workers.sim.opensim_muscles import OpenSimMuscles
+from gaitforge.workers.sim.mujoco.compile import compile_scene
+from gaitforge.workers.sim.osim_laws.hunt_crossley import hertz_coefficient, sphere_force
+from gaitforge.workers.sim.osim_laws.limit_springs import limit_torque
+from gaitforge.workers.sim.osim_laws.muscles import OpenSimMuscles
 from pydantic import ValidationError
 
 GAIT2D = load_body("gait2d")

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.sim import make_simulator
-from gaitforge.workers.sim.mujoco_compile import compile_scene
+from gaitforge.workers.sim.mujoco.compile import compile_scene
 from pydantic import ValidationError
 
 SHELL = [0.2, 0.95, 0.03, 0.9, 2]

@@ -1,5 +1,5 @@
 """Simulators leave no log files in the working directory: MuJoCo's warnings become log
-records (``workers.sim.mujoco_warnings``), OpenSim's file sink is removed."""
+records (``workers.sim.mujoco.warning_log``), OpenSim's file sink is removed."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import pytest
 from gaitforge.workers.fidelity.held import with_profile
 from gaitforge.workers.scenes import load_scene
 from gaitforge.workers.scenes.profiles import FidelityProfile
-from gaitforge.workers.sim.mujoco import MujocoSimulator
-from gaitforge.workers.sim.opensim_build import quiet_opensim_log
+from gaitforge.workers.sim.mujoco.simulator import MujocoSimulator
+from gaitforge.workers.sim.opensim.build import quiet_opensim_log
 
 EULER_10MS = FidelityProfile(integrator="euler", timestep=0.01)
 

@@ -13,7 +13,7 @@ activation ``act``:
   long, so ``l = sqrt(x^2 + h^2)`` and ``cos(a) = x / l``; it moves at ``v = cos(a) v_mt``,
   ``v~ = v / (v_max l_opt)`` normalised;
 - passive: ``F (fpe(l / l_opt) + beta v~)``, ``fpe`` OpenSim's ``FiberForceLengthCurve`` as
-  ``opensim_build`` shapes it after Thelen's, ``beta`` Millard's fibre damping
+  ``opensim.build`` shapes it after Thelen's, ``beta`` Millard's fibre damping
   :data:`FIBRE_DAMPING` (MuJoCo's quadratic cannot follow the curve: see ``muscle_curves``);
 - active: ``F act fl(l / l_opt) fv(v~)``, Millard's default active force-length and
   force-velocity curves (MuJoCo's own shapes are 0.14-0.15 of peak force off them; fitted,
@@ -46,7 +46,7 @@ def opensim_passive_curve(strain: float, shape: float) -> np.ndarray:
     """[len(LENGTHS)] OpenSim's passive fibre force (fraction of peak force), for a muscle with
     Thelen's ``strain`` at one normalised force and ``shape``."""
     import opensim  # only scenes that ask for it pay for OpenSim's import
-    from gaitforge.workers.sim.opensim_build import fit_passive_curve
+    from gaitforge.workers.sim.opensim.build import fit_passive_curve
 
     curve = opensim.FiberForceLengthCurve()
     fit_passive_curve(curve, strain, shape)
@@ -56,7 +56,7 @@ def opensim_passive_curve(strain: float, shape: float) -> np.ndarray:
 @lru_cache(maxsize=1)
 def opensim_active_curves() -> tuple[np.ndarray, np.ndarray]:
     """Millard's default active force-length curve on :data:`LENGTHS` and force-velocity curve
-    on :data:`SPEEDS` (fractions of peak force), as ``opensim_build``'s muscles have them."""
+    on :data:`SPEEDS` (fractions of peak force), as ``opensim.build``'s muscles have them."""
     import opensim
 
     muscle = opensim.Millard2012EquilibriumMuscle("curves", 1.0, 1.0, 1.0, 0.0)

@@ -4,7 +4,7 @@ Without a handler of its own, MuJoCo prints each warning (a NaN or huge value in
 a full contact buffer) to stdout and appends it to ``MUJOCO_LOG.TXT`` in the current working
 directory. The simulator already reads the warning counters into ``Health``, so the text
 goes to the logger ``gaitforge.workers.sim.mujoco`` at DEBUG. MuJoCo's handler is
-process-wide; the modules that build MuJoCo models (``mujoco``, ``mujoco_build``,
+process-wide; the modules that build MuJoCo models (``simulator``, ``build``,
 ``mjcf_models``) install it when they are imported.
 """
 

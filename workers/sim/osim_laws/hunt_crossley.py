@@ -2,7 +2,7 @@
 contact sphere and the floor, applied to MuJoCo's bodies as forces every physics step.
 
 The law (Simbody's ``HuntCrossleyForceImpl::calcForce``, both surfaces with the body's
-``ContactMaterial``, as ``opensim_build`` gives them): a sphere of radius R (m) overlapping
+``ContactMaterial``, as ``opensim.build`` gives them): a sphere of radius R (m) overlapping
 the floor by a depth d (m) at a point moving with velocity v (m/s) feels
 
 - a Hertz force ``fH = 4/3 k^1.5 sqrt(R) d^1.5`` (N), where ``k = stiffness^(2/3) / 2`` is the
@@ -28,7 +28,7 @@ from gaitforge.workers.bodies.schema import ContactMaterial
 
 TRANSITION_VELOCITY = 0.1
 """m/s: slip speed of peak static friction (the reference's HuntCrossleyForce value; also
-OpenSim's, ``opensim_build``)."""
+OpenSim's, ``opensim.build``)."""
 
 
 def hertz_coefficient(stiffness: float, radius: float) -> float:

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import mujoco
-from gaitforge.workers.sim.mjcf_models import elbow_spec, myoleg_spec
+from gaitforge.workers.sim.mujoco.mjcf_models import elbow_spec, myoleg_spec
 
 MJCF_SOURCES: dict[str, Callable[[], mujoco.MjSpec]] = {
     "myoleg": lambda: myoleg_spec(self_contacts=True),

@@ -42,19 +42,19 @@ from gaitforge.workers.sim.base import (
     SimState,
     check_pose_names,
 )
-from gaitforge.workers.sim.opensim_build import (
+from gaitforge.workers.sim.opensim.build import (
     PARKED,
     build_model,
     quiet_opensim_log,
 )
-from gaitforge.workers.sim.opensim_drawing import (
+from gaitforge.workers.sim.opensim.drawing import (
     body_frames,
     ground_normal_force,
     muscle_paths,
     vec3,
 )
-from gaitforge.workers.sim.opensim_manager import new_manager
-from gaitforge.workers.sim.opensim_size import full_plan, model_size
+from gaitforge.workers.sim.opensim.manager import new_manager
+from gaitforge.workers.sim.opensim.size import full_plan, model_size
 
 logger = logging.getLogger(__name__)
 

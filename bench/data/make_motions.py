@@ -1,14 +1,15 @@
 """Write the project's reference motions from OpenSim's example gait data (run once).
 
-    python -m gaitforge.workers.sim.make_motions /path/to/reference/gait
+    python bench/data/make_motions.py /path/to/reference/gait
 
 reads ``subject01_walk_IK.mot`` + ``subject01_walk_grf.mot`` + ``walk_subject_controls.sto``
 (treadmill walk), ``subject02_running_ik.mot`` (treadmill run) and ``normal.mot`` (one
 normalised 3-D walking cycle) and writes ``workers/motions/data/``: ``gait2d-walk.yaml``,
 ``gait2d-run.yaml``, ``myoleg-walk.yaml``, ``myoleg-run.yaml``, ``gait2354-walk.yaml`` (the
-3-D walk on the imported body) and ``gait2d-walk-excitations.yaml``. It lives in ``sim`` (not
-in the motions package) because it replays the motions on the MuJoCo models; the motions
-package itself imports bodies only.
+3-D walk on the imported body) and ``gait2d-walk-excitations.yaml``. It is a run-once data
+script, no part of the installed package; it replays the motions on the MuJoCo models
+(``workers.sim.mujoco.motion_replay``), which the motions package itself never imports (it
+imports bodies only).
 
 Method, per motion (details in each file's ``source`` and the README's "Motion imitation"):
 
@@ -51,7 +52,7 @@ from gaitforge.workers.motions.signals import (
     read_mot,
     rising_edges,
 )
-from gaitforge.workers.sim.motion_replay import Replay
+from gaitforge.workers.sim.mujoco.motion_replay import Replay
 
 log = logging.getLogger(__name__)
 
@@ -69,7 +70,7 @@ WALK_3D_JOINTS = [
     for j in ("hip_flexion", "hip_adduction", "hip_rotation", "knee_angle", "ankle_angle")
 ]
 FEET = ["foot_right", "foot_left"]
-HEADER = "# Written by python -m gaitforge.workers.sim.make_motions; do not edit.\n"
+HEADER = "# Written by python bench/data/make_motions.py; do not edit.\n"
 
 
 def replay_feet(

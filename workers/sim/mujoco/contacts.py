@@ -10,7 +10,7 @@ from collections.abc import Sequence
 
 import mujoco
 import numpy as np
-from gaitforge.workers.sim.mjcf_moment_arms import muscle_ids
+from gaitforge.workers.sim.mujoco.moment_arms import muscle_ids
 
 CONTACT_BIT = 2
 """Bit used by :func:`restrict_contacts`: kept geoms get ``contype=CONTACT_BIT,

@@ -2,7 +2,7 @@
 
 Units are MuJoCo's: lengths in metres, hinge angles in radians, moment arms in metres
 (m/rad for hinges, dimensionless m/m for slides). Joints driven by an equality coupling
-(see :mod:`workers.sim.mjcf_lock`) are folded into their drivers.
+(see :mod:`workers.sim.mujoco.lock`) are folded into their drivers.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import mujoco
 import numpy as np
-from gaitforge.workers.sim.mjcf_lock import _HINGE_SLIDE, _name, coupled_qpos, joint_couplings
+from gaitforge.workers.sim.mujoco.lock import _HINGE_SLIDE, _name, coupled_qpos, joint_couplings
 
 logger = logging.getLogger(__name__)
 

@@ -1,10 +1,10 @@
 """Topology of MyoSuite's MJCF bodies, read from their compiled MuJoCo models.
 
 The scenes layer reads it as committed data (``workers/bodies/data/topology/<body>.yaml``,
-see ``workers.bodies.topology``) and never compiles a model for it. This module writes that
-data, once per myo-sim version, and ``tests/workers/sim/test_mjcf_topology.py`` checks it:
+see ``workers.bodies.topology``) and never compiles a model for it. This script writes that
+data, once per myo-sim version, and ``tests/workers/bodies/test_mjcf_topology.py`` checks it:
 
-    python -m gaitforge.workers.sim.mjcf_topology --write
+    python bench/data/mjcf_topology.py --write
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from pathlib import Path
 import mujoco
 import yaml
 from gaitforge.workers.bodies.topology import MJCF_BODIES, Topology, topology_file
-from gaitforge.workers.sim.mjcf_moment_arms import muscle_spans
-from gaitforge.workers.sim.mjcf_sources import MJCF_SOURCES
+from gaitforge.workers.sim.mujoco.mjcf_sources import MJCF_SOURCES
+from gaitforge.workers.sim.mujoco.moment_arms import muscle_spans
 
 logger = logging.getLogger(__name__)
 
@@ -80,7 +80,7 @@ def topology_yaml(body: str) -> str:
     """The committed form of ``body``'s topology, as written by ``--write``."""
     header = (
         f"# Topology of MyoSuite's {body} (myo-sim), written by\n"
-        "# python -m gaitforge.workers.sim.mjcf_topology --write; do not edit by hand.\n"
+        "# python bench/data/mjcf_topology.py --write; do not edit by hand.\n"
     )
     return header + yaml.safe_dump(mjcf_topology(body).to_data(), sort_keys=False)
 

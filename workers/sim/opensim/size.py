@@ -5,7 +5,7 @@ from __future__ import annotations
 import opensim
 from gaitforge.workers.bodies.topology import Topology
 from gaitforge.workers.scenes.prune import PrunePlan
-from gaitforge.workers.sim.opensim_build import OpenSimBuild
+from gaitforge.workers.sim.opensim.build import OpenSimBuild
 
 
 def full_plan(topology: Topology) -> PrunePlan:

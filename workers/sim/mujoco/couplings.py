@@ -44,7 +44,7 @@ carrier at 1 kg). The script: ``bench/carrier_drift.py``.
 :func:`set_coupled_qpos` places the coupled joints exactly, for resets and for kinematic
 comparisons.
 
-Locking a driver (``workers.sim.mjcf_lock.lock_joints``) locks its coupled dofs too, at
+Locking a driver (``workers.sim.mujoco.lock.lock_joints``) locks its coupled dofs too, at
 ``poly(value)``: ``lock_joints`` follows every active joint equality.
 
 Units: hinge values in radians, slide values in metres (``qpos`` units).
@@ -59,7 +59,7 @@ import mujoco
 import numpy as np
 from gaitforge.workers.bodies.functions import Linear, Spline, evaluate
 from gaitforge.workers.bodies.schema import Body
-from gaitforge.workers.sim.mjcf_lock import joint_couplings
+from gaitforge.workers.sim.mujoco.lock import joint_couplings
 from numpy.polynomial.polynomial import polyder, polyfit, polyval
 
 logger = logging.getLogger(__name__)

@@ -24,13 +24,13 @@ in another form:
   (``A + B >= C``), which OpenSim accepts (leg6dof9musc's toes: 1e-6, 1e-6, 9e-4 kg m^2):
   the compiler's ``balanceinertia`` replaces such a segment's moments by their mean;
 * a coupled dof is an unlimited joint held to its driver by a quartic polynomial (a joint
-  equality ``couple_<dof>``): see :mod:`workers.sim.mjcf_couplings`, which also reports
+  equality ``couple_<dof>``): see :mod:`workers.sim.mujoco.couplings`, which also reports
   each polynomial's fit error and places coupled joints exactly;
 * MuJoCo has neither conditional nor moving sites: a point with a ``stand_in`` (the
   importer fits one to keep the muscle's moment arms) becomes that fixed site, none, the
   wrap object it names (a wrap cylinder fitted in place of a conditional point), or a site
   on a carrier whose slides follow the stand-in's quartics (``follow``, a moving point;
-  :func:`workers.sim.mjcf_couplings.add_carrier`).
+  :func:`workers.sim.mujoco.couplings.add_carrier`).
   Without one, a conditional path point is kept (as an ordinary site) iff the default of
   its coordinate lies in its active range, and dropped otherwise, unless dropping it would
   leave a wrap object or the path's end without a site (then it is kept, with a warning);
@@ -58,8 +58,8 @@ from gaitforge.workers.bodies.schema import (
     WrapObject,
     WrapRef,
 )
-from gaitforge.workers.sim.mjcf_couplings import add_carrier, add_couplings
-from gaitforge.workers.sim.mujoco_warnings import route_warnings
+from gaitforge.workers.sim.mujoco.couplings import add_carrier, add_couplings
+from gaitforge.workers.sim.mujoco.warning_log import route_warnings
 from gaitforge.workers.sim.muscle_curves import fit_mujoco_fpmax
 
 logger = logging.getLogger(__name__)
@@ -131,7 +131,7 @@ def _add_segments(spec: mujoco.MjSpec, body: Body) -> dict[str, mujoco.MjsBody]:
         # The root's dofs place the body in the world: never limited (OpenSim clamps no
         # coordinate either). A range there is a wall: gait2d's pelvis_tx range of +-5 m
         # stopped every walker 5 m from the origin. A coupled dof follows its driver
-        # (``mjcf_couplings``): a limit of its own would fight the coupling.
+        # (``couplings``): a limit of its own would fight the coupling.
         in_world = joint.parent == GROUND
         for dof in joint.dofs:
             kind = (

@@ -1,4 +1,4 @@
-"""MuJoCo backend: a scene compiled to a pruned ``MjModel`` (``mujoco_compile``), stepped
+"""MuJoCo backend: a scene compiled to a pruned ``MjModel`` (``compile``), stepped
 with health checks.
 
 MuJoCo does not raise on numerical failure: on a NaN or huge acceleration it resets the
@@ -24,13 +24,13 @@ from gaitforge.workers.sim.base import (
     SimState,
     check_pose_names,
 )
-from gaitforge.workers.sim.mjcf_couplings import set_coupled_qpos
-from gaitforge.workers.sim.mujoco_compile import OBSTACLE_PREFIX, compile_scene
-from gaitforge.workers.sim.mujoco_drawing import body_frames, muscle_paths
-from gaitforge.workers.sim.mujoco_pose import PoseSetter
-from gaitforge.workers.sim.mujoco_warnings import route_warnings
-from gaitforge.workers.sim.opensim_laws import OpenSimLaws
-from gaitforge.workers.sim.upright import UprightHold
+from gaitforge.workers.sim.mujoco.compile import OBSTACLE_PREFIX, compile_scene
+from gaitforge.workers.sim.mujoco.couplings import set_coupled_qpos
+from gaitforge.workers.sim.mujoco.drawing import body_frames, muscle_paths
+from gaitforge.workers.sim.mujoco.pose import PoseSetter
+from gaitforge.workers.sim.mujoco.upright import UprightHold
+from gaitforge.workers.sim.mujoco.warning_log import route_warnings
+from gaitforge.workers.sim.osim_laws.laws import OpenSimLaws
 
 logger = logging.getLogger(__name__)
 route_warnings()  # MuJoCo's warnings to logging, not to MUJOCO_LOG.TXT in the cwd
@@ -107,7 +107,7 @@ class MujocoSimulator:
         )
         self._lift_adr = self._root_slide_along(self.up_axis)
         self.opensim_laws = OpenSimLaws(m, scene, self.dof_names, self.up_axis)
-        """the forces the scene asks to follow OpenSim's laws (``workers.sim.opensim_laws``)"""
+        """the forces the scene asks to follow OpenSim's laws (``workers.sim.osim_laws.laws``)"""
         self._stand_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, STAND_KEY)
         # muscles found by their activation dynamics: muscle_curves: opensim fixes their gain
         self._muscle_act = m.actuator_actadr[
@@ -258,7 +258,7 @@ class MujocoSimulator:
         return -dense[:, self._vadr]
 
     def set_pose(self, pose: Pose) -> None:
-        """See ``Simulator.set_pose`` and ``workers.sim.mujoco_pose``."""
+        """See ``Simulator.set_pose`` and ``workers.sim.mujoco.pose``."""
         check_pose_names(pose, self.scene.body, self.dof_names, self._locked)
         self._poser.apply(self.data, pose)
         self.opensim_laws.apply(self.model, self.data)
@@ -302,7 +302,7 @@ class MujocoSimulator:
     def poison(self) -> None:
         self.data.qvel[:] = np.nan
 
-    # ---- read-outs for drawing (``workers.sim.mujoco_drawing``: positions as of the last
+    # ---- read-outs for drawing (``workers.sim.mujoco.drawing``: positions as of the last
     # kinematics pass, lagging the state by one timestep at most)
 
     def body_frames(self) -> dict[str, BodyPose]:

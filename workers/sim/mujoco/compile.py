@@ -1,12 +1,13 @@
 """A scene compiled to a pruned MuJoCo model, with the report of what was removed.
 
-The body's unpruned model is the source (a neutral body built by ``mujoco_build``, or a
+The body's unpruned model is the source (a neutral body built by ``mujoco.build``, or a
 MyoSuite MJCF); pruning welds the scene's locked joints, removes muscles, restricts contacts,
 adds the scene's obstacles and strips visuals, then sets the fidelity profile's integrator
 and timestep (and, where the scene asks, the muscles' active force curves fitted to
 OpenSim's, or their passive curve fitted to Thelen's over its whole strain; or MuJoCo's own
 floor contact, joint limits or muscle curves taken out where the scene puts them on
-OpenSim's laws: ``hunt_crossley``, ``limit_springs``, ``opensim_muscles``).
+OpenSim's laws: ``osim_laws.hunt_crossley``, ``osim_laws.limit_springs``,
+``osim_laws.muscles``).
 """
 
 from __future__ import annotations
@@ -19,12 +20,12 @@ from gaitforge.workers.bodies.schema import JointLimit
 from gaitforge.workers.bodies.topology import Topology, topology_for
 from gaitforge.workers.scenes import PrunePlan, Scene, plan_pruning
 from gaitforge.workers.sim.base import CompileReport
-from gaitforge.workers.sim.mjcf_contacts import model_size, restrict_contacts
-from gaitforge.workers.sim.mjcf_lock import lock_joints
-from gaitforge.workers.sim.mjcf_moment_arms import planar_muscles
-from gaitforge.workers.sim.mjcf_muscles import remove_muscles, strip_unused
-from gaitforge.workers.sim.mjcf_sources import MJCF_SOURCES
-from gaitforge.workers.sim.mujoco_build import CONTACT_GROUP, FLOOR, build_spec
+from gaitforge.workers.sim.mujoco.build import CONTACT_GROUP, FLOOR, build_spec
+from gaitforge.workers.sim.mujoco.contacts import model_size, restrict_contacts
+from gaitforge.workers.sim.mujoco.lock import lock_joints
+from gaitforge.workers.sim.mujoco.mjcf_sources import MJCF_SOURCES
+from gaitforge.workers.sim.mujoco.moment_arms import planar_muscles
+from gaitforge.workers.sim.mujoco.removal import remove_muscles, strip_unused
 from gaitforge.workers.sim.muscle_curves import (
     MILLARD_ACTIVE_RANGE,
     MILLARD_FVMAX,
@@ -173,10 +174,10 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
     if options.muscle_min_activation > 0:
         model.actuator_ctrllimited[muscles] = 1
         model.actuator_ctrlrange[muscles] = (options.muscle_min_activation, 1.0)
-    if options.contact_model == "hunt-crossley":  # the floor's is workers.sim.hunt_crossley's
+    if options.contact_model == "hunt-crossley":  # the floor's is osim_laws.hunt_crossley's
         _need_body_file(scene, "mujoco.contact_model 'hunt-crossley'", "contact parameters")
         model.geom_conaffinity[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR)] = 0
-    if options.joint_limits == "opensim":  # the limits are workers.sim.limit_springs'
+    if options.joint_limits == "opensim":  # the limits are osim_laws.limit_springs'
         for name in opensim_limits(scene, list(plan.kept_dofs)):
             model.jnt_limited[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)] = 0
     if options.contact_solimp is not None:
@@ -184,14 +185,14 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
         model.pair_solimp[:] = options.contact_solimp
     if options.muscle_curves == "millard":
         _fit_muscle_curves_to_millard(model)
-    elif options.muscle_curves == "opensim":  # the active force is workers.sim.opensim_muscles'
+    elif options.muscle_curves == "opensim":  # the active force is osim_laws.muscles'
         _need_body_file(scene, "mujoco.muscle_curves 'opensim'", "muscle parameters")
         model.actuator_gaintype[muscles] = mujoco.mjtGain.mjGAIN_FIXED
         model.actuator_gainprm[muscles] = 0.0
-    if options.muscle_passive == "opensim":  # the passive force is workers.sim.opensim_muscles'
+    if options.muscle_passive == "opensim":  # the passive force is osim_laws.muscles'
         _need_body_file(scene, "mujoco.muscle_passive 'opensim'", "muscle parameters")
         model.actuator_biasprm[muscles, 7] = 0.0
-        # the fibre damping too: without this the tendons kept mujoco_build's and the
+        # the fibre damping too: without this the tendons kept mujoco.build's and the
         # muscles were damped twice (32 N m more at a fast push-off ankle)
         model.tendon_damping[model.actuator_trnid[muscles, 0]] = 0.0
     elif options.muscle_passive != "gait":

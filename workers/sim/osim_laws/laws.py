@@ -1,7 +1,7 @@
 """The forces a MuJoCo scene asks to follow OpenSim's laws rather than MuJoCo's own: its
 ``contact_model: hunt-crossley`` (``hunt_crossley``), ``joint_limits: opensim``
 (``limit_springs``) and ``muscle_curves`` / ``muscle_passive: opensim``
-(``opensim_muscles``). ``mujoco_compile`` has taken MuJoCo's own versions out of the model;
+(``muscles``). ``mujoco.compile`` has taken MuJoCo's own versions out of the model;
 :class:`OpenSimLaws` computes these in Python between each physics step's position-velocity
 stage and the rest (``mj_step1`` / ``mj_step2``) and writes them to ``qfrc_applied``.
 """
@@ -14,11 +14,11 @@ import mujoco
 import numpy as np
 from gaitforge.workers.bodies import load_body
 from gaitforge.workers.scenes import Scene
-from gaitforge.workers.sim.hunt_crossley import HuntCrossleyFloor
-from gaitforge.workers.sim.limit_springs import LimitSprings
-from gaitforge.workers.sim.mjcf_contacts import CONTACT_BIT
-from gaitforge.workers.sim.mujoco_compile import opensim_limits
-from gaitforge.workers.sim.opensim_muscles import OpenSimMuscles
+from gaitforge.workers.sim.mujoco.compile import opensim_limits
+from gaitforge.workers.sim.mujoco.contacts import CONTACT_BIT
+from gaitforge.workers.sim.osim_laws.hunt_crossley import HuntCrossleyFloor
+from gaitforge.workers.sim.osim_laws.limit_springs import LimitSprings
+from gaitforge.workers.sim.osim_laws.muscles import OpenSimMuscles
 
 Law = HuntCrossleyFloor | LimitSprings | OpenSimMuscles
 

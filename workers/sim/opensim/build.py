@@ -1,6 +1,6 @@
 """Build an OpenSim model (``opensim.Model``, Python API only) from a neutral body and a plan.
 
-It mirrors :mod:`workers.sim.mujoco_build` with the scene's pruning applied while building:
+It mirrors :mod:`workers.sim.mujoco.build` with the scene's pruning applied while building:
 
 * names: bodies are segments, coordinates are dofs, muscles, contact spheres and wrap objects
   keep their names; the ground half-space is ``floor``, obstacles are ``obstacle_<i>``
@@ -67,8 +67,8 @@ from gaitforge.workers.bodies.schema import (
     WrapRef,
 )
 from gaitforge.workers.scenes.prune import PrunePlan
-from gaitforge.workers.sim.hunt_crossley import TRANSITION_VELOCITY
 from gaitforge.workers.sim.muscle_curves import thelen_passive, thelen_passive_stiffness_at_one
+from gaitforge.workers.sim.osim_laws.hunt_crossley import TRANSITION_VELOCITY
 
 logger = logging.getLogger(__name__)
 

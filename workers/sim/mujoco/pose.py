@@ -14,8 +14,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 from gaitforge.workers.sim.base import Pose
-from gaitforge.workers.sim.mjcf_lock import coupled_qpos
-from gaitforge.workers.sim.mujoco_build import FLOOR
+from gaitforge.workers.sim.mujoco.build import FLOOR
+from gaitforge.workers.sim.mujoco.lock import coupled_qpos
 from gaitforge.workers.sim.pose import pelvis_rotation
 
 POSE_DT = 1e-4

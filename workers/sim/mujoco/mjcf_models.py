@@ -31,8 +31,8 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from gaitforge.workers.sim.mjcf_lock import coupled_qpos
-from gaitforge.workers.sim.mujoco_warnings import route_warnings
+from gaitforge.workers.sim.mujoco.lock import coupled_qpos
+from gaitforge.workers.sim.mujoco.warning_log import route_warnings
 
 logger = logging.getLogger(__name__)
 route_warnings()  # MuJoCo's warnings to logging, not to MUJOCO_LOG.TXT in the cwd
@@ -155,8 +155,8 @@ def myoleg_spec(self_contacts: bool = False) -> mujoco.MjSpec:
     ``knee_angle_*``); 80 spatial tendons with 80 muscles; bone meshes for rendering
     (non-colliding); one keyframe ``stand`` (knees straight, feet flat on the floor,
     couplings satisfied; ``qpos0`` itself violates the patella couplings by ~1 cm). The
-    pruning functions of :mod:`workers.sim.mjcf_lock`, :mod:`workers.sim.mjcf_muscles` and
-    :mod:`workers.sim.mjcf_contacts` keep the keyframe consistent.
+    pruning functions of :mod:`workers.sim.mujoco.lock`, :mod:`workers.sim.mujoco.removal` and
+    :mod:`workers.sim.mujoco.contacts` keep the keyframe consistent.
 
     Args:
         self_contacts: Also add MyoSuite's explicit leg-on-leg contact pairs (26 pairs).

@@ -1,8 +1,8 @@
 """Kinematic replay of a reference motion on its body's MuJoCo model (no dynamics).
 
-Used by ``make_motions`` (to place the pelvis and the feet) and by the motion tests (feet
-above the floor, stance feet still). Only ``mj_kinematics`` is run: set the pose, read the
-frames.
+Used by ``bench/data/make_motions.py`` (to place the pelvis and the feet) and by the motion
+tests (feet above the floor, stance feet still). Only ``mj_kinematics`` is run: set the pose,
+read the frames.
 
 Conventions: the pelvis origin is the pelvis body's frame origin; a foot's *centroid* is the
 mean of its contact geoms' centres (``Topology.feet``); a foot's *lowest point* is the lowest
@@ -15,9 +15,9 @@ import mujoco
 import numpy as np
 from gaitforge.workers.bodies import load_body
 from gaitforge.workers.bodies.topology import topology_for
-from gaitforge.workers.sim.mjcf_lock import coupled_qpos
-from gaitforge.workers.sim.mjcf_models import myoleg_spec
-from gaitforge.workers.sim.mujoco_build import build_spec
+from gaitforge.workers.sim.mujoco.build import build_spec
+from gaitforge.workers.sim.mujoco.lock import coupled_qpos
+from gaitforge.workers.sim.mujoco.mjcf_models import myoleg_spec
 
 UP = {"myoleg": 2}
 """World up axis index of the MJCF bodies; neutral bodies are Y-up (1). Forward is X (0)."""

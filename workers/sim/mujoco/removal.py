@@ -12,7 +12,7 @@ from collections.abc import Iterable
 
 import mujoco
 import numpy as np
-from gaitforge.workers.sim.mjcf_lock import _delete_sensors, _rewrite_keys
+from gaitforge.workers.sim.mujoco.lock import _delete_sensors, _rewrite_keys
 
 logger = logging.getLogger(__name__)
 

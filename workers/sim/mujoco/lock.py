@@ -3,7 +3,7 @@
 Works on any spec (MyoSuite MJCF or one built from our neutral bodies) and keeps it
 compilable: equality constraints, sensors, keyframe entries and joint actuators that refer
 to removed joints are removed or rewritten with them. Also the shared spec-editing
-helpers of :mod:`workers.sim.mjcf_muscles` (names, keyframe rewriting, sensor deletion)
+helpers of :mod:`workers.sim.mujoco.removal` (names, keyframe rewriting, sensor deletion)
 and the joint couplings (:func:`coupled_qpos`).
 
 Units are MuJoCo's: lengths in metres, hinge angles in radians (joint values are ``qpos``
