@@ -14,9 +14,9 @@ import logging
 import time
 
 import torch
-from gaitforge.learner.curriculum import EpisodeStats
 from gaitforge.learner.evaluation.evaluate import EvaluationReport, evaluate_policy
 from gaitforge.learner.job import METRICS, Job
+from gaitforge.learner.metrics import Episode
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import Scene
 from rich.console import Console
@@ -88,7 +88,7 @@ def run_rllib(
             info = episode.get_infos()[-1]
             length = len(episode)
             cfg = env_runner.config.env_config
-            stats = EpisodeStats(
+            stats = Episode(
                 float(episode.get_return()),
                 float(info.get("distance", 0.0)),
                 length / cfg["control_hz"],

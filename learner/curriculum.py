@@ -16,7 +16,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from gaitforge.learner.job import Job, PromotionRule, Stage
-from gaitforge.learner.stage_spec import EVALUATION_PREFIX
+from gaitforge.learner.metrics import (
+    EVALUATION_PREFIX,
+    TRAINING_METRICS,
+    Episode,
+    evaluation_key,
+    training_figure,
+)
 from gaitforge.learner.stage_verdict import GOES_ON, Outcome, RuleFigure, StageVerdict
 from gaitforge.learner.symmetry import MirrorMap
 from gaitforge.workers.fragment import Fragment
@@ -84,32 +90,10 @@ def check_stages(job: Job, scenes: list[Scene]) -> tuple[list[StageIO], list[Mir
     return io, mirrors
 
 
-@dataclass
-class EpisodeStats:
-    """One finished episode: return, distance (m), length (s), fell."""
-
-    ret: float
-    distance: float
-    length_s: float
-    fell: bool
-    full: bool
-    """lasted the whole episode"""
-
-    def metric(self, name: str) -> float:
-        return {
-            "return": self.ret,
-            "distance": self.distance,
-            "speed": self.distance / max(self.length_s, 1e-9),
-            "fall_rate": float(self.fell),
-            "survival": float(self.full and not self.fell),
-            "length": self.length_s,
-        }[name]
-
-
-def episodes_of(fragment: Fragment, scene: Scene) -> list[EpisodeStats]:
+def episodes_of(fragment: Fragment, scene: Scene) -> list[Episode]:
     """The episodes that ended in ``fragment`` (a rollout fragment of ``scene``)."""
     return [
-        EpisodeStats(
+        Episode(
             float(r),
             float(d),
             int(n) / scene.control_hz,
@@ -134,7 +118,7 @@ class CurriculumState:
     stage_env_steps: int = 0
     entered: bool = False
     """the stage's transition (scene push, new network) is done"""
-    episodes: deque[EpisodeStats] = field(default_factory=lambda: deque(maxlen=WINDOW_MAX))
+    episodes: deque[Episode] = field(default_factory=lambda: deque(maxlen=WINDOW_MAX))
     evaluation: dict[str, float] = field(default_factory=dict)
     """the stage's last deterministic evaluation (``eval_*`` metrics, ``StageJudge.evaluate``);
     in memory only: empty before the stage's first evaluation, and after a resume until the
@@ -149,16 +133,14 @@ class CurriculumState:
         evaluation metric (``eval.fall_rate``), the stage's last evaluation's (NaN before
         one)."""
         if metric.startswith(EVALUATION_PREFIX):
-            return self.evaluation.get(_evaluated(metric), float("nan"))
+            return self.evaluation.get(evaluation_key(metric), float("nan"))
         recent = list(self.episodes)[-window:]
-        return float(np.mean([e.metric(metric) for e in recent])) if recent else float("nan")
+        figures = [training_figure(metric, e) for e in recent]
+        return float(np.mean(figures)) if recent else float("nan")
 
     def summary(self, window: int = 100) -> dict[str, float]:
         """Every metric's mean over the last ``window`` episodes."""
-        return {
-            m: self.window_mean(m, window)
-            for m in ("return", "distance", "speed", "fall_rate", "survival", "length")
-        }
+        return {m: self.window_mean(m, window) for m in TRAINING_METRICS}
 
     def verdict(self, stage: Stage, evaluation: dict[str, float] | None = None) -> StageVerdict:
         """Whether the stage ends now, on its figures: promoted when all the stage's rules
@@ -189,7 +171,7 @@ class CurriculumState:
         parts = []
         for rule in stage.promote:
             if rule.on_evaluation:
-                figure = evaluation.get(_evaluated(rule.metric), float("nan"))
+                figure = evaluation.get(evaluation_key(rule.metric), float("nan"))
             else:
                 figure = self.window_mean(rule.metric, rule.window)
             if np.isnan(figure):
@@ -218,7 +200,7 @@ class CurriculumState:
             if rule.on_evaluation:
                 if evaluation is None:
                     return None
-                figures.append(evaluation[_evaluated(rule.metric)])
+                figures.append(evaluation[evaluation_key(rule.metric)])
             elif len(self.episodes) < rule.window:
                 return None
             else:
@@ -245,16 +227,10 @@ class CurriculumState:
     @classmethod
     def from_json(cls, raw: dict) -> CurriculumState:
         state = cls(int(raw["stage"]), int(raw["stage_env_steps"]), bool(raw["entered"]))
-        state.episodes.extend(EpisodeStats(*e) for e in raw["episodes"])
+        state.episodes.extend(Episode(*e) for e in raw["episodes"])
         return state
 
 
 def _source(rule: PromotionRule) -> str:
     """What a rule's figure comes from, for a message that it has none."""
     return "evaluation" if rule.on_evaluation else "finished training episode"
-
-
-def _evaluated(metric: str) -> str:
-    """The key of an evaluation metric (``eval.fall_rate``) among an evaluation's metrics
-    (``eval_fall_rate``)."""
-    return "eval_" + metric.removeprefix(EVALUATION_PREFIX)

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from gaitforge.learner.metrics import tensorboard_layout
 from gaitforge.learner.policy import BlendedPolicy
 from gaitforge.learner.ppo import PPOSettings
 from gaitforge.learner.run_state import RunState
@@ -77,6 +78,8 @@ def iteration_metrics(
 class ScalarLog:
     """TensorBoard scalars in ``log_dir``: every number of an iteration's metrics under
     ``train/``, and each reward term and health cause under their own group; x = env steps.
+    The custom-scalars tab charts each episode metric's training and evaluation curves
+    together (``learner.metrics.tensorboard_layout``).
     The writer (and tensorboard's import) waits for the first call."""
 
     def __init__(self, log_dir: Path, enabled: bool = True) -> None:
@@ -91,6 +94,7 @@ class ScalarLog:
             from torch.utils.tensorboard import SummaryWriter  # lazy: imports tensorboard
 
             self._writer = SummaryWriter(str(self.log_dir))
+            self._writer.add_custom_scalars(tensorboard_layout())
         step = metrics["env_steps"]
         for key, value in metrics.items():
             if isinstance(value, int | float) and np.isfinite(value):

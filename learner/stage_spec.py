@@ -7,6 +7,7 @@ from __future__ import annotations
 import re
 from typing import Annotated, Any, Literal
 
+from gaitforge.learner.metrics import EVALUATION_PREFIX, RULE_METRICS
 from gaitforge.learner.ppo import EntropyWeight, LearningRate
 from gaitforge.workers.spec_types import MAX_NAME_LENGTH, SPEC_VALUES, Name, Ref
 from pydantic import (
@@ -19,14 +20,12 @@ from pydantic import (
     model_validator,
 )
 
-METRICS = ("return", "distance", "speed", "fall_rate", "survival", "length")
-"""Episode statistics a promotion rule can test, each averaged over its episodes: return;
-distance covered (m); mean speed (m/s); fall rate (fraction of episodes that fell);
-survival (fraction that lasted the whole episode without falling); length (s)."""
-EVALUATION_PREFIX = "eval."
-"""A rule's metric with this prefix (``eval.fall_rate``) reads the stage's deterministic
-evaluation (``evaluate:``) instead of its training episodes."""
+METRICS = RULE_METRICS
+"""Episode metrics a promotion rule can test (``learner.metrics``: each averaged over its
+episodes): return; distance (m); speed (m/s); fall rate; survival; length (s)."""
 EVALUATION_METRICS = tuple(EVALUATION_PREFIX + metric for metric in METRICS)
+RuleMetric = Literal[(*METRICS, *EVALUATION_METRICS)]  # type: ignore[valid-type]
+"""a rule's metric: a training metric, or an evaluation's (``eval.<metric>``)"""
 DEFAULT_WINDOW = 100
 """training episodes a rule's mean is over when it names none"""
 
@@ -66,20 +65,7 @@ class PromotionRule(StrictSpec):
     pass at once, so a stage with an evaluation rule promotes only at an evaluation.
     """
 
-    metric: Literal[
-        "return",
-        "distance",
-        "speed",
-        "fall_rate",
-        "survival",
-        "length",
-        "eval.return",
-        "eval.distance",
-        "eval.speed",
-        "eval.fall_rate",
-        "eval.survival",
-        "eval.length",
-    ]
+    metric: RuleMetric
     op: Literal[">=", "<="]
     value: float
     window: Annotated[int, Field(ge=1, le=10_000)] = DEFAULT_WINDOW

@@ -43,8 +43,8 @@ from gaitforge.learner.checkpoint import (
 from gaitforge.learner.checkpoint_meta import CheckpointMeta
 from gaitforge.learner.curriculum import StageIO
 from gaitforge.learner.evaluation.episodes import evaluate_policy
-from gaitforge.learner.evaluation.results import ModeResult
 from gaitforge.learner.job import PromotionRule, Stage, StageEvaluation
+from gaitforge.learner.metrics import CONFIRMATION_KEY, EVALUATION_KEY, evaluation_metrics
 from gaitforge.learner.policy import ActorCritic, build_policy
 from gaitforge.learner.stage_verdict import KeptNetwork, StageVerdict
 from gaitforge.workers.scenes import Scene
@@ -56,36 +56,17 @@ EVALUATION_SEED = 1_000_000
 """episode i of every in-training evaluation resets with this seed + i"""
 CONFIRMATION_SEED = 2_000_000
 """episode i of the confirmation at run iteration n resets with this seed + episodes * n + i"""
-CONFIRMATION_PREFIX = "confirmation_"
-"""a confirmation's metrics are its evaluation's (``eval_*``) with this prefix"""
-
 Score = tuple[int, float, float]
 """(promotion rules passed, -fall rate, mean return): larger is better"""
-
-
-def evaluation_metrics(result: ModeResult) -> dict[str, float]:
-    """A deterministic evaluation as the metrics a promotion rule tests (each episode's
-    figure averaged over the evaluation's episodes), keyed ``eval_<metric>``; and, for the
-    logs only, ``eval_turned``: the mean size of the pelvis's turn about the vertical, deg
-    (a 3-D walker that turns loses distance)."""
-    return {
-        "eval_return": result.return_.mean,
-        "eval_distance": result.distance_m.mean,
-        "eval_speed": result.mean_speed_m_s.mean,
-        "eval_fall_rate": result.fall_rate.value,
-        "eval_survival": result.survival_rate.value,
-        "eval_length": result.time_s.mean,
-        "eval_turned": result.turned_deg.mean,
-    }
 
 
 def score(metrics: dict[str, float], rules: list[PromotionRule]) -> Score:
     """How good an evaluation (``eval_*`` metrics) is for a stage with promotion ``rules``
     (each, training rules too, tested on the evaluation); where a confirmation ran
     (``confirmation_eval_*``), the worse of the two."""
-    scores = [_score(metrics, "eval_", rules)]
-    if f"{CONFIRMATION_PREFIX}eval_return" in metrics:
-        scores.append(_score(metrics, f"{CONFIRMATION_PREFIX}eval_", rules))
+    scores = [_score(metrics, EVALUATION_KEY, rules)]
+    if f"{CONFIRMATION_KEY}{EVALUATION_KEY}return" in metrics:
+        scores.append(_score(metrics, f"{CONFIRMATION_KEY}{EVALUATION_KEY}", rules))
     return min(scores)
 
 

@@ -8,8 +8,9 @@ import logging
 from dataclasses import replace
 from pathlib import Path
 
-from gaitforge.learner.evaluation.stage_judge import CONFIRMATION_PREFIX, StageJudge, judged_scene
+from gaitforge.learner.evaluation.stage_judge import StageJudge, judged_scene
 from gaitforge.learner.hooks import recording_due
+from gaitforge.learner.metrics import CONFIRMATION_KEY
 from gaitforge.learner.policy import ActorCritic
 from gaitforge.learner.run_state import RunState
 from gaitforge.learner.stage_verdict import Outcome, StageVerdict
@@ -88,7 +89,7 @@ class StageJudging:
         verdict = run.curriculum.verdict(run.stage, evaluation).with_evaluations(evaluation)
         if judge.promotes_on_evaluation and verdict.promoted:
             confirmation = judge.confirm(run.policy, run.iteration)
-            metrics.update({f"{CONFIRMATION_PREFIX}{k}": v for k, v in confirmation.items()})
+            metrics.update({f"{CONFIRMATION_KEY}{k}": v for k, v in confirmation.items()})
             confirmed = run.curriculum.verdict(run.stage, confirmation)
             if confirmed.promoted:
                 verdict = replace(verdict, confirmed=confirmed.figures)

@@ -10,7 +10,14 @@ import json
 from datetime import UTC, datetime
 from html import escape
 
+from gaitforge.learner.metrics import BY_NAME
 from gaitforge.service.api.schemas import JobStatus
+
+CURVES = [
+    *([name, BY_NAME[name].label] for name in ("return", "speed", "fall_rate")),
+    ["steps_per_s", "env steps/s"],
+]
+"""the job page's curves against env steps: [metric key, label] (``learner.metrics``)"""
 
 STYLE = """
 body { font: 14px/1.4 system-ui, sans-serif; margin: 1.5em auto; max-width: 70em; color: #222; }
@@ -87,7 +94,7 @@ placeholder='{{"name": "walk", "stages": [{{"scene": "walk-2d+clock", "env_steps
 def job_body(job: JobStatus, csrf: str, nonce: str) -> str:
     """One job's page: its status (updated live from the event stream), curves, health, log
     tail, latest video and downloads, and cancel and resume buttons (its script)."""
-    data = _json_for_script({"id": job.id, "csrf": csrf})
+    data = _json_for_script({"id": job.id, "csrf": csrf, "series": CURVES})
     return f"""<h2>{escape(job.name)} <small>{escape(job.id)}</small></h2>
 <p>state <span id="state" class="state">{escape(job.state)}</span>
 <span id="phase"></span>; <span id="stage">{escape(_stage_text(job))}</span>;
@@ -195,8 +202,7 @@ function showStatus(s) {
   $("resume").hidden = !names.includes("resume");
 }
 
-const SERIES = [["return", "return"], ["speed", "speed m/s"], ["fall_rate", "falls"],
-                ["steps_per_s", "env steps/s"]];
+const SERIES = job.series;
 
 function draw() {
   const canvas = $("curve"), g = canvas.getContext("2d");

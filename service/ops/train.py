@@ -13,8 +13,8 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from gaitforge.learner.evaluation.stage_judge import CONFIRMATION_PREFIX
 from gaitforge.learner.job import LoadedJob, load_job, prepare_job, scaled_budgets
+from gaitforge.learner.metrics import CONFIRMATION_KEY
 from gaitforge.workers.overrides import set_fields
 from gaitforge.workers.spec_types import Seed
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -226,10 +226,10 @@ def status_line(m: dict) -> str:
         )
         if m.get("eval_turned"):
             evaluated += f", turned {m['eval_turned']:.0f} deg"
-    confirmation = f"{CONFIRMATION_PREFIX}eval_fall_rate"
+    confirmation = f"{CONFIRMATION_KEY}eval_fall_rate"
     if confirmation in m:
         evaluated += (
-            f"; on fresh episodes: speed {m[f'{CONFIRMATION_PREFIX}eval_speed']:.2f} m/s, "
+            f"; on fresh episodes: speed {m[f'{CONFIRMATION_KEY}eval_speed']:.2f} m/s, "
             f"falls {100 * m[confirmation]:.0f} %"
         )
     if "kept_best_from_env_steps" in m:

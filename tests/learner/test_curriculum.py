@@ -8,8 +8,9 @@ from pathlib import Path
 import pytest
 import torch
 from gaitforge.learner.checkpoint import checkpoints, load_checkpoint
-from gaitforge.learner.curriculum import CurriculumState, EpisodeStats
+from gaitforge.learner.curriculum import CurriculumState
 from gaitforge.learner.job import Job, PromotionRule, Stage, load_job
+from gaitforge.learner.metrics import Episode
 from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.scenes.profiles import NAMED_PROFILES
 from gaitforge.workers.spec_io import SpecError
@@ -29,12 +30,12 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
     )
     state = CurriculumState()
     for fell in (False, False, False):
-        state.episodes.append(EpisodeStats(1.0, 2.0, 10.0, fell, not fell))
+        state.episodes.append(Episode(1.0, 2.0, 10.0, fell, not fell))
     assert state.verdict(stage).text is None, "3 episodes < a window of 4"
-    state.episodes.append(EpisodeStats(1.0, 0.5, 2.0, True, False))
+    state.episodes.append(Episode(1.0, 0.5, 2.0, True, False))
     assert state.verdict(stage).text == "promoted: fall_rate 0.25 <= 0.25"
     assert state.window_mean("speed", 4) == pytest.approx((0.2 * 3 + 0.25) / 4)
-    state.episodes.append(EpisodeStats(1.0, 0.5, 2.0, True, False))
+    state.episodes.append(Episode(1.0, 0.5, 2.0, True, False))
     assert state.verdict(stage).text is None
     state.stage_env_steps = 1000
     assert state.verdict(stage).text == "budget spent"
@@ -47,7 +48,7 @@ def test_the_verdict_needs_a_full_window_then_passes_or_the_budget_ends_it() -> 
     )
     assert both.promote[1].metric == "fall_rate"
     assert state.verdict(both).text is None, "speed passes, falls 2 of 2 do not"
-    state.episodes.append(EpisodeStats(1.0, 3.0, 10.0, False, True))
+    state.episodes.append(Episode(1.0, 3.0, 10.0, False, True))
     assert state.verdict(both).text == "promoted: speed 0.275 >= 0.2, fall_rate 0.5 <= 0.5"
     assert CurriculumState.from_json(state.to_json()).to_json() == state.to_json()
 

@@ -12,15 +12,15 @@ from pathlib import Path
 import pytest
 import torch
 from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint
-from gaitforge.learner.curriculum import CurriculumState, EpisodeStats, StageShortfallError
+from gaitforge.learner.curriculum import CurriculumState, StageShortfallError
 from gaitforge.learner.evaluation.episodes import evaluate_policy
 from gaitforge.learner.evaluation.stage_judge import (
     CONFIRMATION_SEED,
     EVALUATION_SEED,
-    evaluation_metrics,
     score,
 )
 from gaitforge.learner.job import Job, PromotionRule, Stage, load_job
+from gaitforge.learner.metrics import Episode, evaluation_metrics
 from gaitforge.learner.policy import ActorCritic
 from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.scenes import load_scene
@@ -141,11 +141,11 @@ def test_training_and_evaluation_rules_must_all_pass_at_an_evaluation() -> None:
     stage = _stage(["speed >= 0.2 over 2", "eval.fall_rate <= 0.1"])
     state = CurriculumState()
     passing = _evaluation(fall_rate=0.0)
-    state.episodes.append(EpisodeStats(1.0, 3.0, 10.0, False, True))
+    state.episodes.append(Episode(1.0, 3.0, 10.0, False, True))
     assert state.verdict(stage, passing).text is None, "the training window is not full"
-    state.episodes.append(EpisodeStats(1.0, 0.5, 10.0, False, True))
+    state.episodes.append(Episode(1.0, 0.5, 10.0, False, True))
     assert state.verdict(stage, passing).text is None, "training speed 0.175 < 0.2"
-    state.episodes.append(EpisodeStats(1.0, 5.0, 10.0, False, True))
+    state.episodes.append(Episode(1.0, 5.0, 10.0, False, True))
     assert state.verdict(stage).text is None, "the training rule passes, but no evaluation now"
     assert state.verdict(stage, _evaluation(fall_rate=0.5)).text is None
     assert state.verdict(stage, passing).text == (
@@ -177,7 +177,7 @@ def test_the_best_network_counts_evaluation_rules_passed_on_its_evaluation() -> 
 def test_a_shortfall_names_each_rule_its_figure_and_the_gap() -> None:
     stage = _stage(["eval.fall_rate <= 0.1", "eval.speed >= 2", "speed >= 0.5 over 2"])
     state = CurriculumState(stage=3)
-    state.episodes.append(EpisodeStats(1.0, 2.0, 10.0, False, True))  # 0.2 m/s
+    state.episodes.append(Episode(1.0, 2.0, 10.0, False, True))  # 0.2 m/s
     text = state.shortfall(stage, "run", _evaluation(fall_rate=0.14, speed=2.5))
     assert text == (
         "stage 3 (run) spent its 10,000 env steps without reaching its target: "

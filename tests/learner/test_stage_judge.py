@@ -11,8 +11,9 @@ import pytest
 import torch
 from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint
 from gaitforge.learner.evaluation.episodes import evaluate_policy
-from gaitforge.learner.evaluation.stage_judge import EVALUATION_SEED, evaluation_metrics, score
+from gaitforge.learner.evaluation.stage_judge import EVALUATION_SEED, score
 from gaitforge.learner.job import Job, load_job
+from gaitforge.learner.metrics import evaluation_metrics
 from gaitforge.learner.trainer import Trainer
 from gaitforge.workers.scenes import load_scene
 from gaitforge.workers.spec_io import SpecError
