@@ -1,12 +1,17 @@
 """What a checkpoint's ``meta.json`` holds: :class:`CheckpointMeta`, read in one place
 (:func:`read_meta`) and written by ``learner.checkpoint.save_checkpoint``.
 
-``schema_version`` says which layout a file has. Version 0 is the layout before it had one
-(gaitforge up to commit 22a0f9c): the same keys, no ``schema_version``. :func:`read_meta`
-migrates older versions on read, so callers only ever see the current model; a file from a
-newer gaitforge fails loudly rather than being half understood.
+``schema_version`` says which layout a file has; :func:`read_meta` migrates older versions
+on read (:func:`migrate`), so callers only ever see the current model; a file from a newer
+gaitforge fails loudly rather than being half understood.
 
-Version 1 (current): version 0 plus ``schema_version``.
+- Version 0 is the layout before it had one (gaitforge up to commit 22a0f9c): the same keys
+  as version 1, no ``schema_version``.
+- Version 1: its stored scene may be in an older scene layout and its job sets scene
+  fields on a stage, ``init_from_action_std`` and retired fields (up to commit cfcf6fc).
+- Version 2 (current): the scene in today's layout, the job as today's job files write it;
+  older versions become it by ``workers.scenes.migration`` (``read_older_layout`` on the
+  scene, ``read_older_job`` on the job).
 
 The trainer fills every field; checkpoints written by hand (tests, scripts) may leave out
 what they have no use for (a policy to evaluate needs ``network`` and ``scene``).
@@ -20,9 +25,10 @@ from pathlib import Path
 from typing import Any, Literal
 
 from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes.migration import read_older_job, read_older_layout
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 META_FILE = "meta.json"
 
 MetricValue = bool | int | float | str | None
@@ -77,7 +83,8 @@ class LineageEntry(_Model):
     """the stage that built it"""
     transition: Literal["initial", "init_from", "continue", "blend", "distil", "scratch"]
     """how: ``initial`` for a fresh first network, ``init_from`` for one loaded from the
-    job's ``init_from`` checkpoint, else the stage's transition"""
+    job's ``init_from`` checkpoint, else the stage's transition (``distil`` and ``scratch``
+    only in the lineage of checkpoints from before those transitions were retired)"""
     network: dict[str, Any]
     """its description (``policy.describe()``)"""
     env_steps: int = Field(ge=0)
@@ -164,18 +171,31 @@ class CheckpointMeta(_Model):
         return json.dumps(self.model_dump(mode="json"), indent=2, sort_keys=True, default=str)
 
 
-def _migrate(raw: dict[str, Any], source: Path) -> dict[str, Any]:
-    """``raw`` (any known schema version) in the current layout."""
+def migrate(raw: dict[str, Any], source: Path) -> dict[str, Any]:
+    """``raw`` (a ``meta.json``'s object of any known schema version) in the current layout;
+    ``raw`` itself is left as it is.
+
+    Raises:
+        CheckpointError: a version that is not one, or newer than this gaitforge reads.
+    """
     version = raw.get("schema_version", 0)
-    if not isinstance(version, int) or version < 0:
+    if not isinstance(version, int) or isinstance(version, bool) or version < 0:
         raise CheckpointError(f"{source}: schema_version {version!r} is not a version")
     if version > SCHEMA_VERSION:
         raise CheckpointError(
             f"{source}: schema_version {version} is newer than this gaitforge reads "
             f"({SCHEMA_VERSION}); upgrade gaitforge"
         )
-    if version == 0:  # same keys, no version
-        raw = {**raw, "schema_version": 1}
+    if version < SCHEMA_VERSION:
+        raw = dict(raw)
+        if isinstance(raw.get("scene"), dict):
+            try:
+                raw["scene"] = read_older_layout(raw["scene"])
+            except ValueError as exc:
+                raise CheckpointError(f"{source}: scene: {exc}") from None
+        if isinstance(raw.get("job"), dict):
+            raw["job"] = read_older_job(raw["job"])
+        raw["schema_version"] = SCHEMA_VERSION
     return raw
 
 
@@ -189,7 +209,7 @@ def parse_meta(raw: dict[str, Any], source: Path | str = META_FILE) -> Checkpoin
     if not isinstance(raw, dict):
         raise CheckpointError(f"{source}: expected a JSON object")
     try:
-        return CheckpointMeta.model_validate(_migrate(raw, source))
+        return CheckpointMeta.model_validate(migrate(raw, source))
     except ValidationError as exc:
         error = exc.errors()[0]
         where = ".".join(str(part) for part in error["loc"]) or "<root>"

@@ -21,13 +21,15 @@ from gaitforge.learner.checkpoint import (
     save_checkpoint,
     select_checkpoint,
 )
-from gaitforge.learner.checkpoint_meta import SCHEMA_VERSION
+from gaitforge.learner.checkpoint_meta import SCHEMA_VERSION, migrate
 from gaitforge.learner.job import Job, load_job
 from gaitforge.learner.policy import GaussianPolicy
 from gaitforge.learner.trainer import Trainer
 
 FIXTURE = Path(__file__).parents[1] / "fixtures" / "checkpoint-v0"
 V0 = FIXTURE / "ckpt-000000000512"
+V1 = Path(__file__).parents[1] / "fixtures" / "checkpoint-v1"
+SHIPPED = Path(__file__).parents[2] / "examples" / "policies"
 
 
 def _policy() -> GaussianPolicy:
@@ -134,6 +136,24 @@ def test_a_version_0_checkpoint_loads_as_the_current_model() -> None:
     assert action.shape == (1, 18) and torch.isfinite(action).all()
 
 
+def test_a_version_1_checkpoint_reads_as_its_rewrite_in_the_current_schema() -> None:
+    """The fixture is the OpenSim walker as shipped in schema version 1 (an older scene
+    layout, scene fields on a stage, retired job fields); read, it is the shipped policy
+    rewritten in the current schema: the same scene, the same job, the same weights."""
+    assert json.loads((V1 / "meta.json").read_text())["schema_version"] == 1
+    old_policy, old = load_policy(V1)
+    new_policy, new = load_policy(SHIPPED / "walk-2d-opensim")
+    assert old.schema_version == new.schema_version == SCHEMA_VERSION
+    assert old.scene_spec() == new.scene_spec()
+    assert old.job == new.job and old.job is not None
+    stored = json.loads((V1 / "meta.json").read_text())["job"]
+    assert "warm_start" in stored["stages"][0] and "init_from_action_std" in stored
+    assert "warm_start" not in old.job["stages"][0] and "init_from_action_std" not in old.job
+    assert "clone_actor" not in old.job["stages"][0]["blend"]
+    obs = torch.randn(4, old_policy.obs_dim)
+    assert torch.equal(old_policy.mean_action(obs), new_policy.mean_action(obs)), "same weights"
+
+
 def test_the_trainer_resumes_from_a_version_0_checkpoint(tmp_path: Path) -> None:
     job, scenes, _ = load_job(FIXTURE / "job.yaml")
     raw = job.model_dump()
@@ -146,3 +166,20 @@ def test_the_trainer_resumes_from_a_version_0_checkpoint(tmp_path: Path) -> None
     _, meta = load_checkpoint(latest_checkpoint(tmp_path / "checkpoints"))
     assert meta.iteration == 3 and meta.env_steps >= 512 + 256
     assert meta.schema_version == SCHEMA_VERSION
+
+
+def test_an_older_job_is_read_with_its_stage_scene_fields_in_scene_set() -> None:
+    """A version-1 job set scene fields on a stage and the loaded network's noise apart;
+    read, they are where today's job files write them."""
+    stage = {"scene": "walk-2d-clock", "control_hz": 25, "fidelity": None, "env_steps": 9}
+    later = {"scene": "run-2d", "action": {"kind": "joint_targets"}, "scene_set": {"x": 1}}
+    raw = {"schema_version": 1, "job": {"init_from_action_std": 0.1, "stages": [stage, later]}}
+    job = migrate(raw, Path("meta.json"))["job"]
+    assert job["stages"][0] == {
+        "scene": "walk-2d+clock",
+        "scene_set": {"control_hz": 25},
+        "env_steps": 9,
+        "action_std": 0.1,
+    }
+    assert job["stages"][1]["scene_set"] == {"action": {"kind": "joint_targets"}, "x": 1}
+    assert "init_from_action_std" not in job and raw["job"]["init_from_action_std"] == 0.1

@@ -22,7 +22,7 @@ from gaitforge.learner.checkpoint_meta import read_meta
 from gaitforge.learner.evaluation.evaluate import evaluate_checkpoint
 from gaitforge.learner.evaluation.results import ModeResult
 from gaitforge.workers.scenes import load_scene
-from gaitforge.workers.scenes.compose import FORMER_NAMES
+from gaitforge.workers.scenes.migration import FORMER_NAMES
 
 POLICIES = Path(__file__).resolve().parents[2] / "examples" / "policies"
 WALKER, RUNNER = POLICIES / "walk-2d", POLICIES / "run-2d"

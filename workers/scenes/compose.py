@@ -25,27 +25,13 @@ from pathlib import Path
 from typing import Any
 
 from gaitforge.workers.overrides import set_fields
+from gaitforge.workers.scenes.migration import current_name
 from gaitforge.workers.scenes.spec import SCENE_NAME_PATTERN
 from gaitforge.workers.spec_io import SpecError, read_yaml_mapping
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 REF_PATTERN = re.compile(SCENE_NAME_PATTERN)
 """``base`` or ``base+option+option``"""
-FORMER_NAMES = {
-    "imitate-run-2d-start": "imitate-run-2d+standing-starts",
-    "imitate-walk-2d-start": "imitate-walk-2d+standing-starts",
-    "obstacles-2d-clock": "obstacles-2d+clock",
-    "obstacles-2d-clock-one-leg": "run-2d+clock+one-leg+forward+obstacles",
-    "obstacles-2d-clock-overspeed": "run-2d+clock+one-leg+speed-range+obstacles",
-    "run-2d-clock": "run-2d+clock",
-    "run-2d-clock-forward": "run-2d+clock+forward",
-    "run-2d-clock-one-leg": "run-2d+clock+one-leg+forward",
-    "walk-2d-clock": "walk-2d+clock",
-    "walk-2d-clock-paced": "walk-2d+clock",
-    "walk-3d-planar": "walk-3d+planar",
-}
-"""catalogue names from before scenes were composed, as checkpoints, their jobs and older job
-files name them: each loads as the composition it was (the same fields, a test checks)"""
 
 
 class SceneOption(BaseModel):
@@ -143,7 +129,7 @@ def compose(ref: str, overrides: dict[str, Any] | None = None) -> Composed:
         SpecError: an unknown base or option, an option out of order or for another base,
             a malformed path.
     """
-    ref = FORMER_NAMES.get(ref, ref)
+    ref = current_name(ref)
     if not is_reference(ref):
         raise SpecError(
             f"scene {ref!r}: expected a catalogue name, base+option+..., or a .yaml path; "

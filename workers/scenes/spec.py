@@ -13,7 +13,7 @@ from gaitforge.workers.scenes.assist import Assist
 from gaitforge.workers.scenes.backend_options import MujocoOptions, OpenSimOptions
 from gaitforge.workers.scenes.clock import Clock
 from gaitforge.workers.scenes.imitate import Imitate, check_imitation
-from gaitforge.workers.scenes.older_layout import read_older_layout
+from gaitforge.workers.scenes.migration import read_older_layout
 from gaitforge.workers.scenes.profiles import (
     BACKENDS,
     NAMED_PROFILES,
@@ -234,7 +234,7 @@ class Scene(_Strict):
         backend options at the top level move into ``mujoco`` and ``opensim``; a ``fault``
         of null goes (fault injection is a test hook, ``workers.sim.faults``); a retired
         setting at its former default goes, at any other value it is refused naming the field
-        (``workers.scenes.older_layout``)."""
+        (``workers.scenes.migration``)."""
         return read_older_layout(raw) if isinstance(raw, dict) else raw
 
     @model_validator(mode="after")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import catalogue, load_scene
-from gaitforge.workers.scenes.compose import FORMER_NAMES
+from gaitforge.workers.scenes.migration import FORMER_NAMES
 from gaitforge.workers.scenes.spec import Scene
 from gymnasium.utils.env_checker import check_env
 

@@ -10,7 +10,8 @@ import pytest
 import yaml
 from gaitforge.learner.checkpoint_meta import read_meta
 from gaitforge.workers.scenes import Scene, load_scene, option_names, parse_assignments
-from gaitforge.workers.scenes.compose import FORMER_NAMES, base_names, load_option
+from gaitforge.workers.scenes.compose import base_names, load_option
+from gaitforge.workers.scenes.migration import FORMER_NAMES
 from gaitforge.workers.spec_io import SpecError
 
 FIXTURES = Path(__file__).resolve().parents[2] / "fixtures"

@@ -11,7 +11,6 @@ import sys
 import pytest
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.scenes import catalogue, load_scene
-from gaitforge.workers.scenes.compose import FORMER_NAMES
 from gaitforge.workers.scenes.io_names import (
     OBSERVATION,
     action_names,
@@ -20,6 +19,7 @@ from gaitforge.workers.scenes.io_names import (
     observation_names,
     world_axes,
 )
+from gaitforge.workers.scenes.migration import FORMER_NAMES
 from gaitforge.workers.sim.mujoco.compile import planar_muscles_of
 
 SCENES = catalogue() + sorted(set(FORMER_NAMES.values()))

@@ -1,4 +1,4 @@
-"""Retired scene settings (``workers.scenes.older_layout.RETIRED_SETTINGS``): older scene files and
+"""Retired scene settings (``workers.scenes.migration.RETIRED_SETTINGS``): older scene files and
 checkpoints that hold one at its former default load without it; any other value is refused
 with one line naming the field."""
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 import yaml
 from gaitforge.workers.scenes import load_scene
-from gaitforge.workers.scenes.older_layout import RETIRED_SETTINGS
+from gaitforge.workers.scenes.migration import RETIRED_SETTINGS
 from gaitforge.workers.scenes.spec import Scene
 from gaitforge.workers.spec_io import SpecError
 

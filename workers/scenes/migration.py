@@ -1,6 +1,9 @@
-"""Scene fields as older scene files and checkpoints wrote them, read as today's.
+"""What older gaitforge wrote, read as today's: the one migration of scene files and of the
+scenes and jobs that checkpoints store (``learner.checkpoint_meta`` applies it to a
+``meta.json`` of an older ``schema_version``; a scene validates through
+:func:`read_older_layout` whatever its source, so an older scene file loads too).
 
-    raw = read_older_layout(raw)      # before a Scene validates it
+Scene fields (:func:`read_older_layout`, before a ``Scene`` validates them):
 
 * the backend options at the top level move into ``mujoco:`` and ``opensim:``
   (``workers.scenes.backend_options``);
@@ -13,6 +16,14 @@
   ramp) and ``task.imitate`` (weights, scales, the early end, the starts). An imitation that
   tracked nothing (every weight 0, no early end, every episode standing) was a clock alone
   and leaves no ``task.imitate``.
+
+Scene names (:data:`FORMER_NAMES`): catalogue names from before scenes were composed load
+as the composition they were.
+
+Jobs as checkpoints store them (:func:`read_older_job`): a stage's ``fidelity``,
+``control_hz`` and ``action`` move into its ``scene_set``, ``init_from_action_std`` becomes
+the first stage's ``action_std``, the retired job fields (:data:`RETIRED_JOB_FIELDS`) go and
+former scene names are renamed.
 """
 
 from __future__ import annotations
@@ -21,6 +32,28 @@ from typing import Any
 
 from gaitforge.workers.scenes.backend_options import MUJOCO_FIELDS, OPENSIM_FIELDS
 from gaitforge.workers.scenes.imitate import ImitationWeights
+
+FORMER_NAMES = {
+    "imitate-run-2d-start": "imitate-run-2d+standing-starts",
+    "imitate-walk-2d-start": "imitate-walk-2d+standing-starts",
+    "obstacles-2d-clock": "obstacles-2d+clock",
+    "obstacles-2d-clock-one-leg": "run-2d+clock+one-leg+forward+obstacles",
+    "obstacles-2d-clock-overspeed": "run-2d+clock+one-leg+speed-range+obstacles",
+    "run-2d-clock": "run-2d+clock",
+    "run-2d-clock-forward": "run-2d+clock+forward",
+    "run-2d-clock-one-leg": "run-2d+clock+one-leg+forward",
+    "walk-2d-clock": "walk-2d+clock",
+    "walk-2d-clock-paced": "walk-2d+clock",
+    "walk-3d-planar": "walk-3d+planar",
+}
+"""catalogue names from before scenes were composed, as older checkpoints, their jobs and
+job files name them: each loads as the composition it was (the same fields, a test checks)"""
+
+STAGE_SCENE_FIELDS = ("fidelity", "control_hz", "action")
+"""scene fields older jobs set on a stage itself, now keys of the stage's ``scene_set``"""
+RETIRED_JOB_FIELDS = ("warm_start", "clone_actor")
+"""job fields no recipe set (a stage's ``warm_start``, a blend's ``clone_actor``): they go
+where they hold their former default (null, false)"""
 
 RETIRED_SETTINGS: tuple[tuple[str, object, str], ...] = (
     ("task.imitate.clock_rate_span", None, "it made falls worse"),
@@ -132,3 +165,36 @@ def _clock_apart_from_imitation(task: dict[str, Any]) -> dict[str, Any]:
             starts["noise"] = init["noise"]
         task["imitate"] = {**former, "starts": starts}
     return task
+
+
+def current_name(ref: str) -> str:
+    """Scene reference ``ref`` as today's catalogue names it."""
+    return FORMER_NAMES.get(ref, ref)
+
+
+def read_older_job(raw: dict[str, Any]) -> dict[str, Any]:
+    """A job's fields as an older checkpoint stored them (``Job.model_dump``), in today's
+    layout (see the module's docstring); ``raw`` itself is left as it is."""
+    raw = dict(raw)
+    first_std = raw.pop("init_from_action_std", None)
+    stages = []
+    for index, stage in enumerate(raw.get("stages") or []):
+        if not isinstance(stage, dict):
+            stages.append(stage)
+            continue
+        stage = {k: v for k, v in stage.items() if k not in RETIRED_JOB_FIELDS or v}
+        moved = {k: stage.pop(k) for k in STAGE_SCENE_FIELDS if k in stage}
+        moved = {k: v for k, v in moved.items() if v is not None}
+        if moved:
+            stage["scene_set"] = {**moved, **(stage.get("scene_set") or {})}
+        if isinstance(stage.get("blend"), dict):
+            blend = stage["blend"]
+            stage["blend"] = {k: v for k, v in blend.items() if k not in RETIRED_JOB_FIELDS or v}
+        if isinstance(stage.get("scene"), str):
+            stage["scene"] = current_name(stage["scene"])
+        if index == 0 and first_std is not None:
+            stage["action_std"] = first_std
+        stages.append(stage)
+    if "stages" in raw:
+        raw["stages"] = stages
+    return raw
