@@ -395,15 +395,14 @@ def resolve_scenes(
 
 
 def _stage_scene(ref: str, stage: Stage, backend: str, where: str, whose: str) -> Scene:
-    """Scene ``ref`` as stage ``stage`` sets it, resolved; on ``backend`` (``whose``, as an
-    error names it) alone where the stage sets scene fields or a backend of its own.
+    """Scene ``ref`` as stage ``stage`` sets it, resolved (:func:`_set_by_stage`).
 
     Raises:
-        SpecError: ``where`` and the stage's ``scene`` or ``scene_set`` field.
+        SpecError: ``where`` and the stage's ``scene`` or ``scene_set`` field, ``whose``
+            backend named where the scene does not run on it.
     """
-    only = backend if stage.scene_set or stage.backend else None
     try:
-        scene = load_scene(ref, stage.scene_set, only)
+        return _set_by_stage(ref, stage, backend)
     except BackendMismatch as exc:
         raise SpecError(
             f"{where}.scene: {_name(ref)!r} runs on {exc.backends}, not on {whose} {backend!r}"
@@ -412,14 +411,24 @@ def _stage_scene(ref: str, stage: Stage, backend: str, where: str, whose: str) -
         field = "scene_set" if stage.scene_set and _loads(ref) else "scene"
         problem = str(exc).replace(": <root>:", ":")  # a check of the whole scene
         raise SpecError(f"{where}.{field}: {problem}") from None
+
+
+def _set_by_stage(ref: str, stage: Stage, backend: str) -> Scene:
+    """Scene ``ref`` with the stage's ``scene_set``, on ``backend`` alone where the stage sets
+    scene fields or a backend of its own, resolved.
+
+    Raises:
+        BackendMismatch: the scene does not run on ``backend``.
+        SpecError: it does not load or resolve (one line naming the scene).
+    """
+    only = backend if stage.scene_set or stage.backend else None
+    scene = load_scene(ref, stage.scene_set, only)
     if backend not in scene.backends:
-        raise SpecError(
-            f"{where}.scene: {scene.name!r} runs on {scene.backends}, not on {whose} {backend!r}"
-        )
+        raise BackendMismatch(f"{ref}: runs on {scene.backends}", scene.backends)
     try:
         return scene.resolved()
     except ValueError as exc:
-        raise SpecError(f"{where}.scene: {exc}") from None
+        raise SpecError(f"scene {scene.name!r}: {exc}") from None
 
 
 def _name(ref: str) -> str:
@@ -444,17 +453,10 @@ def evaluation_scene(ref: str, backend: str, where: str, stage: Stage) -> Scene:
     Raises:
         SpecError: ``where`` (file and field): the scene does not load or runs elsewhere.
     """
-    only = backend if stage.scene_set or stage.backend else None
     try:
-        scene = load_scene(ref, stage.scene_set, only)
+        return _set_by_stage(ref, stage, backend)
     except BackendMismatch as exc:
         message = f"{where}: {_name(ref)!r} runs on {exc.backends}, not on {backend!r}"
         raise SpecError(message) from None
     except SpecError as exc:
-        raise SpecError(f"{where}: {exc}") from None
-    if backend not in scene.backends:
-        raise SpecError(f"{where}: {scene.name!r} runs on {scene.backends}, not on {backend!r}")
-    try:
-        return scene.resolved()
-    except ValueError as exc:
         raise SpecError(f"{where}: {exc}") from None
