@@ -2,8 +2,11 @@
 approximated and dropped.
 
 The model is read through OpenSim's own loader (``opensim.Model``), so every format version
-OpenSim reads is read here, and the file is checked as XML first so that a truncated or
-malformed file fails with its line and column. What maps to the body:
+OpenSim reads is read here: an older one (OpenSim 3's ``Version="30000"``, whose tags such as
+``HuntCrossleyForce::ContactParametersSet`` no strict XML parser takes) is upgraded by OpenSim
+as it loads, and the report says so. The file is checked as XML too, so that a file OpenSim
+cannot load either fails with the XML parser's own reason, line and column (``no element
+found``: truncated). What maps to the body:
 
 * bodies -> segments (mass, centre of mass, inertia with its products). Each segment's frame
   is its joint's child frame: where OpenSim's child offset frame is not the body frame, the
@@ -67,6 +70,9 @@ from gaitforge.workers.spec_io import SpecError
 from pydantic import TypeAdapter, ValidationError
 
 logger = logging.getLogger(__name__)
+
+OPENSIM_4_DOCUMENT = 40000
+"""the first ``OpenSimDocument`` version of OpenSim 4's format"""
 
 FOOT_SPHERE_RADIUS = 0.05
 """m: radius of the default foot contact spheres (the 2017 challenge model's)."""
@@ -134,7 +140,7 @@ def _model_contacts(ctx: ImportContext) -> list[ContactSphere]:
                 name=name,
                 segment=segment,
                 location=as_tuple(location),
-                radius=sphere.get_radius(),
+                radius=sphere.getRadius(),
                 part="foot" if foot else "body",
             )
         )
@@ -160,9 +166,13 @@ def _load_contacts(path: Path) -> list[ContactSphere]:
 # ---- the file ----------------------------------------------------------------------------
 
 
-def _check_xml(path: Path) -> str:
-    """The file's text; a missing, unreadable, malformed or truncated file raises
-    ``SpecError`` with its line and column."""
+def read_model_file(path: Path) -> tuple[str, str | None]:
+    """The file's text, and why a strict XML parser refuses it (its reason, line and column;
+    None where it does not). A file that parses but is not an OpenSim model raises.
+
+    Raises:
+        SpecError: the file is missing or unreadable, or its XML is no OpenSim document.
+    """
     try:
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as exc:
@@ -173,13 +183,19 @@ def _check_xml(path: Path) -> str:
         root = ET.fromstring(text)
     except ET.ParseError as exc:
         line, column = exc.position
-        raise SpecError(
-            f"{path}: line {line}, column {column}: not well-formed XML (truncated or "
-            "malformed); refused"
-        ) from None
+        reason = str(exc).split(":")[0]
+        at_end = line >= len(text.splitlines())  # the parser ran out of file
+        cause = " (the file ends there: truncated)" if at_end else ""
+        return text, f"line {line}, column {column}: not well-formed XML: {reason}{cause}"
     if root.tag != "OpenSimDocument" or root.find("Model") is None:
         raise SpecError(f"{path}: not an OpenSim model (no <OpenSimDocument><Model>); refused")
-    return text
+    return text, None
+
+
+def _document_version(text: str) -> int | None:
+    """The ``OpenSimDocument``'s ``Version`` (30000: OpenSim 3.0), None if it names none."""
+    match = re.search(r"<OpenSimDocument\s+Version=\"(\d+)\"", text)
+    return int(match.group(1)) if match else None
 
 
 def _unknown_components(text: str) -> list[str]:
@@ -195,9 +211,10 @@ def _unknown_components(text: str) -> list[str]:
     return unknown
 
 
-def _load_model(path: Path, text: str) -> tuple[Any, Any]:
-    """The model and its initial state; where OpenSim refuses the file, the first component
-    it does not know (line, tag, name), else OpenSim's own first line, as a ``SpecError``."""
+def _load_model(path: Path, text: str, xml_problem: str | None) -> tuple[Any, Any]:
+    """The model and its initial state; where OpenSim refuses the file, the XML parser's
+    problem with it (``xml_problem``), else the first component it does not know (line, tag,
+    name), else OpenSim's own first line, as a ``SpecError``."""
     import opensim
 
     opensim.Logger.removeFileSink()
@@ -206,6 +223,8 @@ def _load_model(path: Path, text: str) -> tuple[Any, Any]:
         model = opensim.Model(str(path))
         state = model.initSystem()
     except RuntimeError as exc:
+        if xml_problem is not None:
+            raise SpecError(f"{path}: {xml_problem}; OpenSim cannot load it; refused") from None
         unknown = _unknown_components(text)
         if unknown:
             more = f" (and {len(unknown) - 1} more)" if len(unknown) > 1 else ""
@@ -232,9 +251,16 @@ def import_osim(
     """
     started = time.perf_counter()
     path = Path(path)
-    text = _check_xml(path)
-    model, state = _load_model(path, text)
+    text, xml_problem = read_model_file(path)
+    model, state = _load_model(path, text, xml_problem)
     report = ImportReport(model=path.name)
+    version = _document_version(text)
+    if version is not None and version < OPENSIM_4_DOCUMENT:
+        report.notes.append(
+            f"the file is OpenSim document version {version} (before OpenSim 4); OpenSim "
+            "upgraded it as it loaded"
+            + ("" if xml_problem is None else f" (a strict XML parser refuses it: {xml_problem})")
+        )
     try:
         body = _import(model, state, report, name or path.stem, contacts)
     except UnsupportedPart as exc:

@@ -12,12 +12,12 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
-from xml.etree import ElementTree
 
 import mujoco
 import numpy as np
 import opensim
 from gaitforge.workers.bodies.osim_basics import joints_between
+from gaitforge.workers.bodies.osim_import import read_model_file
 from gaitforge.workers.sim.mujoco.couplings import CARRIER_SUFFIX
 from gaitforge.workers.sim.mujoco.lock import coupled_qpos
 from gaitforge.workers.sim.opensim.build import quiet_opensim_log
@@ -33,8 +33,8 @@ def load_opensim_model(path: Path) -> Any:
     """``opensim.Model`` read from ``path``, OpenSim's log silenced.
 
     Raises:
-        SpecError: the file is missing, unreadable, not well-formed XML or not an OpenSim
-            model (one line naming it).
+        SpecError: the file is missing, unreadable, not an OpenSim model, or one OpenSim
+            cannot load (one line naming it and why).
     """
     quiet_opensim_log()
     path = Path(path)
@@ -42,18 +42,12 @@ def load_opensim_model(path: Path) -> Any:
         raise SpecError(f"{path}: file not found")
     if not path.is_file():
         raise SpecError(f"{path}: not a file")
-    try:
-        root = ElementTree.parse(path).getroot()
-    except OSError as exc:
-        raise SpecError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    except ElementTree.ParseError as exc:
-        line, column = exc.position
-        raise SpecError(f"{path}: line {line}, column {column}: not well-formed XML") from None
-    if root.tag != "OpenSimDocument" or root.find("Model") is None:
-        raise SpecError(f"{path}: not an OpenSim model (no <OpenSimDocument><Model>)")
+    _, xml_problem = read_model_file(path)  # an older format OpenSim upgrades as it loads
     try:
         return opensim.Model(str(path))
     except Exception as exc:  # OpenSim raises RuntimeError with a multi-line message
+        if xml_problem is not None:
+            raise SpecError(f"{path}: {xml_problem}; OpenSim cannot load it") from None
         reason = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
         raise SpecError(f"{path}: OpenSim cannot load the model: {shorten(reason, 300)}") from None
 

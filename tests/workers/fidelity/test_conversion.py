@@ -139,8 +139,12 @@ def test_mujoco_moment_arm_is_minus_the_total_derivative_of_length() -> None:
     ("content", "expected"),
     [
         (None, "file not found"),
-        ("<OpenSimDocument><Model", "line 1, column 17: not well-formed XML"),
-        ("<gait/>", "not an OpenSim model (no <OpenSimDocument><Model>)"),
+        (
+            "<OpenSimDocument><Model",
+            "line 1, column 17: not well-formed XML: unclosed token (the file ends there: "
+            "truncated); OpenSim cannot load it",
+        ),
+        ("<gait/>", "not an OpenSim model (no <OpenSimDocument><Model>); refused"),
     ],
 )
 def test_bad_model_files_fail_in_one_line(
