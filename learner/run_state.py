@@ -21,6 +21,7 @@ from gaitforge.learner.job import Job, Stage, job_changes
 from gaitforge.learner.policy import ActorCritic, GaussianPolicy, build_policy
 from gaitforge.learner.ppo import PPO, PPOSettings
 from gaitforge.learner.sampling import Rollouts
+from gaitforge.learner.stage_verdict import BUDGET_SPENT_TEXT
 from gaitforge.learner.transitions import network_from_checkpoint
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
@@ -207,7 +208,21 @@ class RunState:
         self.curriculum = CurriculumState.from_json(meta.curriculum.model_dump())
         self.blend_start = meta.blend_start
         self.lineage = [entry.model_dump() for entry in meta.lineage]
-        if meta.metrics.get("verdict"):  # written at a stage's end, before moving on
+        verdict = meta.metrics.get("verdict")
+        if verdict:  # written at a stage's end, before moving on
+            ended = self.stage
+            if ended.if_not_promoted == "fail" and verdict == BUDGET_SPENT_TEXT:
+                left = len(self.job.stages) - self.curriculum.stage - 1
+                logger.warning(
+                    "stage %d (%s) failed: it spent its budget without reaching its target; "
+                    "%s (to train it longer, resume from a checkpoint before its end with a "
+                    "larger env_steps)",
+                    self.curriculum.stage,
+                    ended.name or ended.scene,
+                    f"the run goes on with the next of {left} stage(s)"
+                    if left
+                    else "it was the last stage: the run has nothing left to train",
+                )
             self.curriculum.advance()
         logger.info(
             "resumed from %s: stage %d, iteration %d, %d env steps",

@@ -6,6 +6,7 @@ and end with the network that passed."""
 
 from __future__ import annotations
 
+import logging
 import math
 from pathlib import Path
 
@@ -287,9 +288,12 @@ def test_a_pass_that_fresh_episodes_do_not_confirm_does_not_promote(tmp_path: Pa
     assert score(only, job.stages[0].promote)[0] == 0, "scored by the failed confirmation"
 
 
-def test_a_stage_that_must_promote_ends_the_job_at_its_budget(tmp_path: Path) -> None:
+def test_a_stage_that_must_promote_ends_the_job_at_its_budget(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
     """``if_not_promoted: fail``: the stage's end is checkpointed, then the run ends with an
-    error naming the rule, its figure on the last evaluation and the gap."""
+    error naming the rule, its figure on the last evaluation and the gap; resumed, the run
+    says the stage failed and that nothing is left to train."""
     job = _job("eval.return >= 1000", if_not_promoted="fail")
     trainer = Trainer(job, tmp_path, tensorboard=False)
     with pytest.raises(StageShortfallError) as raised:
@@ -300,6 +304,10 @@ def test_a_stage_that_must_promote_ends_the_job_at_its_budget(tmp_path: Path) ->
     _, meta = load_checkpoint(latest_checkpoint(tmp_path / "checkpoints"))
     assert meta.metrics["verdict"] == "budget spent"
     assert f"eval.return {meta.metrics['eval_return']:.3g}," in message
+    with caplog.at_level(logging.WARNING, logger="gaitforge.learner.run_state"):
+        resumed = Trainer(job, tmp_path, tensorboard=False)
+    assert resumed.done
+    assert "stage 0 (elbow-reach) failed" in caplog.text and "the last stage" in caplog.text
 
 
 def test_promotion_on_an_evaluation_keeps_the_network_evaluated(tmp_path: Path) -> None:
