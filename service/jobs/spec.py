@@ -147,13 +147,19 @@ def _scene_problems(scene: Scene, field: str) -> list[tuple[str, str]]:
     return bad
 
 
-def _check_scene_set(stage: dict, index: int, errors: list[tuple[str, str]]) -> None:
-    """A catalogue or inline scene with the stage's ``scene_set``: the fields it sets may not
-    bring in paths."""
+def _check_scene_set(
+    stage: dict, index: int, job_backend: object, errors: list[tuple[str, str]]
+) -> None:
+    """A catalogue or inline scene with the stage's ``scene_set``, checked on the stage's
+    backend as the job file's loading checks it (``learner.job.resolve_scenes``): the fields
+    it sets may not bring in paths."""
     scene_set, ref = stage.get("scene_set"), stage.get("scene")
     if not isinstance(scene_set, dict) or not scene_set:
         return
     field = f"stages.{index}.scene_set"
+    backend = stage.get("backend") or job_backend or "mujoco"
+    if isinstance(backend, str):
+        scene_set = {**scene_set, "backends": [backend]}
     try:
         if isinstance(ref, dict):
             scene = Scene.model_validate(set_fields(ref, scene_set, where=field))
@@ -202,7 +208,7 @@ def _check_data_only(raw: dict, errors: list[tuple[str, str]]) -> dict[int, Scen
     for i, stage in enumerate(stages):
         if not isinstance(stage, dict):
             continue  # the job's validation names it
-        _check_scene_set(stage, i, errors)
+        _check_scene_set(stage, i, raw.get("backend"), errors)
         scene = stage.get("scene")
         if isinstance(scene, dict):
             found = _inline_scene(scene, f"stages.{i}.scene", errors)

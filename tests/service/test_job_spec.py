@@ -136,3 +136,14 @@ def test_an_inline_scene_is_kept_written_and_loads(tmp_path: Path) -> None:
     job, scenes, _ = load_job(job_file)
     assert [s.name for s in scenes] == ["my-stand", "stand-2d"]
     assert scenes[0].episode_s == 2.5 and job.name == "x"
+
+
+def test_a_stage_scene_set_is_checked_on_the_stage_backend_alone() -> None:
+    """As a job file's stage is: a fidelity MuJoCo alone integrates (implicitfast) set on a
+    scene that runs on both simulators passes for a MuJoCo stage and is refused for an
+    OpenSim one."""
+    fidelity = {"integrator": "implicitfast", "timestep": 0.01}
+    mujoco = _stage("stand-2d", scene_set={"control_hz": 25, "fidelity": fidelity})
+    assert prepare_submission(mujoco)["stages"][0]["scene_set"]["fidelity"] == fidelity
+    opensim = {**mujoco, "backend": "opensim"}
+    assert _refused(opensim).field.startswith("stages.0.scene_set")
