@@ -4,6 +4,7 @@ stage's own PPO schedules (``learner.job`` holds the job around them)."""
 
 from __future__ import annotations
 
+import json
 import re
 from typing import Annotated, Any, Literal
 
@@ -254,9 +255,10 @@ class Stage(StrictSpec):
         if isinstance(raw, dict):
             for name in SCENE_FIELDS_OF_OLD:
                 if name in raw:
+                    value = json.dumps(raw[name], default=str)
                     raise ValueError(
                         f"{name}: a scene field; set it in the stage's scene_set "
-                        f"(scene_set: {{{name}: {raw[name]!r}}})"
+                        f"(scene_set: {{{name}: {value}}})"
                     )
         return raw
 

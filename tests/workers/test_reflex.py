@@ -14,6 +14,7 @@ from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.scenes.action import ActionSpec
 from gaitforge.workers.scenes.io_names import action_names, lateral_axis
 from gaitforge.workers.sim.faults import FaultInjection
+from gaitforge.workers.spec_io import SpecError
 from pydantic import ValidationError
 
 
@@ -135,12 +136,17 @@ def test_a_stage_can_switch_to_joint_targets(tmp_path) -> None:
     job = tmp_path / "job.yaml"
     job.write_text(
         "name: t\nbackend: mujoco\nstages:\n"
-        "  - scene: imitate-walk-2d\n    action: {kind: joint_targets, kp: 4.0}\n"
+        "  - scene: imitate-walk-2d\n"
+        "    scene_set: {action: {kind: joint_targets, kp: 4.0}}\n"
         "    env_steps: 1000\n"
     )
     _, scenes, _ = load_job(job)
     scene = scenes[0]
     assert scene.action.targets and scene.action.kp == 4.0 and scene.backends == ["mujoco"]
+    older = job.read_text().replace("    scene_set: {action:", "    action:").replace("}}", "}")
+    job.write_text(older)  # as older job files wrote it: named with where it goes now
+    with pytest.raises(SpecError, match=r"stages\.0: action: .*\(scene_set: \{action: \{"):
+        load_job(job)
 
 
 def test_the_clock_scene_starts_standing_and_rewards_no_imitation() -> None:
