@@ -1,10 +1,10 @@
 """The pages a person follows jobs on, in a real browser: headless Chromium (Debian's) driven
 by Playwright against a real uvicorn with the real runner and Ray. Sign in with a token, submit
-a small job from the page, watch its curve grow and its state change to succeeded, play the
-video of its final evaluation, download a checkpoint; submit a long one and cancel it. Another
-owner's job is neither listed nor reachable; signed out, the pages ask for a token; the cookie
-is HttpOnly and SameSite=Strict, and a cookie request that changes something needs the CSRF
-token."""
+a small job from the page, submit a long one and cancel it (queued behind the small one),
+watch the small one's curve grow and its state change to succeeded, play the video of its
+final evaluation, download a checkpoint. Another owner's job is neither listed nor reachable;
+signed out, the pages ask for a token; the cookie is HttpOnly and SameSite=Strict, and a
+cookie request that changes something needs the CSRF token."""
 
 from __future__ import annotations
 
@@ -61,10 +61,10 @@ def wait_until(what: str, done: Callable[[], bool], timeout_s: float = WAIT_MS /
         time.sleep(0.2)
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def browser() -> Iterator:
     """Headless Chromium (Debian's, which make installs where apt-get exists; skipped only on
-    a machine without apt-get)."""
+    a machine without apt-get), one for the module's page tests (each takes a new context)."""
     if not Path(CHROMIUM).exists():
         if shutil.which("apt-get"):
             pytest.fail(f"no Chromium at {CHROMIUM}: make installs Debian's chromium")
@@ -76,21 +76,36 @@ def browser() -> Iterator:
 
 
 def test_sign_in_submit_watch_download_and_cancel(site: str, browser, tmp_path: Path) -> None:
-    with httpx.Client(base_url=site, headers=auth(BOB), timeout=30) as bob:
-        bobs = bob.post("/v1/jobs", json=make_tiny_job("bobs-job")).json()["id"]
+    """One job trains (a trainer process: seconds); bob's job and the long one are submitted
+    while it runs, so that they wait in the queue (one job at a time), and are cancelled
+    there: neither starts a trainer of its own."""
     context = browser.new_context(accept_downloads=True)
     page = context.new_page()
     page.goto(site + "/")
     page.fill("input[name=token]", ALICE)
     page.click("button[type=submit]")
     page.wait_for_selector("#jobs")
-    assert "bobs-job" not in page.content()
     cookie = next(c for c in context.cookies() if c["name"] == "gaitforge_session")
     assert cookie["httpOnly"] and cookie["sameSite"] == "Strict"
 
-    page.fill("#spec", json.dumps(make_tiny_job("page-job", env_steps=2048, every_iters=1)))
+    page.fill("#spec", json.dumps(make_tiny_job("page-job", env_steps=1024, every_iters=1)))
     page.click("#submit button[type=submit]")
     page.wait_for_url("**/jobs/j-*")
+    job_page = page.url
+    with httpx.Client(base_url=site, headers=auth(BOB), timeout=30) as bob:
+        bobs = bob.post("/v1/jobs", json=make_tiny_job("bobs-job")).json()["id"]
+        assert bob.post(f"/v1/jobs/{bobs}/cancel").status_code == 200
+
+    page.goto(site + "/")
+    assert "page-job" in page.content() and "bobs-job" not in page.content()
+    page.fill("#spec", json.dumps(make_tiny_job("long-job", env_steps=10**8, every_iters=10**6)))
+    page.click("#submit button[type=submit]")
+    page.wait_for_url("**/jobs/j-*")
+    page.wait_for_selector("#cancel:not([hidden])", timeout=WAIT_MS)
+    page.click("#cancel")
+    expect(page.locator("#state")).to_have_text("cancelled", timeout=WAIT_MS)
+
+    page.goto(job_page)
     wait_until("a first point", lambda: int(page.get_attribute("#curve", "data-points") or 0) >= 1)
     expect(page.locator("#state")).to_have_text("succeeded", timeout=WAIT_MS)
     wait_until("more points", lambda: int(page.get_attribute("#curve", "data-points") or 0) >= 4)
@@ -107,14 +122,6 @@ def test_sign_in_submit_watch_download_and_cancel(site: str, browser, tmp_path: 
     saved = tmp_path / "checkpoint.zip"
     download.value.save_as(saved)
     assert any(n.endswith("/policy.safetensors") for n in zipfile.ZipFile(saved).namelist())
-
-    page.goto(site + "/")
-    page.fill("#spec", json.dumps(make_tiny_job("long-job", env_steps=10**8, every_iters=10**6)))
-    page.click("#submit button[type=submit]")
-    page.wait_for_url("**/jobs/j-*")
-    page.wait_for_selector("#cancel:not([hidden])", timeout=WAIT_MS)
-    page.click("#cancel")
-    expect(page.locator("#state")).to_have_text("cancelled", timeout=WAIT_MS)
 
     answer = page.goto(f"{site}/jobs/{bobs}")
     assert answer.status == 404 and "bobs-job" not in page.content()

@@ -155,10 +155,12 @@ def test_a_job_keeps_running_across_a_killed_service(
 ) -> None:
     """The job outlives its service, and a follower (``status --follow``) outlives the
     outage: the second service starts only once the follower has found the first gone, so
-    the outage is seen however slowly the follower is scheduled."""
+    the outage is seen however slowly the follower is scheduled. The service is killed at
+    the first of 12 iterations: the job may end while the service is away (the second one
+    then finds it ended, attempt 1), and the test waits for no more training than that."""
     first = service()
     headers = {"Authorization": f"Bearer {(first.home / 'token').read_text().strip()}"}
-    spec = tiny_job(name="outlives", env_steps=256 * 32, every_iters=4)
+    spec = tiny_job(name="outlives", env_steps=256 * 12, every_iters=4)
     job = httpx.post(f"{first.server}/v1/jobs", json=spec, headers=headers).raise_for_status()
     job_id = job.json()["id"]
     follower_log = tmp_path / "follower.err"
