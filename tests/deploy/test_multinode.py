@@ -2,11 +2,12 @@
 ``ray start --head --num-cpus 0`` and two ``ray start --address`` worker nodes (one CPU and a
 custom resource each), token-authenticated; the service (``gaitforge serve``) pointed at the
 head by ``GAITFORGE_RAY_ADDRESS``. A job submitted through the API runs one rollout actor on
-each worker node (seen in Ray's state API), one worker node is killed mid-job (every process
-of it, as a lost machine), and the job still succeeds with a checkpoint whose scene carries
-the fidelity profile resolved on the driver (the head): the worker nodes' saved profiles
-directory is empty, so an actor that resolved the stage's saved profile name itself would
-fail there, and the profile is no built-in one.
+each worker node (seen in each node's process tree, which does not lag as Ray's state API
+does under load; the state API confirms at the end that the lost node's actor died), one
+worker node is killed mid-job (every process of it, as a lost machine), and the job still
+succeeds with a checkpoint whose scene carries the fidelity profile resolved on the driver
+(the head): the worker nodes' saved profiles directory is empty, so an actor that resolved
+the stage's saved profile name itself would fail there, and the profile is no built-in one.
 """
 
 from __future__ import annotations
@@ -15,7 +16,6 @@ import logging
 import os
 import sys
 import time
-from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +26,7 @@ from gaitforge.service.client.download import download
 from gaitforge.service.client.http import GaitforgeClient
 from gaitforge.service.client.round_trip import free_port, start_service, stop_service
 from gaitforge.service.jobs.local_cluster import LocalCluster, RayNode
+from gaitforge.service.jobs.procs import descendants, pids_naming
 from gaitforge.workers.scenes.profiles import NAMED_PROFILES, FidelityProfile
 from gaitforge.workers.scenes.saved_profiles import ENV_DIR, SavedProfile, save
 
@@ -34,10 +35,10 @@ logger = logging.getLogger(__name__)
 SAVED = "stand-2d-mujoco-tol0.05"
 PROFILE = FidelityProfile(integrator="implicitfast", timestep=0.01)
 """4 steps per 25 Hz control step; no built-in MuJoCo profile integrates like this"""
-BUDGET = 256 * 100
-"""env steps of the job: about 50 s of training here, most of it after the kill; long enough
-that Ray's state API, which lags under load (a clean-clone run's end once listed no actor
-until a 40-iteration job had finished), shows both actors while the job still runs"""
+BUDGET = 256 * 32
+"""env steps of the job: the kill comes after the first iteration (512 env steps here), which
+leaves about 6 s of training on the surviving node here (12 s under load); the pool sees the
+lost actor die within a second of the kill (within Ray's 3 s node health check at most)"""
 API_TOKEN = "multinode-test-token"
 
 
@@ -65,7 +66,7 @@ def _job() -> dict:
         "stages": [
             {
                 "scene": "stand-2d",
-                "scene_set": {"control_hz": 25, "fidelity": SAVED},
+                "scene_set": {"backends": ["mujoco"], "control_hz": 25, "fidelity": SAVED},
                 "env_steps": BUDGET,
             }
         ],
@@ -98,8 +99,7 @@ def cluster_service(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator
         workers = {
             name: cluster.add_node(name, num_cpus=1, env={ENV_DIR: str(node_dir)})
             for name in ("node_a", "node_b")
-        }
-        cluster.wait_for_nodes()
+        }  # they start while the service does (wait_for_nodes below)
         port = free_port()
         env = {k: v for k, v in os.environ.items() if not k.startswith(("GAITFORGE_", "RAY_"))}
         env.update(
@@ -116,12 +116,26 @@ def cluster_service(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator
         )
         home.mkdir()
         process = start_service(env, home / "serve.log")
+        cluster.wait_for_nodes()
         with GaitforgeClient(env["GAITFORGE_SERVER"], token=API_TOKEN) as client:
             yield ClusterService(cluster, workers, client, node_dir)
     finally:
         if process is not None:
             stop_service(process)
         cluster.shutdown()
+
+
+def _rollout_actor_pids(node: RayNode) -> set[int]:
+    """The rollout actors' processes among ``node``'s (its daemons and what they started)."""
+    ours = set(pids_naming(node.temp_dir))
+    found = set()
+    for pid in ours | descendants(ours):
+        try:
+            if Path(f"/proc/{pid}/cmdline").read_bytes().startswith(b"ray::RolloutWorker"):
+                found.add(pid)
+        except OSError:
+            continue
+    return found
 
 
 def _wait(
@@ -139,7 +153,7 @@ def _wait(
         time.sleep(0.3)
 
 
-@pytest.mark.timeout(240)  # about 60 s here; a hung cluster fails, not the suite
+@pytest.mark.timeout(240)  # about 20 s here; a hung cluster fails, not the suite
 def test_a_job_spans_two_worker_nodes_and_survives_losing_one(
     cluster_service: ClusterService, tmp_path: Path
 ) -> None:
@@ -148,21 +162,19 @@ def test_a_job_spans_two_worker_nodes_and_survives_losing_one(
     t0 = time.monotonic()
     job_id = client.submit(_job())["id"]
 
-    names = {node.node_id: name for name, node in cluster_service.workers.items()}
     deadline = time.monotonic() + 90
-    while True:  # one live rollout actor on each worker node (Ray's state API), trained on
-        actors = cluster.actors("RolloutWorker")
-        by_node = Counter(names.get(a.node_id, a.node_id) for a in actors)
+    while True:  # one live rollout actor on each worker node (its processes), trained on
+        by_node = {
+            name: _rollout_actor_pids(node) for name, node in cluster_service.workers.items()
+        }
         status = client.status(job_id)
-        if by_node == Counter({"node_a": 1, "node_b": 1}) and (status["iteration"] or 0) >= 1:
+        if all(len(pids) == 1 for pids in by_node.values()) and (status["iteration"] or 0) >= 1:
             break
         if status["state"] not in ("queued", "running") or time.monotonic() > deadline:
-            pytest.fail(
-                f"actors by node {dict(by_node)}; job {status['state']}: {status.get('error')}"
-            )
+            pytest.fail(f"actors by node {by_node}; job {status['state']}: {status.get('error')}")
         time.sleep(0.3)
-    for actor in actors:  # they see the worker nodes' empty profiles directory
-        environ = Path(f"/proc/{actor.pid}/environ").read_bytes().split(b"\0")
+    for (pid,) in by_node.values():  # they see the worker nodes' empty profiles directory
+        environ = Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
         assert f"{ENV_DIR}={cluster_service.node_profiles}".encode() in environ
     assert not any(cluster_service.node_profiles.iterdir())
     at_kill = client.status(job_id)
@@ -179,8 +191,13 @@ def test_a_job_spans_two_worker_nodes_and_survives_losing_one(
     logger.info("succeeded after %.1f s", time.monotonic() - t0)
     assert (at_kill["env_steps"] or 0) < BUDGET // 2, "the node went down mid-job"
     assert final["env_steps"] >= BUDGET and final["latest_checkpoint"], final
-    dead = cluster.actors("RolloutWorker", state="DEAD")
-    assert lost.node_id in {a.node_id for a in dead}, "the actor on the lost node died"
+    deadline = time.monotonic() + 30  # Ray's state API lags under load
+    while True:
+        dead = {a.node_id for a in cluster.actors("RolloutWorker", state="DEAD")}
+        if lost.node_id in dead or time.monotonic() > deadline:
+            break
+        time.sleep(0.5)
+    assert lost.node_id in dead, "the actor on the lost node died (Ray's state API)"
     log = client.logs(job_id)["text"]
     assert "rollout actor" in log and "died" in log, "the pool replaced the lost actor"
 
