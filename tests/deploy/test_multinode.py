@@ -66,7 +66,7 @@ def _job() -> dict:
         "stages": [
             {
                 "scene": "stand-2d",
-                "scene_set": {"backends": ["mujoco"], "control_hz": 25, "fidelity": SAVED},
+                "scene_set": {"control_hz": 25, "fidelity": SAVED},
                 "env_steps": BUDGET,
             }
         ],
