@@ -89,9 +89,9 @@ def test_stable_baselines3_ppo_trains_on_a_scene() -> None:
     env = gym.make("gaitforge/elbow-reach-v0", action_range="symmetric")
     with warnings.catch_warnings():
         warnings.simplefilter("error", UserWarning)  # SB3 warns on a non-symmetric box
-        model = PPO("MlpPolicy", env, n_steps=512, batch_size=128, n_epochs=2, seed=0)
-    model.learn(total_timesteps=2048)
-    assert model.num_timesteps >= 2048
+        model = PPO("MlpPolicy", env, n_steps=256, batch_size=128, n_epochs=2, seed=0)
+    model.learn(total_timesteps=512)  # two rollouts, two updates
+    assert model.num_timesteps >= 512
     obs, _ = env.reset(seed=1)
     action, _ = model.predict(obs, deterministic=True)
     assert env.action_space.contains(action.astype(np.float32))

@@ -161,12 +161,31 @@ def test_evaluate_at_80_columns_cuts_nothing(walk_run: Path) -> None:
         assert needed in text, needed
 
 
-def piped(*args: str) -> str:
-    """``gaitforge ARGS`` in a real process whose stdout is a pipe (as ``| cat``), with no
-    ``COLUMNS`` in its environment: what a script reading the output sees."""
+ONE_PROCESS = """
+import json, sys
+from gaitforge.service.cli import app
+for args in json.loads(sys.argv[1]):
+    try:
+        app(args, prog_name="gaitforge")
+    except SystemExit as done:
+        if done.code not in (None, 0):
+            raise
+    sys.stdout.write(SEPARATOR)
+    sys.stdout.flush()
+"""
+SEPARATOR = "\f\n"
+"""written to stdout after each command (no command writes a form feed)"""
+
+
+def piped(*commands: list[str]) -> list[str]:
+    """The stdout of each ``gaitforge COMMAND``, run one after another in a real process
+    whose stdout is a pipe (as ``| cat``), with no ``COLUMNS`` in its environment: what a
+    script reading the output sees. One process for them all: each start-up imports
+    torch and Ray (seconds)."""
     env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}
+    script = f"SEPARATOR = {SEPARATOR!r}\n{ONE_PROCESS}"
     result = subprocess.run(
-        [sys.executable, "-m", "gaitforge.service.cli", *args],
+        [sys.executable, "-c", script, json.dumps(commands)],
         capture_output=True,
         text=True,
         env=env,
@@ -174,13 +193,17 @@ def piped(*args: str) -> str:
         stdin=subprocess.DEVNULL,
     )
     assert result.returncode == 0, result.stderr
-    return result.stdout
+    outputs = result.stdout.split(SEPARATOR)
+    assert len(outputs) == len(commands) + 1 and outputs[-1] == "", result.stdout
+    return outputs[:-1]
 
 
 def test_off_a_terminal_a_table_row_is_one_line() -> None:
     """No row wraps into a second line (where a word or a number would be split)."""
-    rows = [line for line in piped("scenes", "list").splitlines() if line.startswith("│")]
+    listing, report = piped(
+        ["scenes", "list"], ["evaluate", str(POLICIES / "walk-2d"), "--episodes", "1"]
+    )
+    rows = [line for line in listing.splitlines() if line.startswith("│")]
     assert [row.split("│")[1].strip() for row in rows] == catalogue() + option_names()
-    report = piped("evaluate", str(POLICIES / "walk-2d"), "--episodes", "1")
     rows = [line for line in report.splitlines() if line.startswith("│")]
     assert len(rows) == 1 and rows[0].startswith("│ deterministic ")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -21,6 +22,7 @@ import yaml
 from gaitforge.learner.checkpoint import load_checkpoint
 from gaitforge.service.cli import app
 from gaitforge.service.client.round_trip import free_port, start_service
+from gaitforge.service.jobs.ray_cluster import STATE_FILE, TOKEN_FILE, RayConnection
 from gaitforge.workers.scenes import scene_fields
 from typer.testing import CliRunner
 
@@ -67,25 +69,47 @@ class Service:
         return json.loads(output)
 
 
-@pytest.fixture
-def service(service_home: Path) -> Iterator[Callable[..., Service]]:
-    """Start services on the test's home (re-attached to the session's Ray head, which the
-    session's fixture stops); each is killed at the end."""
-    started: list[Service] = []
+class Services:
+    """The module's ``gaitforge serve`` processes, one after another on one home (re-attached
+    to the session's Ray head, which the session's fixture stops)."""
 
-    def start(port: int | None = None) -> Service:
-        started.append(Service(service_home, port).start())
-        return started[-1]
+    def __init__(self, home: Path) -> None:
+        self.home = home
+        self.started: list[Service] = []
 
-    yield start
-    for each in started:
+    def running(self) -> Service:
+        """The newest service if it still runs (the tests that only use a service share it:
+        each start-up imports torch and Ray, seconds), else a new one."""
+        newest = self.started[-1] if self.started else None
+        if newest is not None and newest.process is not None and newest.process.poll() is None:
+            return newest
+        return self.start()
+
+    def start(self, port: int | None = None) -> Service:
+        """A new service (on ``port``: the port of one that was killed)."""
+        self.started.append(Service(self.home, port).start())
+        return self.started[-1]
+
+
+@pytest.fixture(scope="module")
+def services(
+    tmp_path_factory: pytest.TempPathFactory, ray_connection: RayConnection, ray_home: Path
+) -> Iterator[Services]:
+    """The module's services, on a home of their own; each is killed at the end."""
+    home = tmp_path_factory.mktemp("round-trip") / "home"
+    home.mkdir()
+    for name in (STATE_FILE, TOKEN_FILE):
+        shutil.copy2(ray_home / name, home / name)
+    started = Services(home)
+    yield started
+    for each in started.started:
         each.kill()
 
 
 def test_submit_follow_download_and_load(
-    service: Callable[[], Service], tiny_job: Callable[..., dict], tmp_path: Path
+    services: Services, tiny_job: Callable[..., dict], tmp_path: Path
 ) -> None:
-    svc = service()
+    svc = services.running()
     (tmp_path / "scenes").mkdir()
     (tmp_path / "scenes" / "my-stand.yaml").write_text(
         yaml.safe_dump({**scene_fields("stand-2d"), "name": "my-stand"})
@@ -151,14 +175,14 @@ def _errors_are_one_line(svc: Service, tiny_job: Callable[..., dict], tmp_path: 
 
 
 def test_a_job_keeps_running_across_a_killed_service(
-    service: Callable[..., Service], tiny_job: Callable[..., dict], tmp_path: Path
+    services: Services, tiny_job: Callable[..., dict], tmp_path: Path
 ) -> None:
     """The job outlives its service, and a follower (``status --follow``) outlives the
     outage: the second service starts only once the follower has found the first gone, so
     the outage is seen however slowly the follower is scheduled. The service is killed at
     the first of 12 iterations: the job may end while the service is away (the second one
     then finds it ended, attempt 1), and the test waits for no more training than that."""
-    first = service()
+    first = services.running()
     headers = {"Authorization": f"Bearer {(first.home / 'token').read_text().strip()}"}
     spec = tiny_job(name="outlives", env_steps=256 * 12, every_iters=4)
     job = httpx.post(f"{first.server}/v1/jobs", json=spec, headers=headers).raise_for_status()
@@ -180,7 +204,7 @@ def test_a_job_keeps_running_across_a_killed_service(
             assert follower.poll() is None, follower_log.read_text()
             assert time.monotonic() < deadline, "the follower never found the service gone"
             time.sleep(0.2)
-        second = service(int(first.server.rsplit(":", 1)[1]))  # same home, port, Ray head
+        second = services.start(int(first.server.rsplit(":", 1)[1]))  # same home, port, head
         after = _wait(
             second, job_id, lambda s: (s.get("iteration") or 0) > before["iteration"], 120
         )

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import logging
 import shlex
+import shutil
 from pathlib import Path
 
 import pytest
@@ -46,25 +47,43 @@ def _newest_meta(tmp_path: Path):
     return load_checkpoint(latest_checkpoint(tmp_path / "run" / "checkpoints"))[1]
 
 
-def test_train_runs_a_job_and_resumes_from_its_run_dir(tmp_path: Path) -> None:
-    args = _train_args(tmp_path, "--max-iterations", "2")
-    result = runner.invoke(app, args, env={"COLUMNS": "200"})
+@pytest.fixture(scope="module")
+def first_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    """A run of 2 iterations (its folder, holding ``job.yaml`` and ``run``; and its output),
+    made once for the tests that resume it (each resumes a copy)."""
+    folder = tmp_path_factory.mktemp("first-run")
+    result = runner.invoke(
+        app, _train_args(folder, "--max-iterations", "2"), env={"COLUMNS": "200"}
+    )
     assert result.exit_code == 0, result.output
-    assert "stage 0 elbow-reach" in result.output
-    meta = _newest_meta(tmp_path)
+    return folder, result.output
+
+
+def _resumable(first_run: tuple[Path, str], tmp_path: Path) -> None:
+    """A copy of ``first_run``'s run directory at ``tmp_path/run``."""
+    shutil.copytree(first_run[0] / "run", tmp_path / "run")
+
+
+def test_train_runs_a_job_and_resumes_from_its_run_dir(
+    first_run: tuple[Path, str], tmp_path: Path
+) -> None:
+    assert "stage 0 elbow-reach" in first_run[1]
+    meta = _newest_meta(first_run[0])
     assert meta.iteration == 2 and meta.stage.index == 0
+    _resumable(first_run, tmp_path)
+    args = _train_args(tmp_path, "--max-iterations", "2")
     again = runner.invoke(app, args, env={"COLUMNS": "200"})
     assert again.exit_code == 0, again.output
     assert _newest_meta(tmp_path).iteration == 4, "the second run went on from the first's"
 
 
 def test_a_resume_with_another_job_names_what_changed(
-    tmp_path: Path, caplog: pytest.LogCaptureFixture
+    first_run: tuple[Path, str], tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
     """The checkpoint records the job it trained: a resume given another seed and override
     says which fields changed, old and new, and goes on with the job given."""
+    _resumable(first_run, tmp_path)
     args = _train_args(tmp_path, "--max-iterations", "1")
-    assert runner.invoke(app, args, env={"COLUMNS": "200"}).exit_code == 0
     caplog.set_level(logging.WARNING, logger="gaitforge.learner.run_state")
     changed = [*args[:-1], "--seed", "7", "--set", "ppo.epochs=2", "--no-tensorboard"]
     again = runner.invoke(app, changed, env={"COLUMNS": "200"})
@@ -73,17 +92,18 @@ def test_a_resume_with_another_job_names_what_changed(
     assert len(warnings) == 1 and "differs from the one it trained" in warnings[0]
     assert "ppo.epochs: 1 -> 2" in warnings[0] and "seed: 0 -> 7" in warnings[0]
     meta = _newest_meta(tmp_path)
-    assert meta.iteration == 2 and meta.job["seed"] == 7, "the run went on with the job given"
+    assert meta.iteration == 3 and meta.job["seed"] == 7, "the run went on with the job given"
 
 
 def test_a_resume_with_the_same_job_warns_of_nothing(
-    tmp_path: Path, caplog: pytest.LogCaptureFixture
+    first_run: tuple[Path, str], tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
+    _resumable(first_run, tmp_path)
     args = _train_args(tmp_path, "--max-iterations", "1")
-    assert runner.invoke(app, args, env={"COLUMNS": "200"}).exit_code == 0
     caplog.set_level(logging.WARNING, logger="gaitforge.learner.run_state")
     assert runner.invoke(app, args, env={"COLUMNS": "200"}).exit_code == 0
     assert not [r for r in caplog.records if "differs" in r.getMessage()]
+    assert _newest_meta(tmp_path).iteration == 3, "it resumed"
 
 
 def test_max_minutes_stops_training_with_a_checkpoint(tmp_path: Path) -> None:
