@@ -23,8 +23,9 @@ def test_the_stand_recipe_trains_on_an_imported_body_and_runs_on_both_simulators
             "workers.fragment_length": 64,
             "ppo.batch_env_steps": 256,
             "ppo.minibatch_size": 64,
+            "ppo.epochs": 1,
             "stages.0.env_steps": 512,
-            "stages.0.evaluate.episodes": 2,
+            "stages.0.evaluate.episodes": 1,
         },
         tensorboard=False,
     )
