@@ -58,18 +58,20 @@ def test_a_nan_in_the_batch_is_refused_naming_the_tensor() -> None:
 
 
 def test_elbow_reach_learns_in_process() -> None:
-    """40 iterations of 800 steps (about 15 s): the mean episode return rises by more than
-    half of the way from a random policy (about -70) towards 0."""
+    """25 iterations of 800 steps (about 8 s here) at a learning rate of 6e-4: the mean
+    episode return rises by more than half of the way from a random policy (about -70)
+    towards 0 (to -18 here; with seeds 1 and 2 for torch and the envs in place of 0, to -25
+    and -22: the bound is -35)."""
     torch.manual_seed(0)
     factory = _elbow_factory()
     worker = RolloutWorker(
         load_scene("elbow-reach").resolved(), factory, num_envs=8, fragment_length=100
     )
     policy = factory()
-    optimizer = torch.optim.Adam(policy.parameters(), lr=3e-4)
+    optimizer = torch.optim.Adam(policy.parameters(), lr=6e-4)
     cfg = PPOSettings(epochs=10, gamma=0.95, minibatch_size=200)
     returns = []
-    for version in range(40):
+    for version in range(25):
         fragment = worker.sample(policy.state_dict(), version)
         returns.append(float(fragment.episode_return.mean()))
         policy.norm.update(torch.from_numpy(fragment.flat_obs()))

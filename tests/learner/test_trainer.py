@@ -61,7 +61,7 @@ def test_resume_after_sigkill_continues_the_step_count(tmp_path: Path) -> None:
     killed_at, steps_at = meta.iteration, meta.env_steps
     trained_s = meta.metrics["train_s"]
     assert meta.scene_spec().name == "elbow-reach"
-    time.sleep(2.0)  # the time between a stop and its resume is not training
+    time.sleep(0.5)  # the time between a stop and its resume is not training
 
     before_resume = time.monotonic()
     resumed = Trainer(elbow_job(), tmp_path, tensorboard=False)
@@ -77,15 +77,19 @@ def test_resume_after_sigkill_continues_the_step_count(tmp_path: Path) -> None:
 
 
 def test_the_loop_runs_over_a_ray_pool(tmp_path: Path) -> None:
+    """One actor (2 envs: a batch is two of its fragments), so that the lags below hold
+    whatever the timing: with two, one that starts late has its first requests (queued
+    before the first weights, dropped) replaced by requests with the newest weights, and a
+    later batch holds an on-policy fragment (lags [0, 1, 0.5] were seen under load)."""
     ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR")
     try:
-        history = Trainer(elbow_job(num_workers=2, envs=2), tmp_path).run(max_iterations=3)
+        history = Trainer(elbow_job(num_workers=1, envs=2), tmp_path).run(max_iterations=3)
     finally:
         ray.shutdown()
     assert [h["env_steps"] for h in history] == [200, 400, 600]
-    # each actor keeps two requests queued with the weights of when they were queued: the
+    # the actor keeps two requests queued with the weights of when they were queued: the
     # first batch comes from the first weights, every later one from weights an update old
     lags = [h["policy_lag"] for h in history]
-    assert lags[:2] == [0.0, 1.0] and lags[2] >= 1.0, lags
+    assert lags == [0.0, 1.0, 1.0], lags
     assert latest_checkpoint(tmp_path / "checkpoints").name == "ckpt-000000000600"
     assert list((tmp_path / "tb").glob("events.out.tfevents.*")), "TensorBoard scalars written"

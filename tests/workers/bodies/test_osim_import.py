@@ -12,7 +12,6 @@ import opensim
 import pytest
 import yaml
 from gaitforge.service.cli import app
-from gaitforge.service.ops.bodies import convert
 from gaitforge.workers.bodies import load_body
 from gaitforge.workers.bodies.functions import evaluate
 from gaitforge.workers.bodies.osim_import import import_osim
@@ -26,6 +25,8 @@ from gaitforge.workers.sim.opensim.build import build_model
 from gaitforge.workers.spec_io import SpecError
 from numpy.polynomial.polynomial import polyval
 from typer.testing import CliRunner
+
+from tests.workers.converted import converted
 
 MODELS = Path(__file__).resolve().parents[3] / "examples" / "models"
 EXPECTED = {  # model: (free dofs, coupled dofs, muscles)
@@ -57,8 +58,9 @@ def test_every_example_model_imports_quickly_and_whole(model: str) -> None:
 
 @pytest.mark.parametrize("model", sorted(EXPECTED))
 def test_every_imported_body_builds_on_both_simulators(model: str) -> None:
-    """With MuJoCo's stand-ins fitted (``convert``, what ``bodies import`` writes)."""
-    body = convert(MODELS / f"{model}.osim").body
+    """With MuJoCo's stand-ins fitted (``convert``, what ``bodies import`` writes; once per
+    session, ``tests.workers.converted``)."""
+    body = converted(model).body
     mujoco_model = build_spec(body).compile()
     assert mujoco_model.ntendon == len(body.muscles)
     plan = PrunePlan(
@@ -299,7 +301,7 @@ def test_the_patellar_insertion_rides_a_carrier_that_keeps_the_quadriceps_moment
     fixed at its default place misses it (7-9 mm); the other stand-ins fitted (``convert``)
     in both."""
     model = MODELS / "gait10dof18musc.osim"
-    body = convert(model).body
+    body = converted("gait10dof18musc").body
     vasti = next(m for m in body.muscles if m.name == "vasti_r")
     index, point = next((i, p) for i, p in enumerate(vasti.path) if p.moves_with)
     assert point.stand_in is not None and point.stand_in.follow is not None
