@@ -66,7 +66,12 @@ DEFAULT_MINUTES = {"elbow-reach": 3.0, "stand-2d": 5.0, "walk-2d": 30.0}
 
 
 def run_gaitforge(
-    job: Job, scenes: list[Scene], minutes: float, out: Path, eval_episodes: int
+    job: Job,
+    scenes: list[Scene],
+    judged: dict[int, Scene],
+    minutes: float,
+    out: Path,
+    eval_episodes: int,
 ) -> dict:
     curve: list[dict] = []
     start = time.monotonic()
@@ -89,7 +94,7 @@ def run_gaitforge(
         )
         console.log(f"gaitforge {job.name}: {curve[-1]}")
 
-    trainer = Trainer(job, out, scenes, on_iteration=record, tensorboard=False)
+    trainer = Trainer(job, out, scenes, judged, on_iteration=record, tensorboard=False)
     history = trainer.run(max_seconds=minutes * 60)
     reached = next(
         (h for h in history if h["stage"] == last and (h["verdict"] or "").startswith("promoted")),
@@ -329,7 +334,7 @@ def main() -> None:
     for task_arg, budget in zip(args.tasks, minutes, strict=True):
         job_file = Path(task_arg) if task_arg.endswith((".yaml", ".yml")) else None
         task = job_file.stem if job_file else task_arg
-        job, scenes, _ = load_job(job_file or EXAMPLES / f"{task}.yaml")
+        job, scenes, judged = load_job(job_file or EXAMPLES / f"{task}.yaml")
         rules = job.stages[-1].promote
         runs = {}
         for seed in [] if args.no_gaitforge else args.seeds:
@@ -339,7 +344,7 @@ def main() -> None:
             seeded = Job.model_validate(raw)
             run_dir = args.out / "runs" / task / f"seed-{seed}"
             runs[f"gaitforge seed {seed}"] = run_gaitforge(
-                seeded, scenes, budget, run_dir, args.eval_episodes
+                seeded, scenes, judged, budget, run_dir, args.eval_episodes
             )
         if not args.no_rllib:
             raw = job.model_dump()

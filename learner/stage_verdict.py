@@ -99,15 +99,6 @@ class StageVerdict:
             text += "; confirmed: " + ", ".join(str(figure) for figure in self.confirmed)
         return text
 
-    def with_evaluations(
-        self, evaluation: dict[str, float], confirmation: dict[str, float] | None = None
-    ) -> StageVerdict:
-        """This verdict, decided at an evaluation (and its confirmation, if one ran)."""
-        return replace(self, evaluation=evaluation, confirmation=confirmation)
-
-    def with_kept(self, kept: KeptNetwork) -> StageVerdict:
-        return replace(self, kept=kept)
-
     def failed(self, shortfall: str) -> StageVerdict:
         """This verdict (its budget spent) as a failure, ``shortfall`` saying why."""
         assert self.outcome is Outcome.BUDGET_SPENT

@@ -86,19 +86,19 @@ class StageJudging:
         evaluation = judge.evaluate(run.policy, run.curriculum.stage_env_steps)
         metrics.update(evaluation)
         run.curriculum.evaluation = evaluation
-        verdict = run.curriculum.verdict(run.stage, evaluation).with_evaluations(evaluation)
+        verdict = run.curriculum.verdict(run.stage, evaluation)
+        confirmation = None
         if judge.promotes_on_evaluation and verdict.promoted:
             confirmation = judge.confirm(run.policy, run.iteration)
             metrics.update({f"{CONFIRMATION_KEY}{k}": v for k, v in confirmation.items()})
             confirmed = run.curriculum.verdict(run.stage, confirmation)
-            if confirmed.promoted:
-                verdict = replace(verdict, confirmed=confirmed.figures)
-            else:
-                verdict = confirmed
-            verdict = verdict.with_evaluations(evaluation, confirmation)
+            verdict = (
+                replace(verdict, confirmed=confirmed.figures) if confirmed.promoted else confirmed
+            )
+        verdict = replace(verdict, evaluation=evaluation, confirmation=confirmation)
         metrics["verdict"] = verdict.text  # the kept network's meta holds it
         kept = judge.judge(run.policy, verdict, metrics, run.meta(metrics), run.env_steps)
-        return verdict if kept is None else verdict.with_kept(kept)
+        return verdict if kept is None else replace(verdict, kept=kept)
 
 
 def record_due(run: RunState, verdict: StageVerdict, checkpoint: Path | None) -> Path | None:
