@@ -1,5 +1,5 @@
-"""The ``gaitforge`` command line: ``scenes``, ``bodies``, ``train``, ``evaluate``, ``ship`` and
-``fidelity``; the REST service (``serve``) and its client (``submit``, ``jobs``,
+"""The ``gaitforge`` command line: ``scenes``, ``bodies``, ``train``, ``tune``, ``evaluate``,
+``ship`` and ``fidelity``; the REST service (``serve``) and its client (``submit``, ``jobs``,
 ``status``, ``logs``, ``cancel``, ``resume``, ``download``).
 
 Commands parse their arguments, call :mod:`gaitforge.service.ops` and print: results to
@@ -19,6 +19,7 @@ from gaitforge.service.scene_commands import scenes_app
 from gaitforge.service.serve_commands import serve
 from gaitforge.service.ship_commands import ship
 from gaitforge.service.train_commands import train
+from gaitforge.service.tune_commands import tune
 
 app = typer.Typer(
     help="gaitforge: train muscle-driven bodies on heavy simulators.",
@@ -30,6 +31,7 @@ app.add_typer(bodies_app, name="bodies")
 app.add_typer(fidelity_app, name="fidelity")
 app.command("evaluate")(evaluate)
 app.command("train")(train)
+app.command("tune")(tune)
 app.command("serve")(serve)
 app.command("ship")(ship)
 register_client(app)

@@ -12,7 +12,8 @@ otherwise.
 Action (``env.act_names``): excitations [n_muscles] in [0, 1]; or, with ``action.kind:
 joint_targets``, targets [n_dofs] in [0, 1] around a base pose that the reflex layer
 (``workers.reflex``) turns into excitations (``prev_exc`` then holds the step's mean
-excitations, and the effort terms use them).
+excitations, and the effort terms use them); or, with ``reflex_gait``, a residual [n_muscles]
+added to the reflex gait controller's excitations (``workers.gait_reflex``; 0.5 adds nothing).
 
 Every step's info holds ``distance`` (m the pelvis went forward since the reset), ``turned``
 (rad the pelvis turned about the vertical since the reset, counter-clockwise seen from above;
@@ -38,14 +39,17 @@ from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
+from gaitforge.workers.bodies.reflex_wiring import load_wiring
 from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.gait_clock import GaitClock
+from gaitforge.workers.gait_reflex import GaitReflex
 from gaitforge.workers.imitation import Imitation
 from gaitforge.workers.motions import MotionState
 from gaitforge.workers.reflex import ReflexLayer
 from gaitforge.workers.rewards import StepContext, reward_terms, term_names, weighted
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.scenes.io_names import OBSERVATION, action_layout, observation_parts
+from gaitforge.workers.scenes.reflex_parameters import parameter_vector
 from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.base import HEALTHY, Health, SimState
 from gaitforge.workers.sim.pose import pelvis_frame, turn_about_up
@@ -99,6 +103,7 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         )
         targets = self.scene.action.targets
         self.reflex = ReflexLayer(self.scene.action, self.sim) if targets else None
+        self.gait = self._gait_controller() if self.scene.action.gait else None
         self.act_names = action_layout(self.scene, self.sim.dof_names, self.sim.muscle_names)
         self.action_space = gym.spaces.Box(0.0, 1.0, (len(self.act_names),), dtype=np.float32)
         defaults = topology_for(self.scene.body).dof_defaults
@@ -132,6 +137,9 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
                 self.sim.set_pose(pose)
         elif self.clock is not None:
             self.clock.start(self.np_random)
+        if self.gait is not None:
+            self.sim.set_pose(self.gait.start_pose(self.np_random, self.scene.init_noise))
+            self.gait.reset()
         self._state = self.sim.state()
         if self.clock is not None:
             info["clock"] = self._clock_info()
@@ -154,11 +162,15 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             raise RuntimeError("call reset() before step()")
         self._steps += 1
         truncated = self._steps >= self.scene.steps_per_episode
-        if self.reflex is None:
-            excitation = np.clip(np.nan_to_num(np.asarray(action, dtype=np.float64)), 0.0, 1.0)
-            health = self.sim.step(excitation, self.dt)
-        else:
+        if self.reflex is not None:
             excitation, health = self._step_reflex(action)
+        else:
+            excitation = np.nan_to_num(np.asarray(action, dtype=np.float64))
+            if self.gait is not None:
+                residual = (2.0 * np.clip(excitation, 0.0, 1.0) - 1.0) * self.scene.action.residual
+                excitation = self.gait(self._state) + residual
+            excitation = np.clip(excitation, 0.0, 1.0)
+            health = self.sim.step(excitation, self.dt)
         state = self.sim.state() if health.ok else None
         if state is not None and not state.is_finite():
             health, state = Health("nan_state"), None
@@ -212,6 +224,22 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             ended = fell or not kept
         return self._obs.copy(), float(sum(terms.values())), ended, truncated and not ended, info
 
+    def _gait_controller(self) -> GaitReflex:
+        """The scene's reflex gait controller (``action.kind: reflex_gait``).
+
+        Raises:
+            ValueError: the wiring is another body's, or names what the scene does not keep.
+        """
+        action = self.scene.action
+        wiring = load_wiring(self.scene.body, action.wiring)
+        if wiring.body != self.scene.body:
+            raise ValueError(
+                f"action.wiring {action.wiring!r} wires body {wiring.body!r}, "
+                f"not the scene's {self.scene.body!r}"
+            )
+        parameters = parameter_vector(action.parameters)
+        return GaitReflex(wiring, self.sim, self.scene.control_hz, parameters)
+
     def _step_reflex(self, action: np.ndarray) -> tuple[np.ndarray, Health]:
         """One control step through the reflex layer: the targets' base is the motion's pose
         at the step's end (with the gait clock; blended from the default pose while a standing
@@ -223,6 +251,11 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             base, speeds = self.clock.target_base(self._steps, self.sim.dof_names, base)
         self.reflex.set_targets(action, base, speeds)
         return self.sim.step_reflex(self.reflex, self.dt, self.scene.reflex_chunks)
+
+    @property
+    def excitation(self) -> np.ndarray:
+        """[n_muscles] in [0, 1]: the excitations of the last step (zeros after a reset)."""
+        return self._prev_excitation
 
     def target_speed(self) -> float | None:
         """The target_speed term's target (m/s) for the step just taken (the scene's, or with

@@ -18,6 +18,11 @@ Failures are counted in :class:`PoolStats` and end a run only when they keep com
 * an actor past ``max_worker_rss_mib`` of memory or ``max_worker_steps`` env steps gets no
   new requests and is replaced once its queued ones are back (recycled, no work lost).
 
+The same actors score reflex controller candidates (``score_candidates``, a CMA-ES
+generation): one candidate per actor at a time, and a candidate whose actor dies or hangs
+is re-run on its replacement, not the generation. A pool made with ``queue_depth=0`` queues
+no fragments until ``start_sampling``.
+
 The pool asks for no more actors than a cluster that cannot grow has CPUs (one each): on a
 Ray this driver started, more raise ``SpecError`` at once (they would wait forever); on a
 cluster it joined, an autoscaler may add nodes for them (a warning is logged).
@@ -33,8 +38,10 @@ from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 import ray
 from gaitforge.workers.fragment import Fragment, StopRequested
+from gaitforge.workers.gait_measure import CandidateScore, GaitMeasure
 from gaitforge.workers.ray_start import start_ray
 from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
 from gaitforge.workers.scenes import Scene
@@ -208,6 +215,80 @@ class WorkerPool:
                 return fragment, fragment.policy_version
             self._kill_overdue()
         raise TimeoutError(f"no fragment within {timeout_s} s")
+
+    def start_sampling(self, queue_depth: int = 2) -> None:
+        """Queue ``queue_depth`` fragment requests on every actor from now on (a pool made
+        with ``queue_depth=0`` for candidates, now training a policy)."""
+        self.queue_depth = queue_depth
+        for slot in self._slots:
+            slot.progress_at = time.monotonic()
+            self._fill(slot)
+
+    def score_candidates(
+        self,
+        candidates: list[np.ndarray],
+        seeds: list[int],
+        measure: GaitMeasure,
+        stop: threading.Event | None = None,
+    ) -> list[CandidateScore]:
+        """Each candidate's score (``RolloutWorker.score``), in order: one at a time per
+        actor, the next handed to whichever actor is free. A candidate whose actor dies, or
+        takes over ``timeout_s`` once its actor is up, is re-run on the replacement (counted
+        as a failure, as fragments are).
+
+        Raises:
+            StopRequested: ``stop`` was set.
+            ActorFailureError: too many failures (see the module docstring).
+        """
+        pending = deque(range(len(candidates)))
+        scores: list[CandidateScore | None] = [None] * len(candidates)
+        running: dict[ray.ObjectRef, tuple[_Slot, int]] = {}
+        since: dict[int, float] = {}
+        """id(slot) -> when its running candidate's clock started"""
+        while pending or running:
+            busy = {id(slot) for slot, _ in running.values()}
+            for slot in self._slots:
+                if pending and id(slot) not in busy:
+                    index = pending.popleft()
+                    ref = slot.actor.score.remote(candidates[index], seeds, measure)
+                    running[ref] = (slot, index)
+                    since[id(slot)] = time.monotonic()
+            ready, _ = ray.wait(list(running), num_returns=1, timeout=POLL_S)
+            if stop is not None and stop.is_set():
+                raise StopRequested
+            for ref in ready:
+                slot, index = running.pop(ref)
+                try:
+                    score = ray.get(ref)
+                except RayError as exc:
+                    self._on_death(slot, exc)
+                    pending.appendleft(index)
+                    continue
+                scores[index] = score
+                self.stats.env_steps += score.env_steps
+            now = time.monotonic()
+            for ref, (slot, index) in list(running.items()):
+                if not slot.up:
+                    done, _ = ray.wait([slot.started], timeout=0)
+                    if done:
+                        slot.started, since[id(slot)] = None, now
+                    continue
+                if now - since[id(slot)] > self.timeout_s:
+                    logger.warning(
+                        "rollout actor %d: candidate %d not scored in %.0f s, replacing it",
+                        slot.worker_id,
+                        index,
+                        self.timeout_s,
+                    )
+                    self.stats.timeouts += 1
+                    del running[ref]
+                    self._count_failure(
+                        f"actor {slot.worker_id} hung: no score in {self.timeout_s:g} s "
+                        "(workers.timeout_s)"
+                    )
+                    self._replace(slot)
+                    pending.appendleft(index)
+        return [score for score in scores if score is not None]
 
     @property
     def num_workers(self) -> int:

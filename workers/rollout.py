@@ -20,6 +20,7 @@ import numpy as np
 import torch
 from gaitforge.workers.env import MuscleEnv
 from gaitforge.workers.fragment import Fragment
+from gaitforge.workers.gait_measure import CandidateScore, GaitMeasure, score_candidate
 from gaitforge.workers.policy_api import RolloutPolicy
 from gaitforge.workers.probe import process_rss_mib
 from gaitforge.workers.scenes import Scene
@@ -171,6 +172,15 @@ class RolloutWorker:
             rss_mib=process_rss_mib(),
             pid=os.getpid(),
         )
+
+    def score(
+        self, parameters: np.ndarray, seeds: list[int], measure: GaitMeasure
+    ) -> CandidateScore:
+        """One reflex controller candidate's score: ``parameters`` [n_parameters], one
+        episode per seed on the first env (``workers.gait_measure.score_candidate``)."""
+        score = score_candidate(self.envs[0], parameters, seeds, measure)
+        self.steps_total += score.env_steps
+        return score
 
     def sim_profile(self) -> FidelityProfile:
         """The fidelity profile this worker's simulators integrate with."""

@@ -179,3 +179,34 @@ def test_worn_actors_are_recycled() -> None:
         assert pool.stats.actor_deaths == 0 and pool.stats.reissued == 0
     finally:
         pool.close()
+
+
+def test_a_candidate_whose_actor_dies_mid_generation_is_rerun_not_the_generation() -> None:
+    """CMA-ES candidates on the pool's actors: one actor is killed once the first score is
+    back (the others still running or waiting); its candidate is scored again on the
+    replacement and every other score is kept."""
+    no_falls = {"episode_s": 2.0, "task.min_pelvis_height": 0.01}  # every episode runs 2 s
+    scene = load_scene("reflex-walk-3d", overrides=no_falls).resolved()
+    policy = functools.partial(UniformExcitationPolicy, 22)
+    pool = WorkerPool(scene, policy, num_workers=2, envs_per_worker=1, queue_depth=0)
+    try:
+        from gaitforge.workers.gait_measure import GaitMeasure
+        from gaitforge.workers.scenes.reflex_parameters import DEFAULTS
+
+        def kill_after_the_first_score() -> None:
+            while pool.stats.env_steps == 0:
+                time.sleep(0.01)
+            ray.kill(pool._slots[0].actor, no_restart=True)
+
+        candidates = [DEFAULTS.copy() for _ in range(16)]
+        killer = threading.Thread(target=kill_after_the_first_score)
+        killer.start()
+        scores = pool.score_candidates(candidates, [1, 2], GaitMeasure())
+        killer.join()
+    finally:
+        pool.close()
+    assert len(scores) == 16
+    assert pool.stats.actor_deaths == 1 and pool.stats.actors_started == 3
+    # the same parameters on the same starts score the same wherever they ran
+    costs = [s.cost for s in scores]
+    assert max(costs) - min(costs) < 1e-9

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,6 +30,7 @@ from gaitforge.workers.bodies.schema import (
     Coupling,
     Dof,
     Joint,
+    JointLimit,
     Segment,
 )
 
@@ -265,4 +267,48 @@ def read_joints(ctx: ImportContext) -> list[Joint]:
             f"coordinate {name!r} follows {ctx.coords.couplers[name][0]!r} (coordinate "
             "coupler): its axes are dofs coupled to that coordinate"
         )
-    return joints
+    limits = read_limit_forces(ctx)
+    return [
+        joint.model_copy(
+            update={
+                "dofs": [
+                    d.model_copy(update={"limit": limits[d.name]}) if d.name in limits else d
+                    for d in joint.dofs
+                ]
+            }
+        )
+        for joint in joints
+    ]
+
+
+def read_limit_forces(ctx: ImportContext) -> dict[str, JointLimit]:
+    """Each CoordinateLimitForce of the model as its coordinate's :class:`JointLimit`.
+
+    OpenSim gives a rotational coordinate's limits and transition in degrees and its
+    stiffness and damping per degree: they are turned into radians. The schema has one
+    stiffness for both sides: where they differ the larger is kept, and the report says so.
+    """
+    import opensim
+
+    limits: dict[str, JointLimit] = {}
+    for force in items(ctx.model.getForceSet()):
+        limit = opensim.CoordinateLimitForce.safeDownCast(force)
+        if limit is None or not force.get_appliesForce():
+            continue
+        name = limit.get_coordinate()
+        rotational = ctx.coords.info[name].getMotionType() == opensim.Coordinate.Rotational
+        per = math.degrees(1.0) if rotational else 1.0
+        to_si = math.radians(1.0) if rotational else 1.0
+        upper, lower = limit.get_upper_stiffness(), limit.get_lower_stiffness()
+        if upper != lower:
+            ctx.report.approximated.append(
+                f"{force.getAbsolutePathString()}: upper and lower stiffness {upper} and "
+                f"{lower} as one, {max(upper, lower)} (per degree or metre)"
+            )
+        limits[name] = JointLimit(
+            range=(limit.get_lower_limit() * to_si, limit.get_upper_limit() * to_si),
+            stiffness=max(upper, lower) * per,
+            damping=limit.get_damping() * per,
+            transition=limit.get_transition() * to_si,
+        )
+    return limits

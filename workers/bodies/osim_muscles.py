@@ -308,6 +308,8 @@ def read_muscles(ctx: ImportContext, wraps: dict[str, WrapObject]) -> list[Muscl
     for force in items(force_set):
         where = force.getAbsolutePathString()
         muscle = opensim.Muscle.safeDownCast(force)
+        if opensim.CoordinateLimitForce.safeDownCast(force) is not None:
+            continue  # the dof's limit (osim_joints.read_limit_forces)
         if muscle is None:
             ctx.report.dropped.append(
                 f"{where}: {force.getConcreteClassName()} (only muscles are imported)"

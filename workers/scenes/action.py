@@ -14,14 +14,23 @@ joint speeds the speed targets) in imitation scenes, else the body's default sta
 should go, which cuts the exploration from one dimension per muscle to one per dof
 (Peng and van de Panne 2017 found target angles learn faster than torques for the same
 motions).
+
+``reflex_gait``: a spinal reflex gait controller (``workers.gait_reflex``, after Song and
+Geyer 2015) makes the excitations each control step from the body's sensed muscle forces
+and lengths, foot loads, joint angles and trunk lean, with the named ``parameters`` (the
+rest at their defaults) and the body's ``wiring``. The policy's action [n_muscles] in
+[0, 1] adds ``(2 a - 1) * residual`` to each muscle's excitation (``a = 0.5`` adds nothing),
+so that PPO can learn on top of a tuned controller. Episodes start from the controller's
+start pose (``pose.*`` parameters), at rest.
 """
 
 from __future__ import annotations
 
 from typing import Annotated, Literal
 
+from gaitforge.workers.scenes.reflex_parameters import parameter_vector
 from gaitforge.workers.spec_types import SPEC_VALUES
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 Positive = Annotated[float, Field(gt=0)]
 
@@ -31,7 +40,7 @@ class ActionSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid", **SPEC_VALUES)
 
-    kind: Literal["excitations", "joint_targets"] = "excitations"
+    kind: Literal["excitations", "joint_targets", "reflex_gait"] = "excitations"
     kp: Annotated[float, Field(ge=0)] = Field(
         default=8.0, description="joint_targets: excitation per rad of angle error"
     )
@@ -46,6 +55,29 @@ class ActionSpec(BaseModel):
         description="joint_targets: how often the reflex layer recomputes the excitations",
     )
 
+    wiring: str | None = Field(
+        default=None,
+        description="reflex_gait: a wiring file (default: the one shipped for the body)",
+    )
+    parameters: dict[str, float] = Field(
+        default_factory=dict,
+        description="reflex_gait: controller parameters by name (the rest at their defaults)",
+    )
+    residual: Annotated[float, Field(ge=0, le=1)] = Field(
+        default=0.2, description="reflex_gait: the policy's excitation span either side of 0"
+    )
+
+    @model_validator(mode="after")
+    def _check_gait(self) -> ActionSpec:
+        if self.kind != "reflex_gait" and (self.wiring is not None or self.parameters):
+            raise ValueError("action.wiring and action.parameters are for kind reflex_gait")
+        parameter_vector(self.parameters)  # names and bounds
+        return self
+
     @property
     def targets(self) -> bool:
         return self.kind == "joint_targets"
+
+    @property
+    def gait(self) -> bool:
+        return self.kind == "reflex_gait"

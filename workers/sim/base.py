@@ -183,6 +183,11 @@ class Simulator(Protocol):
         """[n_muscles, n_dofs]: each muscle's moment arm about each kept dof now (m; the
         joint torque per newton of tension, signed as the dof's axis)."""
 
+    def muscle_sensors(self) -> tuple[np.ndarray, np.ndarray]:
+        """What a muscle's spindles and tendon organs sense now: each muscle's fibre length
+        as a fraction of its optimal length, and its tension as a fraction of its maximum
+        isometric force ([n_muscles] each, dimensionless; ``workers.gait_reflex``)."""
+
     def set_pose(self, pose: Pose) -> None:
         """Put the body in ``pose`` (kept dofs, pelvis height and orientation, speeds) where
         it stands now along the ground (forward position kept, lateral 0); lifted if a

@@ -143,7 +143,7 @@ def _add_segments(spec: mujoco.MjSpec, body: Body) -> dict[str, mujoco.MjsBody]:
                 axis=list(dof.axis),
                 range=list(dof.limit.range if dof.limit else dof.range),
                 limited=mujoco.mjtLimited.mjLIMITED_TRUE
-                if dof.limited and not in_world and dof.coupled is None
+                if (dof.limited or dof.limit is not None) and not in_world and dof.coupled is None
                 else 0,
             )
         if seg.length_hint > 0:

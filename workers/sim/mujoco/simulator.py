@@ -257,6 +257,18 @@ class MujocoSimulator:
         # MuJoCo's muscle force is negative in tension: torque = moment * force
         return -dense[:, self._vadr]
 
+    def muscle_sensors(self) -> tuple[np.ndarray, np.ndarray]:
+        """See ``Simulator.muscle_sensors``. MuJoCo's muscle maps its actuator length onto a
+        normalised fibre length through ``lengthrange`` and ``range`` (``gainprm[:2]``; see
+        ``workers.sim.mujoco.build``); its peak force is ``gainprm[2]`` and its force is
+        negative in tension. At the last step's pose and speeds."""
+        m, d = self.model, self.data
+        lo, hi = m.actuator_lengthrange[:, 0], m.actuator_lengthrange[:, 1]
+        r0, r1 = m.actuator_gainprm[:, 0], m.actuator_gainprm[:, 1]
+        optimal = (hi - lo) / (r1 - r0)
+        length = r0 + (d.actuator_length - lo) / optimal
+        return length, -d.actuator_force / m.actuator_gainprm[:, 2]
+
     def set_pose(self, pose: Pose) -> None:
         """See ``Simulator.set_pose`` and ``workers.sim.mujoco.pose``."""
         check_pose_names(pose, self.scene.body, self.dof_names, self._locked)

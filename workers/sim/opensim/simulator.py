@@ -235,6 +235,16 @@ class OpenSimSimulator:
         self.model.realizePosition(state)
         return np.array([[m.computeMomentArm(state, c) for c in self._kept] for m in self._muscles])
 
+    def muscle_sensors(self) -> tuple[np.ndarray, np.ndarray]:
+        """See ``Simulator.muscle_sensors``: OpenSim's normalised fibre length and tendon force
+        over the maximum isometric force."""
+        state = self.osim_state
+        self.model.realizeDynamics(state)
+        length = np.array([m.getNormalizedFiberLength(state) for m in self._muscles])
+        force = np.array([m.getTendonForce(state) for m in self._muscles])
+        force /= np.array([m.getMaxIsometricForce() for m in self._muscles])
+        return length, force
+
     def state(self) -> SimState:
         state = self.osim_state
         self.model.realizeDynamics(state)

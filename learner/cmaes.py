@@ -1,0 +1,289 @@
+"""CMA-ES on a reflex gait controller's parameters, one simulation per candidate on the
+rollout actors.
+
+The search runs in the unit cube: each parameter's ``[low, high]``
+(``workers.scenes.reflex_parameters``) is mapped onto ``[0, 1]`` and the ``cma`` package
+keeps candidates inside it, so that one ``sigma`` means the same share of every range. It
+starts at the scene's parameters (``action.parameters``, the rest at their defaults). Each
+generation draws fresh reset seeds shared by all its candidates (they are compared on the
+same starts); each candidate is scored over ``episodes`` episodes of the scene with its
+reset noise by the named measure (``workers.gait_measure``), on a :class:`WorkerPool`
+(whose dead or hung actors cost their candidate a re-run, not the generation) or, with no
+pool, in this process.
+
+A run directory holds ``cmaes/state.pkl`` (the optimiser, written after every generation:
+a stopped run resumes from it), ``cmaes/progress.csv`` (one row a generation: best, mean
+and sigma, and the best candidate's parts), TensorBoard scalars under ``tb/`` and
+``cmaes/tuned.yaml``, the scene with the distribution's mean as its parameters (the
+optimiser's estimate of the optimum: on a noisy measure, steadier than the best sample).
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import pickle
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import cma
+import numpy as np
+import yaml
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.gait_measure import CandidateScore, GaitMeasure, score_candidate
+from gaitforge.workers.scenes import Scene
+from gaitforge.workers.scenes.reflex_parameters import (
+    LOWER,
+    UPPER,
+    parameter_values,
+    parameter_vector,
+)
+from pydantic import BaseModel, ConfigDict, Field
+
+if TYPE_CHECKING:
+    from gaitforge.workers.pool import WorkerPool
+
+logger = logging.getLogger(__name__)
+
+STATE_FILE = "state.pkl"
+PROGRESS_FILE = "progress.csv"
+TUNED_FILE = "tuned.yaml"
+
+
+class CmaesSettings(BaseModel):
+    """How a reflex controller is tuned."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    population: Annotated[int, Field(ge=2, le=1024)] = 16
+    generations: Annotated[int, Field(ge=1, le=100_000)] = 200
+    minutes: Annotated[float, Field(gt=0)] | None = Field(
+        default=None, description="stop after this much wall-clock time (with the state kept)"
+    )
+    sigma: Annotated[float, Field(gt=0, le=0.5)] = Field(
+        default=0.1, description="initial step, as a share of each parameter's range"
+    )
+    episodes: Annotated[int, Field(ge=1, le=100)] = Field(
+        default=3, description="episodes per candidate, each from its own noisy start"
+    )
+    measure: GaitMeasure = GaitMeasure()
+    seed: int = 0
+
+
+@dataclass
+class Generation:
+    """One generation's summary."""
+
+    generation: int
+    best: float
+    mean: float
+    sigma: float
+    best_parts: dict[str, float]
+    env_steps: int
+    wall_s: float
+
+    def row(self) -> dict[str, float]:
+        parts = {f"best_{k}": v for k, v in self.best_parts.items() if k != "cost"}
+        return {
+            "generation": self.generation,
+            "best": self.best,
+            "mean": self.mean,
+            "sigma": self.sigma,
+            **parts,
+            "env_steps": self.env_steps,
+            "wall_s": self.wall_s,
+        }
+
+
+@dataclass
+class _Saved:
+    """What ``state.pkl`` holds."""
+
+    strategy: cma.CMAEvolutionStrategy
+    generation: int = 0
+    env_steps: int = 0
+    wall_s: float = 0.0
+    best_cost: float = float("inf")
+    best_parameters: np.ndarray | None = None
+    history: list[Generation] = field(default_factory=list)
+
+
+def to_unit(parameters: np.ndarray) -> np.ndarray:
+    """Parameters [n] -> the unit cube [n]."""
+    return (parameters - LOWER) / (UPPER - LOWER)
+
+
+def from_unit(x: np.ndarray) -> np.ndarray:
+    """The unit cube [n] -> parameters [n] (clipped to the bounds)."""
+    return LOWER + np.clip(x, 0.0, 1.0) * (UPPER - LOWER)
+
+
+class CmaesTuning:
+    """Tunes ``scene``'s reflex gait controller into ``out_dir`` (see the module docstring).
+
+    Args:
+        scene: a resolved scene with ``action.kind: reflex_gait``.
+        settings: the search's settings.
+        out_dir: where ``cmaes/`` and ``tb/`` go; an existing state there is resumed.
+        pool: actors to score on (their scene must be ``scene``); None scores in-process.
+        backend: the simulator, for in-process scoring.
+        tensorboard: write TensorBoard scalars.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        settings: CmaesSettings,
+        out_dir: Path,
+        pool: WorkerPool | None = None,
+        backend: str = "mujoco",
+        tensorboard: bool = True,
+    ) -> None:
+        if not scene.action.gait:
+            raise ValueError(f"scene {scene.name!r}: action.kind is not reflex_gait")
+        self.scene = scene
+        self.settings = settings
+        self.dir = out_dir / "cmaes"
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.pool = pool
+        self._env = None if pool is not None else MuscleEnv(scene, backend)
+        self._stop = threading.Event()
+        self._writer = None
+        if tensorboard:
+            from torch.utils.tensorboard import SummaryWriter  # lazy: imports tensorboard
+
+            self._writer = SummaryWriter(str(out_dir / "tb"))
+        self.saved = self._load() or self._start()
+
+    def _start(self) -> _Saved:
+        x0 = to_unit(parameter_vector(self.scene.action.parameters))
+        options = {
+            "popsize": self.settings.population,
+            "bounds": [0.0, 1.0],
+            "seed": self.settings.seed + 1,  # cma reads 0 as "from the clock"
+            "verbose": -9,
+        }
+        return _Saved(strategy=cma.CMAEvolutionStrategy(x0, self.settings.sigma, options))
+
+    def _load(self) -> _Saved | None:
+        path = self.dir / STATE_FILE
+        if not path.exists():
+            return None
+        with path.open("rb") as f:
+            saved = pickle.load(f)  # written by this class into the run's own directory
+        logger.info("cmaes: resuming at generation %d", saved.generation)
+        return saved
+
+    def request_stop(self) -> None:
+        """Stop after the generation being scored is dropped; the state stays as it was."""
+        self._stop.set()
+
+    @property
+    def done(self) -> bool:
+        return self.saved.generation >= self.settings.generations
+
+    def run(self) -> list[Generation]:
+        """Generations until ``generations`` are done, ``minutes`` have passed (counting
+        the time before a resume) or a stop is requested; returns those run now."""
+        ran: list[Generation] = []
+        while not self.done and not self._stop.is_set():
+            minutes = self.settings.minutes
+            if minutes is not None and self.saved.wall_s >= 60.0 * minutes:
+                break
+            generation = self.step()
+            if generation is None:
+                break
+            ran.append(generation)
+        self.write_tuned()
+        if self._writer is not None:
+            self._writer.flush()
+        return ran
+
+    def step(self) -> Generation | None:
+        """One generation: ask, score, tell, save. None if stopped while scoring."""
+        from gaitforge.workers.fragment import StopRequested
+
+        saved, start = self.saved, time.perf_counter()
+        strategy = saved.strategy
+        candidates = [np.asarray(x) for x in strategy.ask()]
+        parameters = [from_unit(x) for x in candidates]
+        seeds = [
+            self.settings.seed * 1_000_003 + saved.generation * self.settings.episodes + i
+            for i in range(self.settings.episodes)
+        ]
+        try:
+            scores = self._score(parameters, seeds)
+        except StopRequested:
+            return None
+        costs = [s.cost for s in scores]
+        strategy.tell(candidates, costs)
+        best = int(np.argmin(costs))
+        if costs[best] < saved.best_cost:
+            saved.best_cost, saved.best_parameters = costs[best], parameters[best]
+        saved.generation += 1
+        saved.env_steps += sum(s.env_steps for s in scores)
+        saved.wall_s += time.perf_counter() - start
+        generation = Generation(
+            generation=saved.generation,
+            best=costs[best],
+            mean=float(np.mean(costs)),
+            sigma=float(strategy.sigma),
+            best_parts=scores[best].as_dict(),
+            env_steps=saved.env_steps,
+            wall_s=saved.wall_s,
+        )
+        saved.history.append(generation)
+        self._save(generation)
+        logger.info(
+            "cmaes generation %d: best %.3f mean %.3f sigma %.3f (alive %.2f, %.2f m/s)",
+            generation.generation,
+            generation.best,
+            generation.mean,
+            generation.sigma,
+            scores[best].alive,
+            scores[best].speed,
+        )
+        return generation
+
+    def _score(self, parameters: list[np.ndarray], seeds: list[int]) -> list[CandidateScore]:
+        measure = self.settings.measure
+        if self.pool is not None:
+            return self.pool.score_candidates(parameters, seeds, measure, stop=self._stop)
+        assert self._env is not None
+        return [score_candidate(self._env, p, seeds, measure) for p in parameters]
+
+    def _save(self, generation: Generation) -> None:
+        path = self.dir / STATE_FILE
+        partial = path.with_suffix(".partial")
+        with partial.open("wb") as f:
+            pickle.dump(self.saved, f)
+        partial.replace(path)  # a kill mid-write leaves the previous state
+        progress = self.dir / PROGRESS_FILE
+        row = generation.row()
+        new = not progress.exists()
+        with progress.open("a", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=list(row))
+            if new:
+                writer.writeheader()
+            writer.writerow(row)
+        if self._writer is not None:
+            step = generation.env_steps
+            for key in ("best", "mean", "sigma"):
+                self._writer.add_scalar(f"cmaes/{key}", row[key], step)
+            for key, value in generation.best_parts.items():
+                self._writer.add_scalar(f"cmaes/best_{key}", value, step)
+
+    def tuned_parameters(self) -> dict[str, float]:
+        """The distribution's mean, by name (the tuned controller)."""
+        return parameter_values(from_unit(np.asarray(self.saved.strategy.mean)))
+
+    def write_tuned(self) -> Path:
+        """``cmaes/tuned.yaml``: the scene with the tuned parameters."""
+        data = self.scene.model_dump(mode="json", exclude_defaults=True)
+        data.setdefault("action", {})["parameters"] = self.tuned_parameters()
+        path = self.dir / TUNED_FILE
+        path.write_text(yaml.safe_dump(data, sort_keys=False))
+        return path

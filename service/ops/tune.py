@@ -1,0 +1,60 @@
+"""Tuning a scene's reflex gait controller with CMA-ES (``learner.cmaes``), in-process or on
+a Ray pool of rollout actors."""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+from gaitforge.learner.cmaes import CmaesSettings, CmaesTuning, Generation
+from gaitforge.service.ops.errors import InputError
+from gaitforge.workers.policy_api import UniformExcitationPolicy
+from gaitforge.workers.scenes import BackendMismatch, load_scene
+
+
+def tune(
+    scene_ref: str,
+    out_dir: Path,
+    settings: CmaesSettings,
+    backend: str = "mujoco",
+    workers: int = 0,
+    tensorboard: bool = True,
+) -> tuple[CmaesTuning, list[Generation]]:
+    """Tune ``scene_ref``'s controller into ``out_dir`` (resuming a state there) on
+    ``backend``, with ``workers`` Ray actors (0: in this process).
+
+    Raises:
+        SpecError: the scene cannot be loaded (an ``InputError`` where it does not run on
+            ``backend`` or has no reflex gait controller).
+    """
+    try:
+        scene = load_scene(scene_ref, backend=backend).resolved()
+    except BackendMismatch as exc:
+        raise InputError("backend", str(exc)) from None
+    if not scene.action.gait:
+        raise InputError(
+            "scene",
+            f"{scene.name!r}: action.kind is {scene.action.kind!r}, not reflex_gait "
+            "(the controller CMA-ES tunes)",
+        )
+    pool = None
+    if workers > 0:
+        from gaitforge.workers.env import MuscleEnv
+        from gaitforge.workers.pool import WorkerPool
+
+        act_dim = MuscleEnv(scene, backend).action_space.shape[0]
+        pool = WorkerPool(
+            scene,
+            functools.partial(UniformExcitationPolicy, act_dim),
+            backend=backend,
+            num_workers=workers,
+            envs_per_worker=1,
+            queue_depth=0,
+            seed=settings.seed,
+        )
+    try:
+        tuning = CmaesTuning(scene, settings, out_dir, pool, backend, tensorboard)
+        return tuning, tuning.run()
+    finally:
+        if pool is not None:
+            pool.close()

@@ -1,0 +1,57 @@
+"""``gaitforge tune SCENE``: tune a scene's reflex gait controller with CMA-ES."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from gaitforge.learner.cmaes import CmaesSettings
+from gaitforge.learner.job import MAX_NUM_WORKERS
+from gaitforge.service.console import fail, out
+from gaitforge.service.ops.tune import tune as tune_op
+from gaitforge.workers.gait_measure import GaitMeasure
+from gaitforge.workers.spec_io import SpecError
+from pydantic import ValidationError
+
+
+def tune(
+    scene: Annotated[str, typer.Argument(help="A scene with action.kind: reflex_gait.")],
+    out_dir: Annotated[Path, typer.Option("--out", help="Run folder (resumes its state).")],
+    backend: Annotated[str, typer.Option(help="mujoco or opensim.")] = "mujoco",
+    workers: Annotated[
+        int, typer.Option(min=0, max=MAX_NUM_WORKERS, help="Ray actors (0: in-process).")
+    ] = 0,
+    population: Annotated[int, typer.Option(help="Candidates a generation.")] = 16,
+    generations: Annotated[int, typer.Option(help="Generations in all.")] = 200,
+    minutes: Annotated[float | None, typer.Option(help="Stop after this long.")] = None,
+    sigma: Annotated[float, typer.Option(help="Initial step, share of each range.")] = 0.1,
+    episodes: Annotated[int, typer.Option(help="Episodes a candidate.")] = 3,
+    min_speed: Annotated[float, typer.Option(help="m/s the gait measure asks for.")] = 1.0,
+    seed: Annotated[int, typer.Option(help="The search's and the starts' seed.")] = 0,
+) -> None:
+    """Tune a reflex gait controller's parameters with CMA-ES; writes
+    OUT/cmaes/tuned.yaml (the scene with them), progress.csv and TensorBoard scalars."""
+    try:
+        settings = CmaesSettings(
+            population=population,
+            generations=generations,
+            minutes=minutes,
+            sigma=sigma,
+            episodes=episodes,
+            measure=GaitMeasure(min_speed=min_speed, max_speed=max(min_speed, 1.6)),
+            seed=seed,
+        )
+    except ValidationError as exc:
+        raise fail(str(exc).splitlines()[0] + ": " + exc.errors()[0]["msg"]) from None
+    try:
+        tuning, _ = tune_op(scene, out_dir, settings, backend, workers)
+    except SpecError as exc:
+        raise fail(exc) from None
+    last = tuning.saved.history[-1] if tuning.saved.history else None
+    if last is not None:
+        out.print(
+            f"generation {last.generation}: best {last.best:.3f}, mean {last.mean:.3f}, "
+            f"sigma {last.sigma:.3f}; {last.env_steps} env steps, {last.wall_s / 60:.1f} min"
+        )
+    out.print(f"tuned scene: {tuning.write_tuned()}")

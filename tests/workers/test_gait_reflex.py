@@ -1,0 +1,83 @@
+"""The reflex gait controller (``workers.gait_reflex``) on the imported 2019 challenge body:
+it runs on MuJoCo and OpenSim from the same sensors, its wiring and parameters are checked
+early, and a candidate's score is made of the parts it reports."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from gaitforge.workers.env import MuscleEnv
+from gaitforge.workers.gait_measure import GaitMeasure, score_candidate
+from gaitforge.workers.scenes import load_scene
+from gaitforge.workers.scenes.reflex_parameters import DEFAULTS, NAMES
+from gaitforge.workers.spec_io import SpecError
+
+SHORT = {"episode_s": 0.5}
+
+
+def test_the_sensors_and_the_controller_agree_between_mujoco_and_opensim() -> None:
+    """At the same start pose both simulators sense nearly the same fibre lengths (their
+    muscles are fitted to the same model; 0.05 of optimal length allows MuJoCo's rigid
+    tendon against OpenSim's compliant one) and the controller's first excitations match."""
+    envs = [MuscleEnv(load_scene("reflex-walk-3d", SHORT), b) for b in ("mujoco", "opensim")]
+    for env in envs:
+        env.reset(seed=3)
+    lengths = [env.sim.muscle_sensors()[0] for env in envs]
+    np.testing.assert_allclose(lengths[0], lengths[1], atol=0.05)
+    first = [env.gait(env.sim.state()) for env in envs]
+    for excitation in first:
+        assert excitation.shape == (22,) and 0.0 <= excitation.min() <= excitation.max() <= 1.0
+    np.testing.assert_allclose(first[0], first[1], atol=0.1)
+
+
+def test_the_policy_adds_a_residual_to_the_controller() -> None:
+    """An action of 0.5 adds nothing; 1.0 adds ``action.residual`` to every excitation."""
+    excitations = []
+    for action in (0.5, 1.0):
+        env = MuscleEnv(load_scene("reflex-walk-3d", SHORT))
+        env.reset(seed=0)
+        controller = env.gait(env.sim.state())
+        env.gait.reset()  # the controller's first step again, from the same history
+        env.step(np.full(22, action, dtype=np.float32))
+        excitations.append((controller, env.excitation.copy()))
+    (plain, neutral), (_, pushed) = excitations
+    np.testing.assert_allclose(neutral, plain, atol=1e-12)
+    np.testing.assert_allclose(pushed, np.minimum(plain + 0.2, 1.0), atol=1e-12)
+
+
+def test_parameters_are_checked_by_name_and_bound() -> None:
+    with pytest.raises(SpecError, match=r"action.*unknown"):
+        load_scene("reflex-walk-3d", {"action.parameters": {"trunk.nope": 1.0}})
+    with pytest.raises(SpecError, match=r"trunk.kp.*outside \[0.0, 8.0\]"):
+        load_scene("reflex-walk-3d", {"action.parameters": {"trunk.kp": 9.0}})
+
+
+def test_a_wiring_that_names_what_the_scene_lacks_is_refused(tmp_path: Path) -> None:
+    shipped = Path(__file__).resolve().parents[2] / "workers/bodies/data/reflex"
+    text = (shipped / "gait14dof22musc.yaml").read_text().replace("soleus_r", "soleus_x")
+    wiring = tmp_path / "wiring.yaml"
+    wiring.write_text(text)
+    scene = load_scene("reflex-walk-3d", {**SHORT, "action.wiring": str(wiring)})
+    with pytest.raises(ValueError, match=r"no \['muscle soleus_x'\]"):
+        MuscleEnv(scene)
+
+
+def test_a_candidates_cost_is_made_of_its_parts() -> None:
+    env = MuscleEnv(load_scene("reflex-walk-3d", SHORT))
+    measure = GaitMeasure(min_speed=1.0, fall=2.0, speed=3.0, effort=0.5)
+    score = score_candidate(env, DEFAULTS, [0, 1], measure)
+    assert score.episodes == 2 and 0 < score.env_steps <= 2 * env.scene.steps_per_episode
+    assert 0.0 <= score.alive <= 1.0 and 0.0 <= score.falls <= 1.0
+    # one episode each: the parts' mean recombines into the mean cost (speed < min_speed)
+    singles = [score_candidate(env, DEFAULTS, [seed], measure) for seed in (0, 1)]
+    for single in singles:
+        expected = (
+            2.0 * (1.0 - single.alive)
+            + 3.0 * max(1.0 - single.speed, 0.0)
+            + 0.5 * single.excitation_sq
+        )
+        assert single.cost == pytest.approx(expected, rel=1e-9)
+    assert score.cost == pytest.approx(np.mean([s.cost for s in singles]), rel=1e-9)
+    assert len(NAMES) == len(DEFAULTS)
