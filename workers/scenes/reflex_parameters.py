@@ -4,8 +4,9 @@ Units: gains on a sensed force are excitation per unit of force over the maximum
 force; gains on a sensed length, excitation per optimal fibre length; angle gains,
 excitation per rad (and per rad/s); angles in rad, speeds in m/s. ``pose.*`` are the start
 pose the optimiser may choose (from rest: zero speeds, both feet on the ground); the right
-leg leads. The defaults are of the magnitudes of Geyer and Herr (2010) and Song and Geyer
-(2015), not their tuned values: CMA-ES (``learner.cmaes``) tunes within the bounds.
+leg leads. The gains' defaults are of the magnitudes of Geyer and Herr (2010) and Song and
+Geyer (2015), not their tuned values; the length offsets sit near gait14dof22musc's lengths
+in quiet standing. CMA-ES (``learner.cmaes``) tunes within the bounds.
 """
 
 from __future__ import annotations

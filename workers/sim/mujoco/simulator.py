@@ -261,8 +261,10 @@ class MujocoSimulator:
         """See ``Simulator.muscle_sensors``. MuJoCo's muscle maps its actuator length onto a
         normalised fibre length through ``lengthrange`` and ``range`` (``gainprm[:2]``; see
         ``workers.sim.mujoco.build``); its peak force is ``gainprm[2]`` and its force is
-        negative in tension. At the last step's pose and speeds."""
+        negative in tension. At the present pose and speeds (``mj_forward``: after
+        ``mj_step`` the actuator lengths and forces are the step's start's)."""
         m, d = self.model, self.data
+        mujoco.mj_forward(m, d)
         lo, hi = m.actuator_lengthrange[:, 0], m.actuator_lengthrange[:, 1]
         r0, r1 = m.actuator_gainprm[:, 0], m.actuator_gainprm[:, 1]
         optimal = (hi - lo) / (r1 - r0)
