@@ -219,7 +219,7 @@ class Scene(_Strict):
     )
     mujoco: MujocoOptions = Field(
         default_factory=MujocoOptions,
-        description="how MuJoCo models contact, joint limits and muscles (OpenSim: ignored)",
+        description="how MuJoCo models contact and muscles (OpenSim: ignored)",
     )
     opensim: OpenSimOptions = Field(
         default_factory=OpenSimOptions,
