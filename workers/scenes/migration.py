@@ -87,6 +87,12 @@ RETIRED_SETTINGS: tuple[tuple[str, object, str], ...] = (
     ("task.imitate.scales.pelvis_heading", 10.0, "its term did not help MyoLeg"),
     ("mujoco.contact_model", "mujoco", OPENSIM_LAWS),  # its other value: hunt-crossley
     ("mujoco.joint_limits", "mujoco", OPENSIM_LAWS),  # its other value: opensim
+    (
+        "task.assist",
+        None,
+        "the pelvis's assist was removed; commit a1888fe has its code, "
+        "docs/results/walk-3d.md its results",
+    ),
 )
 """Scene settings no longer read: (dotted field, the value that meant "off", why retired).
 Older files and checkpoints that hold one at that value load without it."""

@@ -74,6 +74,7 @@ def test_each_retired_setting_at_its_former_default_is_dropped_on_load() -> None
         ("task.imitate.weights.pelvis_heading", 0.1),
         ("mujoco.contact_model", "hunt-crossley"),
         ("mujoco.joint_limits", "opensim"),
+        ("task.assist", {"upright_kp": 400.0, "upright_kd": 40.0}),
     ],
 )
 def test_a_retired_setting_at_another_value_is_refused_naming_it(

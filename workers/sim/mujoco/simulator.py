@@ -28,7 +28,6 @@ from gaitforge.workers.sim.mujoco.compile import OBSTACLE_PREFIX, compile_scene
 from gaitforge.workers.sim.mujoco.couplings import set_coupled_qpos
 from gaitforge.workers.sim.mujoco.drawing import body_frames, muscle_paths
 from gaitforge.workers.sim.mujoco.pose import PoseSetter
-from gaitforge.workers.sim.mujoco.upright import UprightHold
 from gaitforge.workers.sim.mujoco.warning_log import route_warnings
 
 logger = logging.getLogger(__name__)
@@ -117,19 +116,6 @@ class MujocoSimulator:
         self._foot_geoms = [
             np.flatnonzero(self._geom_foot == k) for k in range(len(self.foot_names))
         ]
-        assist = scene.task.assist
-        self._hold = (
-            UprightHold(
-                assist,
-                self._pelvis,
-                (self.up_axis, self.forward_axis),
-                PELVIS_UP,
-                scene.task.target_speed or 0.0,
-            )
-            if assist is not None and assist.active and self._pelvis >= 0
-            else None
-        )
-        """the pelvis's hold and push (``task.assist``), None without"""
         self._poser = PoseSetter(
             m,
             self.dof_names,
@@ -164,13 +150,7 @@ class MujocoSimulator:
         m, d = self.model, self.data
         t0 = self._start_step()
         d.ctrl[:] = np.clip(np.nan_to_num(excitations, nan=0.0), 0.0, 1.0)
-        steps = max(1, round(duration / m.opt.timestep))
-        if self._hold is None:
-            mujoco.mj_step(m, d, nstep=steps)
-        else:
-            for _ in range(steps):
-                self._hold.apply(m, d)
-                mujoco.mj_step(m, d)
+        mujoco.mj_step(m, d, nstep=max(1, round(duration / m.opt.timestep)))
         return self._health(t0)
 
     def step_reflex(
@@ -186,8 +166,6 @@ class MujocoSimulator:
             excitation = reflex(qpos[self._qadr], qvel[self._vadr])  # finite while the state is
             total += excitation
             d.ctrl[:] = excitation
-            if self._hold is not None:
-                self._hold.apply(m, d)
             mujoco.mj_step(m, d, nstep=substeps)
             if not np.isfinite(qvel).all():
                 break
