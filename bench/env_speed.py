@@ -1,7 +1,7 @@
 """Env steps/s on one core for every catalogue scene and backend, and what pruning saves.
 
 Usage: python bench/env_speed.py [--seconds S] [--repeats R] [--no-opensim]
-                                 [--only env|actions|pruning|laws]
+                                 [--only env|actions|pruning]
 
 Table 1: each scene on MuJoCo at its profile and, for scenes that name OpenSim, on OpenSim
 at the ``default`` profile and at the 2017 challenge's setting (Runge-Kutta-Merson,
@@ -17,14 +17,6 @@ second, each update a separate simulator call).
 Table 3: the raw ``mj_step`` rate of the pruned ``walk-3d`` and ``walk-3d+planar`` models
 against MyoLeg as shipped (nothing removed), alternated in one run so that machine noise
 hits all alike; each restarts standing whenever it falls, as training episodes do.
-
-Table 4: what MuJoCo's forces on OpenSim's laws cost (``contact_model: hunt-crossley``,
-``joint_limits: opensim``, ``muscle_curves`` and ``muscle_passive: opensim``, computed in
-Python every physics step): walk-2d+clock (joint targets, 25 Hz) on MuJoCo as it is, with
-each option, with all four, with all four stepped as OpenSim (semi-implicit Euler, 1 ms,
-what a policy for OpenSim trains on), and on OpenSim at the profile the fidelity sweep
-recommends (semi-explicit Euler, fixed 1 ms), random actions, R repeats interleaved; the
-ratio is over MuJoCo as it is.
 """
 
 from __future__ import annotations
@@ -197,83 +189,13 @@ def pruning_table(seconds: float, repeats: int) -> Table:
     return table
 
 
-ALL_LAWS = {
-    "mujoco": {
-        "contact_model": "hunt-crossley",
-        "joint_limits": "opensim",
-        "muscle_curves": "opensim",
-        "muscle_passive": "opensim",
-    }
-}
-OPENSIM_PROFILE = {"integrator": "semi-explicit-euler2", "timestep": 0.001, "fixed_step": True}
-LAWS = {
-    "MuJoCo as it is": ("mujoco", {}),
-    "contact_model: hunt-crossley": ("mujoco", {"mujoco": {"contact_model": "hunt-crossley"}}),
-    "joint_limits: opensim": ("mujoco", {"mujoco": {"joint_limits": "opensim"}}),
-    "muscle_curves and muscle_passive: opensim": (
-        "mujoco",
-        {"mujoco": {"muscle_curves": "opensim", "muscle_passive": "opensim"}},
-    ),
-    "all four": ("mujoco", ALL_LAWS),
-    "all four, semi-implicit Euler 1 ms": (
-        "mujoco",
-        {
-            **ALL_LAWS,
-            "fidelity": {
-                "mujoco": {"integrator": "euler", "timestep": 0.001},
-                "opensim": OPENSIM_PROFILE,
-            },
-        },
-    ),
-    # OpenSim's SemiExplicitEuler2 keeps the two half steps of each 1 ms step it takes
-    "all four, semi-implicit Euler 0.5 ms": (
-        "mujoco",
-        {
-            **ALL_LAWS,
-            "fidelity": {
-                "mujoco": {"integrator": "euler", "timestep": 0.0005},
-                "opensim": OPENSIM_PROFILE,
-            },
-        },
-    ),
-    "OpenSim, semi-explicit Euler 1 ms": (
-        "opensim",
-        {"fidelity": {"mujoco": "default", "opensim": OPENSIM_PROFILE}},
-    ),
-}
-
-
-def laws_table(seconds: float, repeats: int, opensim: bool) -> Table:
-    base = load_scene("walk-2d+clock")
-    envs = {
-        label: MuscleEnv(Scene.model_validate({**base.model_dump(), **options}), backend)
-        for label, (backend, options) in LAWS.items()
-        if opensim or backend == "mujoco"
-    }
-    rates: dict[str, list[float]] = {label: [] for label in envs}
-    for r in range(repeats):
-        for label, env in envs.items():
-            rates[label].append(random_excitations(env, seconds, seed=r).steps_per_s)
-    table = Table(
-        "walk-2d+clock",
-        "env steps/s",
-        "vs MuJoCo as it is",
-        title="MuJoCo on OpenSim's laws, one core (median)",
-    )
-    first = statistics.median(rates["MuJoCo as it is"])
-    for label in envs:
-        rate = statistics.median(rates[label])
-        table.add_row(label, f"{rate:.1f}", f"{rate / first:.2f}")
-    return table
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-opensim", action="store_true")
     parser.add_argument(
-        "--only", choices=["env", "actions", "pruning", "laws"], help="print one table only"
+        "--only", choices=["env", "actions", "pruning"], help="print one table only"
     )
     args = parser.parse_args()
     console.print(
@@ -285,8 +207,6 @@ def main() -> None:
         console.print(action_table(args.seconds, args.repeats, not args.no_opensim))
     if args.only in (None, "pruning"):
         console.print(pruning_table(args.seconds, args.repeats))
-    if args.only in (None, "laws"):
-        console.print(laws_table(args.seconds, args.repeats, not args.no_opensim))
 
 
 if __name__ == "__main__":

@@ -1,11 +1,10 @@
 """How far a body turns about the vertical when a clock scene's recorded gait is replayed
 through its joint targets with no policy (every action 0.5: the targets are the recording's
-pose), side by side: as the scene is, held upright by the pelvis's assist, and with MuJoCo
-contact settings that stop a foot creeping on the floor. It separates what the body and the
+pose), side by side: as the scene is and with MuJoCo contact settings that stop a foot
+creeping on the floor. It separates what the body and the
 recipe's base do from what a policy learned (``gaitforge evaluate`` reports a policy's turn).
 
 Usage: python bench/replay_turn.py [--scene walk-3d+clock] [--episodes 10] [--seed 0]
-           [--hold 1200,120]
 """
 
 from __future__ import annotations
@@ -80,17 +79,8 @@ def main() -> None:
     parser.add_argument("--scene", default="walk-3d+clock")
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--hold", default="1200,120", help="the assist's upright_kp,upright_kd")
     args = parser.parse_args()
-    kp, kd = (float(v) for v in args.hold.split(","))
     scene = load_scene(args.scene)
-    held = load_scene(
-        args.scene,
-        {
-            "task.assist": {"upright_kp": kp, "upright_kd": kd, "propel_kv": 0.0},
-            "backends": ["mujoco"],  # the assist acts on MuJoCo only
-        },
-    )
     table = Table(
         "replay",
         "episodes",
@@ -101,7 +91,6 @@ def main() -> None:
         title=f"{args.scene}: the recording replayed, every action 0.5",
     )
     table.add_row(*row("as the scene is", replay(scene, args.episodes, args.seed)))
-    table.add_row(*row(f"held upright ({kp:g} / {kd:g})", replay(held, args.episodes, args.seed)))
     for label, change in CONTACT_VARIANTS.items():
         table.add_row(*row(label, replay(scene, args.episodes, args.seed, change)))
     console.print(table)

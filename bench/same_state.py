@@ -33,7 +33,6 @@ from gaitforge.workers.episode import Observer
 from gaitforge.workers.scenes import Scene, load_scene
 from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.base import Pose
-from gaitforge.workers.sim.osim_laws.muscles import OpenSimMuscles
 from relaxed_drop import lift  # bench/relaxed_drop.py (this script's folder is on sys.path)
 from rich.console import Console
 from rich.table import Table
@@ -146,25 +145,20 @@ def compare(op: Any, mujoco_scene: Scene, title: str) -> tuple[Table, Table]:
     op.model.realizeAcceleration(st)
     rows["OpenSim"] = np.array([coords[n].getAccelerationValue(st) for n in joints])
     muscle_moments = {
-        "MuJoCo": (d.qfrc_actuator + _mujoco_opensim_muscles(mj))[index[3:]],
+        "MuJoCo": d.qfrc_actuator[index[3:]],
         "OpenSim": opensim_muscle_moments(op),
     }
 
     m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
-    d.xfrc_applied[:] = 0.0
-    d.qfrc_applied[:] = 0.0  # MuJoCo's own floor forces out, its other OpenSim laws kept
-    for law in mj.opensim_laws.laws:
-        if law is not mj.opensim_laws.floor:
-            law.add(m, d, d.qfrc_applied)
+    d.xfrc_applied[:] = 0.0  # MuJoCo's own contacts out
     for body, (force, torque) in contacts["OpenSim"].items():
         b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body)
         d.xfrc_applied[b, :3] = force  # OpenSim's torque is about the body origin; MuJoCo's
         d.xfrc_applied[b, 3:] = torque + np.cross(d.xpos[b] - d.xipos[b], force)  # its COM
     mujoco.mj_forward(m, d)
     rows["MuJoCo, OpenSim's contacts"] = d.qacc[index].copy()
-    # what MuJoCo applies, muscles, those contact wrenches and any limit springs (qfrc_smooth
-    # = passive - bias + applied + actuator + the xfrc's); inverse dynamics gives what
-    # OpenSim's qacc needs
+    # what MuJoCo applies, muscles and those contact wrenches (qfrc_smooth = passive - bias
+    # + applied + actuator + the xfrc's); inverse dynamics gives what OpenSim's qacc needs
     applied = d.qfrc_smooth - d.qfrc_passive + d.qfrc_bias
     d.qacc[index] = rows["OpenSim"]
     mujoco.mj_inverse(m, d)
@@ -220,8 +214,6 @@ def _put_in_state(mj, op) -> None:
         d.act[m.actuator_actadr[i]] = activation[name]
     mujoco.mj_forward(m, d)  # set_pose lifts feet out of the floor: put it back
     lift(mj, "mujoco", op.state().pelvis_pos[op.up_axis] - mj.state().pelvis_pos[mj.up_axis])
-    mj.opensim_laws.apply(m, d)  # forces on OpenSim's laws (if any) at this state, their qacc
-    mujoco.mj_forward(m, d)
 
 
 def _opensim_mass_matrix(op, state, coordinates: list) -> np.ndarray:
@@ -266,26 +258,10 @@ def _opensim_contact_wrenches(op, state) -> dict[str, tuple[np.ndarray, np.ndarr
     return wrenches
 
 
-def _mujoco_opensim_muscles(mj) -> np.ndarray:
-    """[nv] the generalized forces of MuJoCo's muscles on OpenSim's laws
-    (``muscle_curves``/``muscle_passive: opensim``), none otherwise."""
-    torques = np.zeros(mj.model.nv)
-    for law in mj.opensim_laws.laws:
-        if isinstance(law, OpenSimMuscles):
-            law.add(mj.model, mj.data, torques)
-    return torques
-
-
 def _mujoco_contact_forces(mj) -> dict[str, tuple[np.ndarray, None]]:
-    """Each body's ground contact force (N, world frame) on MuJoCo, by body name: its
-    contacts' and, with ``contact_model: hunt-crossley``, the floor's forces."""
+    """Each body's ground contact force (N, world frame) on MuJoCo, by body name."""
     m, d = mj.model, mj.data
     forces: dict[str, tuple[np.ndarray, None]] = {}
-    floor = mj.opensim_laws.floor
-    if floor is not None:
-        for body, force in zip(floor.bodies, floor.forces, strict=True):
-            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(body))
-            forces[name] = (forces.get(name, (np.zeros(3), None))[0] + force, None)
     local = np.zeros(6)
     for i in range(d.ncon):
         contact = d.contact[i]

@@ -30,8 +30,7 @@ Rules (each failure names the file, the line and the import):
    2    scenes      ``workers/scenes/``: the spec, catalogue, pruning, fidelity profiles
                     and the saved profiles a scene names
    3    sim         ``workers/sim/``: the simulator protocol and backend-neutral modules;
-                    the backends in its sub-packages ``mujoco/``, ``opensim/`` and
-                    ``osim_laws/`` (MuJoCo on OpenSim's laws)
+                    the backends in its sub-packages ``mujoco/`` and ``opensim/``
    4    env         ``workers/rewards.py``, ``workers/env.py``
    5    env users   ``workers/probe.py``, the episode loop, ``workers/fidelity/``
    6    actors      ``workers/rollout.py``, ``workers/pool.py``
@@ -80,9 +79,9 @@ PACKAGE_ORDER = {"workers": 0, "learner": 1, "service": 2, "top": 3}
 PACKAGE_RANKS = {"bodies": 1, "motions": 1.5, "scenes": 2, "sim": 3, "fidelity": 5}
 """Sub-packages of workers and their rank (every module inside has it, sub-packages too)."""
 SIM = "gaitforge.workers.sim"
-SIM_BACKENDS = ("mujoco", "opensim", "osim_laws")
-"""The sub-packages of ``workers/sim/``: the backends (MuJoCo, OpenSim, MuJoCo on OpenSim's
-laws). The modules directly in ``workers/sim/`` are backend-neutral."""
+SIM_BACKENDS = ("mujoco", "opensim")
+"""The sub-packages of ``workers/sim/``: the backends (MuJoCo, OpenSim). The modules directly
+in ``workers/sim/`` are backend-neutral."""
 TOP_LEVEL_RANKS = {
     "spec_io": 0,
     "overrides": 0,

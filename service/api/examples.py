@@ -27,7 +27,6 @@ def schema_examples(schemas: dict[str, Any]) -> dict[str, Any]:
         "Action": status["actions"][0],
         "Artifact": artifacts["items"][0],
         "FieldError": {"field": "stages.0.scene", "message": "unknown scene 'walk-9d'"},
-        "Assist": {"upright_kp": 400.0, "upright_kd": 40.0, "propel_kv": 200.0},
     }
     seeds = [
         ("Job", full_job),

@@ -13,7 +13,7 @@ def test_a_planar_replay_never_turns_and_a_3d_one_does(run_bench: RunBench) -> N
     planar = run_bench("replay_turn.py", "--scene", "walk-2d+clock", "--episodes", "1")
     assert planar.returncode == 0, planar.stderr
     rows = [line for line in planar.stdout.splitlines() if line.startswith("│")]
-    assert len(rows) == 5  # as it is, held, three contact settings
+    assert len(rows) == 4  # as it is, three contact settings
     assert all(cells.split("│")[-2].strip() == "0-0" for cells in rows)
     myoleg = run_bench("replay_turn.py", "--scene", "walk-3d+clock", "--episodes", "2")
     assert myoleg.returncode == 0, myoleg.stderr

@@ -1,10 +1,10 @@
-"""A scene's backend options: how MuJoCo models contact, joint limits and muscles, nearer
-OpenSim's or its own (``mujoco:``, OpenSim ignores them all), and OpenSim's tendons and run
-bounds (``opensim:``, MuJoCo ignores them). Each type here carries its bounds and its
+"""A scene's backend options: how MuJoCo models contact and muscles, nearer OpenSim's or its
+own (``mujoco:``, OpenSim ignores them all), and OpenSim's tendons and run bounds
+(``opensim:``, MuJoCo ignores them). Each type here carries its bounds and its
 documentation.
 
-Every option is set by a shipped scene option (``opensim-like``, ``opensim-laws``) or by a
-fidelity measurement (``contact_timeconst_s``: the relaxed drop's contact softness;
+Every option is set by a shipped scene option (``opensim-like``) or by a fidelity
+measurement (``contact_timeconst_s``: the relaxed drop's contact softness;
 ``tendon``: the model-error check of compliant tendons; ``rebuild_every`` and
 ``step_wall_limit_s``: OpenSim's memory and a hung integrator)."""
 
@@ -37,29 +37,6 @@ ContactSolimp = Annotated[
         "None keeps MuJoCo's [0.9, 0.95, 0.001, 0.5, 2] (OpenSim: ignored)",
     ),
 ]
-ContactModel = Annotated[
-    Literal["mujoco", "hunt-crossley"],
-    Field(
-        description="MuJoCo: the contact spheres' floor contact, MuJoCo's soft constraint or "
-        "'hunt-crossley': OpenSim's law (Simbody's HuntCrossleyForce with the body's contact "
-        "parameters: a Hertz force growing with depth^1.5, its dissipation and its friction "
-        "against slip), applied as forces every MuJoCo step "
-        "(workers.sim.osim_laws.hunt_crossley); obstacles keep MuJoCo's contact, and "
-        "contact_timeconst_s and contact_solimp apply only to them. Body files only (OpenSim: "
-        "ignored)",
-    ),
-]
-JointLimits = Annotated[
-    Literal["mujoco", "opensim"],
-    Field(
-        description="MuJoCo: how kept dofs with a body-file passive limit are held past it, "
-        "MuJoCo's joint-limit constraint or 'opensim': OpenSim's CoordinateLimitForce spring "
-        "(stiffness ramping up over the limit's transition, with damping; "
-        "workers.sim.osim_laws.limit_springs), applied as forces every MuJoCo step. gait2d's "
-        "knee goes past its 10-degree limit on OpenSim while walking; MuJoCo's constraint "
-        "stops it. Body files only (OpenSim: ignored)",
-    ),
-]
 MuscleMinActivation = Annotated[
     float,
     Field(
@@ -72,19 +49,17 @@ MuscleMinActivation = Annotated[
     ),
 ]
 MuscleCurves = Annotated[
-    Literal["mujoco", "millard", "opensim"],
+    Literal["mujoco", "millard"],
     Field(
         description="MuJoCo: its muscles' active force-length and force-velocity curves, "
         "MuJoCo's own or 'millard': lmin, lmax, vmax and fvmax fitted to Millard 2012's "
         "(OpenSim's muscle; the constants in workers.sim.muscle_curves), RMS 0.05 of "
         "isometric force off it where MuJoCo's own are 0.15 (length) and 0.14 (velocity) "
-        "off, or 'opensim': no fit, Millard's own curves, with the fibre's pennation, "
-        "applied as forces every MuJoCo step (workers.sim.osim_laws.muscles; body files only) "
-        "(OpenSim: ignored)",
+        "off (OpenSim: ignored)",
     ),
 ]
 MusclePassive = Annotated[
-    Literal["gait", "thelen", "thelen-fibre", "opensim"],
+    Literal["gait", "thelen", "thelen-fibre"],
     Field(
         description="MuJoCo, body files only: its muscles' passive force-length curve fitted "
         "to Thelen 2003's (OpenSim's and the reference's) over the first 0.6 of its strain, "
@@ -94,9 +69,7 @@ MusclePassive = Annotated[
         "'thelen-fibre': that fit to Thelen's curve of the pennated fibre's own length, "
         "projected on the tendon, as OpenSim's rigid-tendon muscle pulls (MuJoCo's muscle "
         "has no pennation: its normalised length runs ahead of the fibre's past optimal "
-        "length, gait2d's standing gastrocnemius 1.458 against 1.425), or 'opensim': no fit, "
-        "OpenSim's own passive fibre force (its curve, pennation and fibre damping) applied "
-        "as forces every MuJoCo step (workers.sim.osim_laws.muscles) (OpenSim: ignored)",
+        "length, gait2d's standing gastrocnemius 1.458 against 1.425) (OpenSim: ignored)",
     ),
 ]
 
@@ -110,8 +83,6 @@ class MujocoOptions(_Options):
 
     contact_timeconst_s: ContactTimeconst = None
     contact_solimp: ContactSolimp = None
-    contact_model: ContactModel = "mujoco"
-    joint_limits: JointLimits = "mujoco"
     muscle_min_activation: MuscleMinActivation = 0.0
     muscle_curves: MuscleCurves = "mujoco"
     muscle_passive: MusclePassive = "gait"

@@ -6,11 +6,13 @@ scenes and jobs that checkpoints store (``learner.checkpoint_meta`` applies it t
 Scene fields (:func:`read_older_layout`, before a ``Scene`` validates them):
 
 * the backend options at the top level move into ``mujoco:`` and ``opensim:``
-  (``workers.scenes.backend_options``);
+  (``workers.scenes.backend_options``, and the retired ``contact_model`` and
+  ``joint_limits``);
 * a ``fault`` of null goes (fault injection is a test hook, ``workers.sim.faults``); any
   other value is refused;
 * a retired setting (:data:`RETIRED_SETTINGS`) at the value that meant "off" goes; at any
-  other value it is refused, naming the field and why it was retired;
+  other value it is refused, naming the field and why it was retired; a removed value
+  (:data:`REMOVED_VALUES`) is refused, naming the commit that still has it;
 * ``task.imitate`` with a ``motion`` (the clock and the tracking in one block) splits into
   ``task.clock`` (motion, tempo, lead-in, speed from the clock, random phase, mirroring,
   ramp) and ``task.imitate`` (weights, scales, the early end, the starts). An imitation that
@@ -18,7 +20,8 @@ Scene fields (:func:`read_older_layout`, before a ``Scene`` validates them):
   and leaves no ``task.imitate``.
 
 Scene names (:data:`FORMER_NAMES`): catalogue names from before scenes were composed load
-as the composition they were.
+as the composition they were; a removed option or scene (:data:`REMOVED_NAMES`) is refused,
+naming the commit that still has it.
 
 Jobs as checkpoints store them (:func:`read_older_job`): a stage's ``fidelity``,
 ``control_hz`` and ``action`` move into its ``scene_set``, ``init_from_action_std`` becomes
@@ -32,6 +35,16 @@ from typing import Any
 
 from gaitforge.workers.scenes.backend_options import MUJOCO_FIELDS, OPENSIM_FIELDS
 from gaitforge.workers.scenes.imitate import ImitationWeights
+from gaitforge.workers.spec_io import SpecError
+
+OPENSIM_LAWS = (
+    "MuJoCo on OpenSim's laws was removed; commit a1888fe has its code, "
+    "docs/results/opensim.md its results"
+)
+REMOVED_NAMES = {"opensim-laws": OPENSIM_LAWS, "walk-2d-clock-opensim-laws-half-ms": OPENSIM_LAWS}
+"""scene options and scene files no longer shipped, refused with why (as parts of a name)"""
+REMOVED_VALUES = {"muscle_curves": "opensim", "muscle_passive": "opensim"}
+"""``mujoco:`` values no longer known, refused with :data:`OPENSIM_LAWS`"""
 
 FORMER_NAMES = {
     "imitate-run-2d-start": "imitate-run-2d+standing-starts",
@@ -72,6 +85,14 @@ RETIRED_SETTINGS: tuple[tuple[str, object, str], ...] = (
     ("observe_heading", False, "observing the pelvis's heading did not help MyoLeg learn"),
     ("task.imitate.weights.pelvis_heading", 0.0, "tracking the heading did not help MyoLeg"),
     ("task.imitate.scales.pelvis_heading", 10.0, "its term did not help MyoLeg"),
+    ("mujoco.contact_model", "mujoco", OPENSIM_LAWS),  # its other value: hunt-crossley
+    ("mujoco.joint_limits", "mujoco", OPENSIM_LAWS),  # its other value: opensim
+    (
+        "task.assist",
+        None,
+        "the pelvis's assist was removed; commit a1888fe has its code, "
+        "docs/results/walk-3d.md its results",
+    ),
 )
 """Scene settings no longer read: (dotted field, the value that meant "off", why retired).
 Older files and checkpoints that hold one at that value load without it."""
@@ -83,15 +104,21 @@ def read_older_layout(raw: dict[str, Any]) -> dict[str, Any]:
     Raises:
         ValueError: one line naming a ``fault`` or a retired field that holds a value.
     """
-    raw = _without_retired_settings(dict(raw))
-    task = raw.get("task")
-    if isinstance(task, dict) and _holds_the_clock(task.get("imitate")):
-        raw["task"] = _clock_apart_from_imitation(task)
-    for block, names in (("mujoco", MUJOCO_FIELDS), ("opensim", OPENSIM_FIELDS)):
+    raw = dict(raw)
+    former = (*MUJOCO_FIELDS, "contact_model", "joint_limits")
+    for block, names in (("mujoco", former), ("opensim", OPENSIM_FIELDS)):
         flat = {name: raw.pop(name) for name in names if name in raw}
         if flat:
             nested = raw.get(block)
             raw[block] = {**nested, **flat} if isinstance(nested, dict) else flat
+    raw = _without_retired_settings(raw)
+    task = raw.get("task")
+    if isinstance(task, dict) and _holds_the_clock(task.get("imitate")):
+        raw["task"] = _clock_apart_from_imitation(task)
+    mujoco = raw.get("mujoco")
+    for name, value in REMOVED_VALUES.items():
+        if isinstance(mujoco, dict) and mujoco.get(name) == value:
+            raise ValueError(f"mujoco.{name} {value!r}: {OPENSIM_LAWS}")
     if "fault" in raw and raw.pop("fault") is not None:
         raise ValueError(
             "fault: fault injection is a test hook (workers.sim.faults), not a scene field"
@@ -168,7 +195,15 @@ def _clock_apart_from_imitation(task: dict[str, Any]) -> dict[str, Any]:
 
 
 def current_name(ref: str) -> str:
-    """Scene reference ``ref`` as today's catalogue names it."""
+    """Scene reference ``ref`` as today's catalogue names it.
+
+    Raises:
+        SpecError: it names a removed option or scene (:data:`REMOVED_NAMES`).
+    """
+    for part in ref.split("+"):
+        if part in REMOVED_NAMES:
+            named = f" ({part!r})" if part != ref else ""
+            raise SpecError(f"scene {ref!r}{named}: {REMOVED_NAMES[part]}")
     return FORMER_NAMES.get(ref, ref)
 
 

@@ -9,7 +9,6 @@ import numpy as np
 from gaitforge.workers.bodies.topology import MJCF_BODIES
 from gaitforge.workers.scenes import saved_profiles
 from gaitforge.workers.scenes.action import ActionSpec
-from gaitforge.workers.scenes.assist import Assist
 from gaitforge.workers.scenes.backend_options import MujocoOptions, OpenSimOptions
 from gaitforge.workers.scenes.clock import Clock
 from gaitforge.workers.scenes.imitate import Imitate, check_imitation
@@ -140,11 +139,6 @@ class Task(_Strict):
     imitate: Imitate | None = Field(
         default=None, description="track the clock's motion (locomotion only; needs clock)"
     )
-    assist: Assist | None = Field(
-        default=None,
-        description="hold the pelvis upright and push it toward target_speed (locomotion, "
-        "MuJoCo only): a training aid taken away stage by stage",
-    )
 
     @model_validator(mode="after")
     def _consistent(self) -> Task:
@@ -156,16 +150,6 @@ class Task(_Strict):
                 f"not kind {self.kind!r}"
             )
         check_imitation(self.imitate, self.clock)
-        if self.assist is not None and self.kind != "locomotion":
-            raise ValueError(
-                f"task.assist: the pelvis's hold and push need a locomotion task, not kind "
-                f"{self.kind!r}"
-            )
-        if self.assist is not None and self.assist.propel_kv and not self.target_speed:
-            raise ValueError(
-                f"task.assist.propel_kv {self.assist.propel_kv}: the push goes toward "
-                "task.target_speed, which this task does not set (set it, or the gain to 0)"
-            )
         if self.kind == "locomotion" and self.min_pelvis_height is None:
             raise ValueError("a locomotion task needs min_pelvis_height")
         if self.reward.overspeed and not self.target_speed:
@@ -219,7 +203,7 @@ class Scene(_Strict):
     )
     mujoco: MujocoOptions = Field(
         default_factory=MujocoOptions,
-        description="how MuJoCo models contact, joint limits and muscles (OpenSim: ignored)",
+        description="how MuJoCo models contact and muscles (OpenSim: ignored)",
     )
     opensim: OpenSimOptions = Field(
         default_factory=OpenSimOptions,
@@ -241,11 +225,6 @@ class Scene(_Strict):
     def _check(self) -> Scene:
         if self.body in MJCF_BODIES and "opensim" in self.backends:
             raise ValueError(f"backends: body {self.body!r} is MJCF and runs on MuJoCo only")
-        assist = self.task.assist
-        if assist is not None and assist.active and "opensim" in self.backends:
-            raise ValueError(
-                "task.assist acts on MuJoCo only: drop opensim from backends, or the assist"
-            )
         for backend in self.backends:
             profile = self.profile(backend)
             steps = 1.0 / (self.control_hz * profile.timestep)

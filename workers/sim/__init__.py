@@ -1,8 +1,7 @@
 """Simulator backends behind one protocol (see ``workers.sim.base.Simulator``).
 
-The backends are sub-packages: ``mujoco`` (MuJoCo), ``opensim`` (OpenSim) and ``osim_laws``
-(MuJoCo on OpenSim's contact, joint-limit and muscle laws). The modules here are
-backend-neutral: ``base`` (the protocol and what it returns), ``faults`` (fault injection),
+The backends are sub-packages: ``mujoco`` (MuJoCo) and ``opensim`` (OpenSim). The modules
+here are backend-neutral: ``base`` (the protocol and what it returns), ``faults`` (fault injection),
 ``muscle_curves`` (the curves both backends fit) and ``pose`` (the pelvis's orientation);
 :func:`make_simulator` picks a backend.
 """

@@ -11,7 +11,7 @@ import yaml
 from gaitforge.learner.checkpoint_meta import read_meta
 from gaitforge.workers.scenes import Scene, load_scene, option_names, parse_assignments
 from gaitforge.workers.scenes.compose import base_names, load_option
-from gaitforge.workers.scenes.migration import FORMER_NAMES
+from gaitforge.workers.scenes.migration import FORMER_NAMES, REMOVED_NAMES
 from gaitforge.workers.spec_io import SpecError
 
 FIXTURES = Path(__file__).resolve().parents[2] / "fixtures"
@@ -20,7 +20,6 @@ FORMER = json.loads((FIXTURES / "former-catalogue-scenes.json").read_text())
 like OpenSim, as loaded then (names aside; in the older layout, backend options at the top)"""
 SCENE_FILES = {
     "walk-2d-clock-floor-shell-fibre": "walk-2d+clock+opensim-like",
-    "walk-2d-clock-opensim-laws-half-ms": "walk-2d+clock+opensim-laws",
     "walk-2d-clock-recommended": "walk-2d+clock+opensim-recommended",
 }
 """scene files that options now make"""
@@ -31,7 +30,7 @@ def fields(scene_dump: dict) -> dict:
     return {k: v for k, v in scene_dump.items() if k not in ("name", "description")}
 
 
-@pytest.mark.parametrize("former", sorted(FORMER))
+@pytest.mark.parametrize("former", sorted(set(FORMER) - set(REMOVED_NAMES)))
 def test_each_former_scene_is_a_base_with_options(former: str) -> None:
     ref = SCENE_FILES.get(former) or FORMER_NAMES.get(former, former)
     assert ref.split("+")[0] in base_names()
@@ -40,6 +39,17 @@ def test_each_former_scene_is_a_base_with_options(former: str) -> None:
     assert fields(composed) == fields(former_fields)
     if former not in SCENE_FILES:  # a former catalogue name still loads, as its composition
         assert load_scene(former).name == ref
+
+
+@pytest.mark.parametrize(
+    "ref", ["walk-2d-clock-opensim-laws-half-ms", "walk-2d+clock+opensim-laws"]
+)
+def test_a_removed_scene_or_option_is_refused_naming_the_commit_that_has_it(ref: str) -> None:
+    with pytest.raises(SpecError, match=r"^scene .*MuJoCo on OpenSim's laws was removed") as err:
+        load_scene(ref)
+    assert "commit a1888fe has its code" in str(err.value)
+    with pytest.raises(ValueError, match=r"mujoco.contact_model: retired \(MuJoCo on OpenSim's"):
+        Scene.model_validate(FORMER["walk-2d-clock-opensim-laws-half-ms"])  # the file it was
 
 
 def test_the_shipped_walkers_own_scene_is_walk_with_the_clock() -> None:

@@ -72,6 +72,9 @@ def test_each_retired_setting_at_its_former_default_is_dropped_on_load() -> None
         ("observe_heading", True),
         ("observe_heading", 0),  # not the boolean it was
         ("task.imitate.weights.pelvis_heading", 0.1),
+        ("mujoco.contact_model", "hunt-crossley"),
+        ("mujoco.joint_limits", "opensim"),
+        ("task.assist", {"upright_kp": 400.0, "upright_kd": 40.0}),
     ],
 )
 def test_a_retired_setting_at_another_value_is_refused_naming_it(
@@ -84,6 +87,12 @@ def test_a_retired_setting_at_another_value_is_refused_naming_it(
     message = str(info.value)
     assert "\n" not in message and str(path) in message
     assert f"{dotted}: retired (" in message and "remove it" in message
+
+
+@pytest.mark.parametrize("name", ["muscle_curves", "muscle_passive"])
+def test_a_removed_value_is_refused_naming_the_commit_that_has_it(name: str) -> None:
+    with pytest.raises(ValueError, match=rf"mujoco.{name} 'opensim': MuJoCo on OpenSim's laws"):
+        Scene.model_validate({**OLDER, name: "opensim"})  # at the top, in the older layout
 
 
 def test_the_shipped_policies_stored_scenes_load_without_the_retired_settings() -> None:

@@ -4,10 +4,7 @@ The body's unpruned model is the source (a neutral body built by ``mujoco.build`
 MyoSuite MJCF); pruning welds the scene's locked joints, removes muscles, restricts contacts,
 adds the scene's obstacles and strips visuals, then sets the fidelity profile's integrator
 and timestep (and, where the scene asks, the muscles' active force curves fitted to
-OpenSim's, or their passive curve fitted to Thelen's over its whole strain; or MuJoCo's own
-floor contact, joint limits or muscle curves taken out where the scene puts them on
-OpenSim's laws: ``osim_laws.hunt_crossley``, ``osim_laws.limit_springs``,
-``osim_laws.muscles``).
+OpenSim's, or their passive curve fitted to Thelen's over its whole strain).
 """
 
 from __future__ import annotations
@@ -16,7 +13,6 @@ from functools import lru_cache
 
 import mujoco
 from gaitforge.workers.bodies import load_body
-from gaitforge.workers.bodies.schema import JointLimit
 from gaitforge.workers.bodies.topology import Topology, topology_for
 from gaitforge.workers.scenes import PrunePlan, Scene, plan_pruning
 from gaitforge.workers.sim.base import CompileReport
@@ -127,28 +123,6 @@ def _fit_passive_to_thelen_whole(model: mujoco.MjModel, scene: Scene) -> None:
             model.actuator_biasprm[actuator, 7] = fpmax
 
 
-def _need_body_file(scene: Scene, option: str, what: str) -> None:
-    """Raises ValueError: the scene's body is a MuJoCo MJCF, without the body file's ``what``
-    that ``option`` needs."""
-    if scene.body in MJCF_SOURCES:
-        raise ValueError(
-            f"scene {scene.name!r}: {option} needs a body file with {what} (such as gait2d); "
-            f"{scene.body!r} is a MuJoCo MJCF"
-        )
-
-
-def opensim_limits(scene: Scene, dofs: list[str]) -> dict[str, JointLimit]:
-    """Of ``dofs``, those whose body-file dof has a passive ``limit`` (OpenSim's
-    ``CoordinateLimitForce``), by name (``joint_limits: opensim``).
-
-    Raises:
-        ValueError: the scene's body is a MuJoCo MJCF.
-    """
-    _need_body_file(scene, "mujoco.joint_limits 'opensim'", "passive limits")
-    limits = {d.name: d.limit for j in load_body(scene.body).joints for d in j.dofs if d.limit}
-    return {name: limits[name] for name in dofs if name in limits}
-
-
 def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology]:
     """Compile ``scene`` to a pruned model, with the report of what was removed."""
     topology = topology_for(scene.body)
@@ -174,28 +148,12 @@ def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology
     if options.muscle_min_activation > 0:
         model.actuator_ctrllimited[muscles] = 1
         model.actuator_ctrlrange[muscles] = (options.muscle_min_activation, 1.0)
-    if options.contact_model == "hunt-crossley":  # the floor's is osim_laws.hunt_crossley's
-        _need_body_file(scene, "mujoco.contact_model 'hunt-crossley'", "contact parameters")
-        model.geom_conaffinity[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR)] = 0
-    if options.joint_limits == "opensim":  # the limits are osim_laws.limit_springs'
-        for name in opensim_limits(scene, list(plan.kept_dofs)):
-            model.jnt_limited[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)] = 0
     if options.contact_solimp is not None:
         model.geom_solimp[:] = options.contact_solimp
         model.pair_solimp[:] = options.contact_solimp
     if options.muscle_curves == "millard":
         _fit_muscle_curves_to_millard(model)
-    elif options.muscle_curves == "opensim":  # the active force is osim_laws.muscles'
-        _need_body_file(scene, "mujoco.muscle_curves 'opensim'", "muscle parameters")
-        model.actuator_gaintype[muscles] = mujoco.mjtGain.mjGAIN_FIXED
-        model.actuator_gainprm[muscles] = 0.0
-    if options.muscle_passive == "opensim":  # the passive force is osim_laws.muscles'
-        _need_body_file(scene, "mujoco.muscle_passive 'opensim'", "muscle parameters")
-        model.actuator_biasprm[muscles, 7] = 0.0
-        # the fibre damping too: without this the tendons kept mujoco.build's and the
-        # muscles were damped twice (32 N m more at a fast push-off ankle)
-        model.tendon_damping[model.actuator_trnid[muscles, 0]] = 0.0
-    elif options.muscle_passive != "gait":
+    if options.muscle_passive != "gait":
         _fit_passive_to_thelen_whole(model, scene)
     report = CompileReport(
         scene=scene.name,

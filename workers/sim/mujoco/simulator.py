@@ -28,9 +28,7 @@ from gaitforge.workers.sim.mujoco.compile import OBSTACLE_PREFIX, compile_scene
 from gaitforge.workers.sim.mujoco.couplings import set_coupled_qpos
 from gaitforge.workers.sim.mujoco.drawing import body_frames, muscle_paths
 from gaitforge.workers.sim.mujoco.pose import PoseSetter
-from gaitforge.workers.sim.mujoco.upright import UprightHold
 from gaitforge.workers.sim.mujoco.warning_log import route_warnings
-from gaitforge.workers.sim.osim_laws.laws import OpenSimLaws
 
 logger = logging.getLogger(__name__)
 route_warnings()  # MuJoCo's warnings to logging, not to MUJOCO_LOG.TXT in the cwd
@@ -106,10 +104,8 @@ class MujocoSimulator:
             dtype=int,
         )
         self._lift_adr = self._root_slide_along(self.up_axis)
-        self.opensim_laws = OpenSimLaws(m, scene, self.dof_names, self.up_axis)
-        """the forces the scene asks to follow OpenSim's laws (``workers.sim.osim_laws.laws``)"""
         self._stand_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, STAND_KEY)
-        # muscles found by their activation dynamics: muscle_curves: opensim fixes their gain
+        # muscles found by their activation dynamics
         self._muscle_act = m.actuator_actadr[
             (m.actuator_dyntype == mujoco.mjtDyn.mjDYN_MUSCLE) & (m.actuator_actadr >= 0)
         ]
@@ -120,19 +116,6 @@ class MujocoSimulator:
         self._foot_geoms = [
             np.flatnonzero(self._geom_foot == k) for k in range(len(self.foot_names))
         ]
-        assist = scene.task.assist
-        self._hold = (
-            UprightHold(
-                assist,
-                self._pelvis,
-                (self.up_axis, self.forward_axis),
-                PELVIS_UP,
-                scene.task.target_speed or 0.0,
-            )
-            if assist is not None and assist.active and self._pelvis >= 0
-            else None
-        )
-        """the pelvis's hold and push (``task.assist``), None without"""
         self._poser = PoseSetter(
             m,
             self.dof_names,
@@ -162,19 +145,12 @@ class MujocoSimulator:
         if floor > 0:  # the muscles start at their least activation, as OpenSim's do
             d.act[self._muscle_act] = np.maximum(d.act[self._muscle_act], floor)
         mujoco.mj_forward(m, d)
-        self.opensim_laws.apply(self.model, self.data)
 
     def step(self, excitations: np.ndarray, duration: float) -> Health:
         m, d = self.model, self.data
         t0 = self._start_step()
         d.ctrl[:] = np.clip(np.nan_to_num(excitations, nan=0.0), 0.0, 1.0)
-        steps = max(1, round(duration / m.opt.timestep))
-        if self._hold is None:
-            self.opensim_laws.advance(m, d, steps)
-        else:
-            for _ in range(steps):
-                self._hold.apply(m, d)
-                self.opensim_laws.advance(m, d, 1)
+        mujoco.mj_step(m, d, nstep=max(1, round(duration / m.opt.timestep)))
         return self._health(t0)
 
     def step_reflex(
@@ -190,9 +166,7 @@ class MujocoSimulator:
             excitation = reflex(qpos[self._qadr], qvel[self._vadr])  # finite while the state is
             total += excitation
             d.ctrl[:] = excitation
-            if self._hold is not None:
-                self._hold.apply(m, d)
-            self.opensim_laws.advance(m, d, substeps)
+            mujoco.mj_step(m, d, nstep=substeps)
             if not np.isfinite(qvel).all():
                 break
         return total / done, self._health(t0)
@@ -275,7 +249,6 @@ class MujocoSimulator:
         """See ``Simulator.set_pose`` and ``workers.sim.mujoco.pose``."""
         check_pose_names(pose, self.scene.body, self.dof_names, self._locked)
         self._poser.apply(self.data, pose)
-        self.opensim_laws.apply(self.model, self.data)
 
     def foot_positions(self) -> dict[str, np.ndarray]:
         d = self.data
@@ -311,7 +284,6 @@ class MujocoSimulator:
         self._apply_contact_timeconst(float(state["contact_timeconst"][0]))
         mujoco.mj_setState(m, d, state["physics"], mujoco.mjtState.mjSTATE_INTEGRATION)
         mujoco.mj_forward(m, d)
-        self.opensim_laws.apply(self.model, self.data)
 
     def poison(self) -> None:
         self.data.qvel[:] = np.nan
@@ -424,5 +396,4 @@ class MujocoSimulator:
             if foot >= 0:
                 mujoco.mj_contactForce(m, d, i, wrench)
                 forces[foot] += abs(wrench[0])
-        self.opensim_laws.add_foot_forces(forces, self._geom_foot)  # from the last step's forces
         return forces

@@ -68,7 +68,6 @@ from gaitforge.workers.bodies.schema import (
 )
 from gaitforge.workers.scenes.prune import PrunePlan
 from gaitforge.workers.sim.muscle_curves import thelen_passive, thelen_passive_stiffness_at_one
-from gaitforge.workers.sim.osim_laws.hunt_crossley import TRANSITION_VELOCITY
 
 logger = logging.getLogger(__name__)
 
@@ -88,6 +87,9 @@ FLOOR = "floor"
 OBSTACLE_PREFIX = "obstacle_"
 PARKED = -100.0
 """Forward position (m) of obstacle spheres until the simulator places them."""
+TRANSITION_VELOCITY = 0.1
+"""m/s: the contacts' slip speed of peak static friction (the reference's HuntCrossleyForce
+value)."""
 CONTROLLER = "excitations"
 DEG = math.pi / 180.0
 
