@@ -138,8 +138,11 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         elif self.clock is not None:
             self.clock.start(self.np_random)
         if self.gait is not None:
-            self.sim.set_pose(self.gait.start_pose(self.np_random, self.scene.init_noise))
-            self.gait.reset()
+            start = self.gait.start_pose(
+                self.np_random, self.scene.init_noise, self.scene.action.start_speed
+            )
+            self.sim.set_pose(start)
+            self.gait.reset(self.sim.state())
         self._state = self.sim.state()
         if self.clock is not None:
             info["clock"] = self._clock_info()

@@ -1,51 +1,44 @@
 """A spinal reflex gait controller after Song and Geyer (2015), on any wired body.
 
-Each leg is in stance while its foot carries more than ``contact_load`` body weights, else in
-swing; in double support the leg further behind (smaller leg angle) prepares to swing. Each
-control step every group of the leg (``workers.bodies.reflex_wiring.GROUPS``) gets an
-excitation from delayed sensory feedback, then each muscle the weighted sum of its groups'.
-With ``F`` a group's force over its maximum isometric force, ``L`` its fibre length over
-the optimal one, ``[x]+`` = max(x, 0), ``load`` the foot's load in body weights and
-``p.*`` the parameters (``workers.scenes.reflex_parameters``):
+Written from the paper's circuitry as the 2019 Learn-to-Move baseline arranges it (its
+nominal values are ``workers.scenes.reflex_parameters``' defaults). Each control step:
 
-Stance (leg compliance, knee protection, trunk balance):
-    SOL = S0 + p.stance.sol_force F_SOL
-    GAS = S0 + p.stance.gas_force F_GAS
-    TA  = S0 + p.stance.ta_length [L_TA - p.stance.ta_length_offset]+ - p.stance.sol_ta F_SOL
-    VAS = S0 + p.stance.vas_force F_VAS - p.stance.knee_stop [knee_offset - knee]+ (extending)
-    GLU = S0 + p.stance.glu_force F_GLU + load [p.trunk.kp (lean - p.trunk.lean)
-                                                + p.trunk.kd lean_rate]+
-    HFL = S0 + load [-(p.trunk.kp (lean - p.trunk.lean) + p.trunk.kd lean_rate)]+
-    HAM = S0 + p.trunk.ham_share (GLU's trunk part)
-    HAB = S0 + load [-(p.trunk.list_kp list + p.trunk.list_kd list_rate)]+
-    HAD = S0 + load [+(p.trunk.list_kp list + p.trunk.list_kd list_rate)]+
-    BFSH = S0 + p.stance.bfsh_knee_stop [knee_offset - knee]+
-    ``list`` is the trunk's lean toward the leg's own side. The trailing leg in double
-    support adds ``p.swing_init.*`` to HFL, RF and BFSH, takes it from GLU, and inhibits VAS
-    by ``p.swing_init.vas_load`` times the other leg's load.
+**Phases.** A leg is in contact while its foot carries more than ``CONTACT_LOAD`` body
+weights. Touching down starts stance; lifting off starts swing, with the knee flexing. In
+double support the leg further behind its aim prepares to swing (``swing_init``); the other
+is plain stance. Swing moves through: flex the knee (until ``swing.knee_flexion``), hold it
+(until the leg reaches its aim), stop the leg (once within ``swing.stop_before`` of its aim)
+and hold the leg (once it starts to retract).
 
-Swing (leg placement):
-    aim  = p.swing.leg_angle + p.swing.speed_gain v_forward
-    hip  = p.swing.hip_kp (aim - leg_angle) - p.swing.hip_kd leg_angle_rate
-    HFL = S0 + [hip]+ + p.swing.hfl_length [L_HFL - p.swing.hfl_length_offset]+
-    GLU = S0 + [-hip]+
-    HAM = S0 + p.swing.ham_length [L_HAM - p.swing.ham_length_offset]+
-    knee aim: p.swing.knee_flexion until the leg is within p.swing.extend_before of its
-    aim, then straight; BFSH flexes toward it, RF extends, each by p.swing.knee_kp/kd
-    TA  = S0 + p.swing.ta_length [L_TA - p.stance.ta_length_offset]+;  SOL = GAS = VAS = S0
-    adduction aim = p.swing.adduction - p.swing.lateral_gain v_toward_own_side;
-    HAD and HAB drive the hip toward it (p.swing.adduction_kp/kd)
+**Aims** (the "brain"). The leg's aim, forward of the trunk's long axis, is
+``swing.leg_angle + swing.speed_gain * v_forward + lean``: further forward at speed, and
+measured from the trunk. The hip's adduction aim is ``swing.adduction + swing.lateral_gain *
+v_toward_the_other_side - list``.
 
-The leg angle is the hip-to-ankle line's angle forward of the vertical, taken as hip
-flexion minus the trunk's forward lean minus half the knee flexion (thigh and shank of
-about equal length). Delays, as a nerve's length sets them: hip and trunk feedback
-``SHORT_DELAY_S``, knee ``MEDIUM_DELAY_S``, ankle ``LONG_DELAY_S``, each rounded to whole
-control steps.
+**Excitations** (``[x]+`` = max(x, 0); ``load`` in body weights; ``F`` a group's tension over
+its peak; ``kf`` knee flexion, ``a`` the leg angle, ``a*`` its aim, ``e = a* - a``):
+
+- trunk in stance: HFL ``load [-kp (lean - lean*) - kd lean']+``, GLU ``load [kp (lean -
+  lean*) + kd lean']+``, HAM ``ham_glu_share`` times GLU's; HAB and HAD the same on the
+  frontal lean toward the leg;
+- compliance in stance (plain stance, or preparing to swing times the other leg's unload):
+  RF and VAS positive force feedback, VAS inhibited and BFSH excited as the knee nears
+  straight (``[knee_offset - kf]+``); GAS and SOL positive force feedback in all stance;
+- swing placement (swing, or preparing to swing times the other leg's load): HFL ``[kp e -
+  kd a']+``, GLU ``[-kp e + kd a']+``, HAB and HAD toward the adduction aim;
+- the knee in swing: BFSH flexes it early; RF brakes its flexion and BFSH its extension
+  while it is held; HAM retracts a leg past its stop; once held, HFL and GLU hold the hip
+  and VAS and BFSH the knee at their aims;
+- the ankle: TA ``ta_kp [dorsiflexion* - dorsiflexion]+``, less ``sol_ta`` times SOL's
+  feedback in stance.
+
+Each group's excitation starts at ``PRE_STIM`` and is clipped to [PRE_STIM, 1]; a muscle's
+excitation is the weighted sum of its groups' (``workers.bodies.reflex_wiring``). No neural
+delays are modelled beyond the control period (the baseline's 10 ms at 100 Hz).
 """
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,35 +46,64 @@ from gaitforge.workers.bodies.reflex_wiring import GROUPS, Leg, Wiring
 from gaitforge.workers.scenes.reflex_parameters import INDEX
 from gaitforge.workers.sim.base import Pose, SimState, Simulator
 
-SHORT_DELAY_S = 0.005
-MEDIUM_DELAY_S = 0.010
-LONG_DELAY_S = 0.020
 GRAVITY = 9.81
+CONTACT_LOAD = 0.1
+"""body weights on a foot that count as contact"""
+PRE_STIM = 0.01
+"""every group's excitation floor"""
 _G = {g: i for i, g in enumerate(GROUPS)}
 
 
 @dataclass
+class _LegPhase:
+    """Where one leg is in its cycle (Song and Geyer's control phases)."""
+
+    contact: bool = False
+    stance: bool = False
+    swing_init: bool = False
+    swing: bool = False
+    flex_knee: bool = False
+    hold_knee: bool = False
+    stop_leg: bool = False
+    hold_leg: bool = False
+
+    def touch_down(self) -> None:
+        self.stance, self.swing = True, False
+        self.flex_knee = self.hold_knee = self.stop_leg = self.hold_leg = False
+
+    def lift_off(self) -> None:
+        self.stance = self.swing_init = False
+        self.swing = self.flex_knee = True
+
+
+@dataclass
 class _Sensed:
-    """One control step's sensory picture (before delays)."""
+    """One control step's sensory picture, per leg ``[2]`` (right, left) where indexed."""
 
     force: np.ndarray
-    """[2, n_groups]: each leg's groups' force over maximum isometric force"""
-    length: np.ndarray
-    """[2, n_groups]: each leg's groups' fibre length over optimal length"""
+    """[2, n_groups]: tension over peak force"""
     load: np.ndarray
-    """[2]: each foot's load, body weights"""
-    joints: np.ndarray
-    """[2, 4]: each leg's hip flexion, hip adduction, knee flexion, dorsiflexion (rad)"""
-    joint_rates: np.ndarray
-    """[2, 4]: their rates, rad/s"""
+    """[2]: body weights on each foot"""
+    hip: np.ndarray
+    """[2]: hip flexion, rad"""
+    adduction: np.ndarray
+    """[2]: hip adduction, rad (0 on a planar body)"""
+    knee: np.ndarray
+    """[2]: knee flexion, rad"""
+    ankle: np.ndarray
+    """[2]: dorsiflexion, rad"""
+    knee_rate: np.ndarray
+    """[2]: rad/s of knee flexion"""
+    leg: np.ndarray
+    """[2]: leg angle forward of the trunk's long axis, hip flexion - knee flexion / 2, rad"""
+    leg_rate: np.ndarray
+    """[2]: its rate, rad/s"""
     lean: float
-    """rad the trunk leans forward of vertical"""
+    """rad the trunk leans forward"""
+    lean_rate: float
     list_right: float
     """rad the trunk leans toward the right"""
-    lean_rate: float
-    """rad/s (the change since the previous picture)"""
     list_rate: float
-    """rad/s"""
     forward_speed: float
     """m/s of the pelvis forward"""
     right_speed: float
@@ -92,10 +114,10 @@ class GaitReflex:
     """Song and Geyer's circuitry on one simulator, with ``wiring`` for its body.
 
     Args:
-        wiring: the body's wiring (its muscles and dofs must be kept by the scene).
+        wiring: the body's wiring (its muscles, dofs and feet must be the simulator's).
         sim: the simulator it drives.
         control_hz: how often ``__call__`` is called, Hz.
-        parameters: the parameter vector [n_parameters] (``parameters.parameter_vector``).
+        parameters: the parameter vector [n_parameters] (``reflex_parameters``).
 
     Raises:
         ValueError: the wiring names a muscle, dof or foot the simulator lacks.
@@ -112,32 +134,27 @@ class GaitReflex:
         dofs = {name: i for i, name in enumerate(sim.dof_names)}
         n_mus = len(sim.muscle_names)
         self._sense = np.zeros((2, len(GROUPS), n_mus))
-        """[leg, group, muscle]: a group's sensed value is its muscles' weighted mean"""
+        """[leg, group, muscle]: a group's sensed tension is its muscles' weighted mean"""
         self._drive = np.zeros((2, len(GROUPS), n_mus))
         """[leg, group, muscle]: a muscle's excitation is its groups' weighted sum"""
-        self._dof_index = np.zeros((2, 4), dtype=int)
-        self._dof_sign = np.zeros((2, 4))
-        self._frontal = np.zeros(2, dtype=bool)
+        self._dofs = np.zeros((2, 4), dtype=int)
+        self._signs = np.zeros((2, 4))
+        """[leg, (hip flexion, adduction, knee, ankle)]: index and sign; sign 0 if absent"""
         missing: list[str] = []
         for k, leg in enumerate(wiring.legs()):
             for g, members in leg.groups.items():
-                for muscle, weight in members.items():
-                    if muscle not in muscles:
-                        missing.append(f"muscle {muscle}")
-                        continue
+                kept = {m: w for m, w in members.items() if m in muscles}
+                missing += [f"muscle {m}" for m in members if m not in muscles]
+                for muscle, weight in kept.items():
                     self._drive[k, _G[g], muscles[muscle]] = weight
-                total = sum(w for m, w in members.items() if m in muscles)
-                for muscle, weight in members.items():
-                    if muscle in muscles:
-                        self._sense[k, _G[g], muscles[muscle]] = weight / total
-            self._frontal[k] = leg.frontal
+                    self._sense[k, _G[g], muscles[muscle]] = weight / sum(kept.values())
             for j, dof in enumerate(_leg_dofs(leg)):
                 if dof is None:
                     continue
                 if dof.name not in dofs:
                     missing.append(f"dof {dof.name}")
                     continue
-                self._dof_index[k, j], self._dof_sign[k, j] = dofs[dof.name], dof.sign
+                self._dofs[k, j], self._signs[k, j] = dofs[dof.name], dof.sign
             if leg.foot not in sim.foot_names:
                 missing.append(f"foot {leg.foot}")
         if missing:
@@ -145,25 +162,21 @@ class GaitReflex:
                 f"reflex wiring of {wiring.body!r}: the scene's simulator has no {missing} "
                 "(kept muscles, dofs and feet are the scene's keep)"
             )
+        self._frontal = np.array([leg.frontal for leg in wiring.legs()])
         self._feet = [sim.foot_names.index(leg.foot) for leg in wiring.legs()]
         self._weight = GRAVITY * sim.report.mass
         up, forward = np.eye(3)[sim.up_axis], np.eye(3)[sim.forward_axis]
         self._axes = (up, forward, np.cross(forward, up))
-        steps = [max(0, round(d * control_hz) - 1) for d in (SHORT_DELAY_S, MEDIUM_DELAY_S)]
-        self._short, self._medium = steps
-        self._long = max(0, round(LONG_DELAY_S * control_hz) - 1)
-        self._history: deque[_Sensed] = deque(maxlen=self._long + 1)
+        self._phases = (_LegPhase(), _LegPhase())
+        self._previous: _Sensed | None = None
 
     # ---- episode ------------------------------------------------------------------------
 
-    def reset(self) -> None:
-        """Forget the sensory history (call after the simulator's reset and start pose)."""
-        self._history.clear()
-
-    def start_pose(self, rng: np.random.Generator, noise: float) -> Pose:
-        """The start pose the parameters choose (``pose.*``), at rest, lowered onto the
-        floor; the right leg leads. ``noise`` (rad) is the most each chosen angle is moved,
-        uniformly at random from ``rng`` (the scene's ``init_noise``)."""
+    def start_pose(self, rng: np.random.Generator, noise: float, forward_speed: float) -> Pose:
+        """The start pose the parameters choose (``pose.*``), lowered onto the floor, the
+        right leg leading, moving forward at ``forward_speed`` m/s (0: from rest).
+        ``noise`` (rad) is the most each chosen angle is moved, uniformly from ``rng`` (the
+        scene's ``init_noise``)."""
         p = self.parameters
         jitter = rng.uniform(-noise, noise, 7)
         lean = p[INDEX["pose.lean"]] + jitter[0]
@@ -177,158 +190,202 @@ class GaitReflex:
             ankle = p[INDEX["pose.ankle"]] + jitter[5 + k]
             coordinates[leg.ankle.name] = leg.ankle.sign * ankle
         # OpenSim's pelvis_tilt turns the pelvis backward: a forward lean is negative
-        return Pose(coordinates=coordinates, pelvis_height=0.0, pelvis_pitch=-float(lean))
+        return Pose(
+            coordinates=coordinates,
+            pelvis_height=0.0,
+            pelvis_pitch=-float(lean),
+            forward_speed=forward_speed,
+        )
+
+    def reset(self, state: SimState) -> None:
+        """Start the phases from ``state`` (after the simulator's reset and start pose): a
+        leg on the ground is in stance, one in the air in swing with its knee flexing."""
+        self._previous = None
+        sensed = self._read(state)
+        for k, phase in enumerate(self._phases):
+            phase.__init__()
+            phase.contact = bool(sensed.load[k] > CONTACT_LOAD)
+            if phase.contact:
+                phase.touch_down()
+            else:
+                phase.lift_off()
 
     # ---- control ------------------------------------------------------------------------
 
     def __call__(self, state: SimState) -> np.ndarray:
         """Excitations [n_muscles] in [0, 1] for the coming control step, from ``state`` and
         the simulator's muscle sensors now."""
-        self._history.append(self._read(state))
-        short = self._delayed(self._short)
-        medium = self._delayed(self._medium)
-        long = self._delayed(self._long)
-        stance = short.load > self.parameters[INDEX["contact_load"]]
+        s = self._read(state)
+        self._previous = s
+        p, P = self.parameters, INDEX
+        aim = p[P["swing.leg_angle"]] + p[P["swing.speed_gain"]] * s.forward_speed + s.lean
+        contact = s.load > CONTACT_LOAD
+        behind = aim - s.leg
+        starter = int(np.argmax(behind)) if contact.all() else -1
         groups = np.zeros((2, len(GROUPS)))
-        for k in range(2):
-            other = 1 - k
-            trailing = bool(stance[other]) and self._leg_angle(short, k) < self._leg_angle(
-                short, other
-            )
-            if stance[k]:
-                groups[k] = self._stance(k, short, medium, long, trailing)
-            else:
-                groups[k] = self._swing(k, short, medium, long)
-        excitation = np.einsum("lg,lgm->m", groups, self._drive)
+        for k, phase in enumerate(self._phases):
+            self._advance(phase, bool(contact[k]), bool(contact[1 - k]), k == starter, s, k, aim)
+            groups[k] = self._leg(phase, s, k, aim)
+        excitation = np.einsum("lg,lgm->m", np.clip(groups, PRE_STIM, 1.0), self._drive)
         return np.clip(excitation, 0.0, 1.0)
 
-    def _stance(
+    def _advance(
         self,
+        phase: _LegPhase,
+        contact: bool,
+        other_contact: bool,
+        starts_swing: bool,
+        s: _Sensed,
         k: int,
-        short: _Sensed,
-        medium: _Sensed,
-        long: _Sensed,
-        trailing: bool,
-    ) -> np.ndarray:
+        aim: float,
+    ) -> None:
+        """Move ``phase`` on by this step's contacts and the leg's angles."""
         p, P = self.parameters, INDEX
-        s0 = p[P["pre_stim"]]
-        u = np.full(len(GROUPS), s0)
-        f_long, f_med, f_short = long.force[k], medium.force[k], short.force[k]
-        u[_G["SOL"]] += p[P["stance.sol_force"]] * f_long[_G["SOL"]]
-        u[_G["GAS"]] += p[P["stance.gas_force"]] * f_long[_G["GAS"]]
-        u[_G["TA"]] += (
-            p[P["stance.ta_length"]]
-            * max(long.length[k, _G["TA"]] - p[P["stance.ta_length_offset"]], 0.0)
-            - p[P["stance.sol_ta"]] * f_long[_G["SOL"]]
+        if contact and not phase.contact:
+            phase.touch_down()
+        if phase.stance:
+            phase.swing_init = starts_swing and other_contact
+        if phase.contact and not contact:
+            phase.lift_off()
+        if phase.swing:
+            if phase.flex_knee:
+                if s.knee[k] > p[P["swing.knee_flexion"]]:
+                    phase.flex_knee, phase.hold_knee = False, True
+            else:
+                if phase.hold_knee and s.leg[k] > aim:
+                    phase.hold_knee = False
+                if s.leg[k] > aim - p[P["swing.stop_before"]]:
+                    phase.stop_leg = True
+                if phase.stop_leg and s.leg_rate[k] < 0.0:
+                    phase.hold_leg = True
+        phase.contact = contact
+
+    def _leg(self, phase: _LegPhase, s: _Sensed, k: int, aim: float) -> np.ndarray:
+        """The eleven groups' excitations [n_groups] of leg ``k`` (before the floor and
+        clip)."""
+        p, P = self.parameters, INDEX
+        u = np.full(len(GROUPS), PRE_STIM)
+        load, other_load = float(s.load[k]), float(s.load[1 - k])
+        stance, init, swing = float(phase.stance), float(phase.swing_init), float(phase.swing)
+        plain_stance = stance * (1.0 - init)
+        compliant = plain_stance + init * (1.0 - other_load)
+        placing = init * other_load + swing
+        hold_leg, hold_knee = float(phase.hold_leg), float(phase.hold_knee)
+        error = aim - s.leg[k]
+        # trunk balance in stance
+        trunk = p[P["trunk.lean"]]
+        hfl_trunk = stance * load * max(
+            -p[P["stance.hfl_trunk_kp"]] * (s.lean - trunk)
+            - p[P["stance.hfl_trunk_kd"]] * s.lean_rate,
+            0.0,
         )
-        knee = medium.joints[k, 2]
-        overextended = max(p[P["stance.knee_offset"]] - knee, 0.0)
-        extending = medium.joint_rates[k, 2] < 0.0
-        u[_G["VAS"]] += p[P["stance.vas_force"]] * f_med[_G["VAS"]]
-        if extending:
-            u[_G["VAS"]] -= p[P["stance.knee_stop"]] * overextended
-        u[_G["BFSH"]] += p[P["stance.bfsh_knee_stop"]] * overextended
-        load = min(float(short.load[k]), 1.5)
-        trunk = p[P["trunk.kp"]] * (short.lean - p[P["trunk.lean"]]) + p[P["trunk.kd"]] * (
-            short.lean_rate
+        glu_trunk = stance * load * max(
+            p[P["stance.glu_trunk_kp"]] * (s.lean - trunk)
+            + p[P["stance.glu_trunk_kd"]] * s.lean_rate,
+            0.0,
         )
-        u[_G["GLU"]] += p[P["stance.glu_force"]] * f_short[_G["GLU"]] + load * max(trunk, 0.0)
-        u[_G["HFL"]] += load * max(-trunk, 0.0)
-        u[_G["HAM"]] += p[P["trunk.ham_share"]] * load * max(trunk, 0.0)
-        if self._frontal[k]:
-            side = 1.0 if k == 0 else -1.0
-            frontal = (
-                p[P["trunk.list_kp"]] * side * short.list_right
-                + p[P["trunk.list_kd"]] * side * short.list_rate
+        # swing placement and the leg's hold
+        hfl_leg = placing * max(
+            p[P["swing.hfl_leg_kp"]] * error - p[P["swing.hfl_leg_kd"]] * s.leg_rate[k], 0.0
+        )
+        glu_leg = placing * max(
+            -p[P["swing.glu_leg_kp"]] * error + p[P["swing.glu_leg_kd"]] * s.leg_rate[k], 0.0
+        )
+        knee_held = p[P["swing.knee_held"]]
+        hip_aim = aim + 0.5 * knee_held
+        hip_error = hip_aim - s.hip[k]
+        u[_G["HFL"]] += hfl_trunk + hfl_leg + hold_leg * p[P["swing.hfl_hold_kp"]] * max(
+            hip_error, 0.0
+        )
+        u[_G["GLU"]] += glu_trunk + glu_leg + hold_leg * p[P["swing.glu_hold_kp"]] * max(
+            -hip_error, 0.0
+        )
+        stop = aim - p[P["swing.stop_before"]]
+        ham_stop = float(phase.stop_leg) * p[P["swing.ham_stop_kp"]] * max(s.leg[k] - stop, 0.0)
+        u[_G["HAM"]] += p[P["stance.ham_glu_share"]] * glu_trunk + ham_stop
+        # knee
+        knee, knee_rate = s.knee[k], s.knee_rate[k]
+        near_straight = max(p[P["stance.knee_offset"]] - knee, 0.0)
+        u[_G["RF"]] += compliant * p[P["stance.rf_force"]] * s.force[k, _G["RF"]] + hold_knee * (
+            p[P["swing.rf_knee_kd"]] * max(knee_rate, 0.0)
+        )
+        u[_G["VAS"]] += compliant * (
+            p[P["stance.vas_force"]] * s.force[k, _G["VAS"]]
+            - p[P["stance.vas_knee_kp"]] * near_straight
+        ) + hold_leg * p[P["swing.vas_hold_kp"]] * max(knee - knee_held, 0.0)
+        flexing = init * other_load + float(phase.flex_knee)
+        u[_G["BFSH"]] += (
+            compliant * p[P["stance.bfsh_knee_kp"]] * near_straight
+            + flexing
+            * max(
+                p[P["swing.bfsh_flex_kd"]] * s.leg_rate[k]
+                + p[P["swing.bfsh_flex_kp"]] * (p[P["swing.knee_flexion"]] - knee),
+                0.0,
             )
-            u[_G["HAB"]] += load * max(-frontal, 0.0)
-            u[_G["HAD"]] += load * max(frontal, 0.0)
-        if trailing:
-            u[_G["HFL"]] += p[P["swing_init.hfl"]]
-            u[_G["GLU"]] -= p[P["swing_init.glu"]]
-            u[_G["RF"]] += p[P["swing_init.rf"]]
-            u[_G["BFSH"]] += p[P["swing_init.bfsh"]]
-            u[_G["VAS"]] -= p[P["swing_init.vas_load"]] * float(short.load[1 - k])
+            + hold_knee * p[P["swing.bfsh_hold_kd"]] * max(-knee_rate * error, 0.0)
+            + p[P["swing.bfsh_ham_gain"]] * max(ham_stop - p[P["swing.bfsh_ham_offset"]], 0.0)
+            + hold_leg * p[P["swing.bfsh_knee_hold_kp"]] * max(knee_held - knee, 0.0)
+        )
+        # ankle
+        sol = stance * p[P["stance.sol_force"]] * s.force[k, _G["SOL"]]
+        u[_G["SOL"]] += sol
+        u[_G["GAS"]] += stance * p[P["stance.gas_force"]] * s.force[k, _G["GAS"]]
+        u[_G["TA"]] += (
+            p[P["ankle.ta_kp"]] * max(p[P["ankle.dorsiflexion"]] - s.ankle[k], 0.0)
+            - stance * p[P["stance.sol_ta"]] * sol
+        )
+        if self._frontal[k]:
+            self._frontal_groups(u, s, k, stance * load, placing)
         return u
 
-    def _swing(self, k: int, short: _Sensed, medium: _Sensed, long: _Sensed) -> np.ndarray:
+    def _frontal_groups(
+        self, u: np.ndarray, s: _Sensed, k: int, loaded: float, placing: float
+    ) -> None:
+        """HAB and HAD of leg ``k`` into ``u``: trunk balance in stance (``loaded``: stance
+        times load) and the adduction aim while placing the leg."""
         p, P = self.parameters, INDEX
-        s0 = p[P["pre_stim"]]
-        u = np.full(len(GROUPS), s0)
-        aim = p[P["swing.leg_angle"]] + p[P["swing.speed_gain"]] * short.forward_speed
-        angle = self._leg_angle(short, k)
-        hip = p[P["swing.hip_kp"]] * (aim - angle) - p[P["swing.hip_kd"]] * self._leg_angle(
-            short, k, rates=True
-        )
-        u[_G["HFL"]] += max(hip, 0.0) + p[P["swing.hfl_length"]] * max(
-            short.length[k, _G["HFL"]] - p[P["swing.hfl_length_offset"]], 0.0
-        )
-        u[_G["GLU"]] += max(-hip, 0.0)
-        u[_G["HAM"]] += p[P["swing.ham_length"]] * max(
-            short.length[k, _G["HAM"]] - p[P["swing.ham_length_offset"]], 0.0
-        )
-        extend = angle > aim - p[P["swing.extend_before"]]
-        knee_aim = 0.0 if extend else p[P["swing.knee_flexion"]]
-        knee = (
-            p[P["swing.knee_kp"]] * (knee_aim - medium.joints[k, 2])
-            - p[P["swing.knee_kd"]] * medium.joint_rates[k, 2]
-        )
-        u[_G["BFSH"]] += max(knee, 0.0)
-        u[_G["RF"]] += max(-knee, 0.0)
-        u[_G["TA"]] += p[P["swing.ta_length"]] * max(
-            long.length[k, _G["TA"]] - p[P["stance.ta_length_offset"]], 0.0
-        )
-        if self._frontal[k]:
-            side = 1.0 if k == 0 else -1.0
-            aim_add = p[P["swing.adduction"]] - p[P["swing.lateral_gain"]] * side * (
-                short.right_speed
-            )
-            adduction = (
-                p[P["swing.adduction_kp"]] * (aim_add - short.joints[k, 1])
-                - p[P["swing.adduction_kd"]] * short.joint_rates[k, 1]
-            )
-            u[_G["HAD"]] += max(adduction, 0.0)
-            u[_G["HAB"]] += max(-adduction, 0.0)
-        return u
+        side = 1.0 if k == 0 else -1.0
+        lean, rate = side * s.list_right, side * s.list_rate
+        error = lean - p[P["trunk.list"]]
+        toward_other = -side * s.right_speed
+        aim = p[P["swing.adduction"]] + p[P["swing.lateral_gain"]] * toward_other - lean
+        past = s.adduction[k] - aim
+        u[_G["HAB"]] += loaded * max(
+            -p[P["stance.hab_trunk_kp"]] * error - p[P["stance.hab_trunk_kd"]] * rate, 0.0
+        ) + placing * p[P["swing.hab_leg_kp"]] * max(past, 0.0)
+        u[_G["HAD"]] += loaded * max(
+            p[P["stance.had_trunk_kp"]] * error + p[P["stance.had_trunk_kd"]] * rate, 0.0
+        ) + placing * p[P["swing.had_leg_kp"]] * max(-past, 0.0)
 
     # ---- sensing ------------------------------------------------------------------------
 
     def _read(self, state: SimState) -> _Sensed:
-        length, force = self.sim.muscle_sensors()
+        _, force = self.sim.muscle_sensors()
         up, forward, right = self._axes
+        angles = state.dof_pos[self._dofs] * self._signs
+        rates = state.dof_vel[self._dofs] * self._signs
         trunk_up = state.pelvis_up
-        joints = state.dof_pos[self._dof_index] * self._dof_sign
-        joint_rates = state.dof_vel[self._dof_index] * self._dof_sign
-        joints[~self._frontal, 1] = joint_rates[~self._frontal, 1] = 0.0
         lean = float(np.arctan2(trunk_up @ forward, trunk_up @ up))
         list_right = float(np.arctan2(trunk_up @ right, trunk_up @ up))
-        before = self._history[-1] if self._history else None
+        before = self._previous
+        hip, knee = angles[:, 0], angles[:, 2]
         return _Sensed(
             force=self._sense @ force,
-            length=self._sense @ length,
             load=state.foot_forces[self._feet] / self._weight,
-            joints=joints,
-            joint_rates=joint_rates,
+            hip=hip,
+            adduction=angles[:, 1],
+            knee=knee,
+            ankle=angles[:, 3],
+            knee_rate=rates[:, 2],
+            leg=hip - 0.5 * knee,
+            leg_rate=rates[:, 0] - 0.5 * rates[:, 2],
             lean=lean,
-            list_right=list_right,
             lean_rate=0.0 if before is None else (lean - before.lean) / self.dt,
+            list_right=list_right,
             list_rate=0.0 if before is None else (list_right - before.list_right) / self.dt,
             forward_speed=float(state.pelvis_vel @ forward),
             right_speed=float(state.pelvis_vel @ right),
         )
-
-    def _delayed(self, steps: int) -> _Sensed:
-        """The picture ``steps`` control steps ago (the oldest kept at the episode's start)."""
-        return self._history[max(0, len(self._history) - 1 - steps)]
-
-    @staticmethod
-    def _leg_angle(sensed: _Sensed, k: int, rates: bool = False) -> float:
-        """rad the leg points forward of vertical (its rate, rad/s, with ``rates``)."""
-        if rates:
-            hip, _, knee, _ = sensed.joint_rates[k]
-            return float(hip - sensed.lean_rate - 0.5 * knee)
-        hip, _, knee, _ = sensed.joints[k]
-        return float(hip - sensed.lean - 0.5 * knee)
 
 
 def _leg_dofs(leg: Leg) -> tuple:

@@ -21,7 +21,8 @@ and lengths, foot loads, joint angles and trunk lean, with the named ``parameter
 rest at their defaults) and the body's ``wiring``. The policy's action [n_muscles] in
 [0, 1] adds ``(2 a - 1) * residual`` to each muscle's excitation (``a = 0.5`` adds nothing),
 so that PPO can learn on top of a tuned controller. Episodes start from the controller's
-start pose (``pose.*`` parameters), at rest.
+start pose (``pose.*`` parameters), at rest, or moving forward at ``start_speed`` (a
+mid-stride start, as the 2019 challenge's baseline).
 """
 
 from __future__ import annotations
@@ -66,11 +67,20 @@ class ActionSpec(BaseModel):
     residual: Annotated[float, Field(ge=0, le=1)] = Field(
         default=0.2, description="reflex_gait: the policy's excitation span either side of 0"
     )
+    start_speed: Annotated[float, Field(ge=0, le=3)] = Field(
+        default=0.0,
+        description="reflex_gait: m/s forward at the start (0: from rest; else mid-stride)",
+    )
 
     @model_validator(mode="after")
     def _check_gait(self) -> ActionSpec:
-        if self.kind != "reflex_gait" and (self.wiring is not None or self.parameters):
-            raise ValueError("action.wiring and action.parameters are for kind reflex_gait")
+        if self.kind != "reflex_gait" and (
+            self.wiring is not None or self.parameters or self.start_speed
+        ):
+            raise ValueError(
+                "action.wiring, action.parameters and action.start_speed are for kind "
+                "reflex_gait"
+            )
         parameter_vector(self.parameters)  # names and bounds
         return self
 

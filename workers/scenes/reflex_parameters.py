@@ -1,19 +1,22 @@
 """The reflex gait controller's parameters: a named vector with defaults and bounds.
 
-Units: gains on a sensed force are excitation per unit of force over the maximum isometric
-force; gains on a sensed length, excitation per optimal fibre length; angle gains,
-excitation per rad (and per rad/s); angles in rad, speeds in m/s. ``pose.*`` are the start
-pose the optimiser may choose (from rest: zero speeds, both feet on the ground); the right
-leg leads. The gains' defaults are of the magnitudes of Geyer and Herr (2010) and Song and
-Geyer (2015), not their tuned values; the length offsets sit near gait14dof22musc's lengths
-in quiet standing. CMA-ES (``learner.cmaes``) tunes within the bounds.
+The defaults are Song and Geyer's nominal values as the 2019 Learn-to-Move baseline scales
+them (its parameter multipliers at 1), the bounds that baseline's search space; angles in
+rad, speeds in m/s. Knee angles are flexion (0 straight), ankle angles dorsiflexion, hip
+angles flexion, leg angles forward of the trunk's long axis (hip flexion less half the knee
+flexion). Gains: excitation per rad (``_kp``), per rad/s (``_kd``), per unit of force over
+the maximum isometric force (``_force``). ``pose.*`` is the start pose the optimiser may
+choose (the right leg leads). CMA-ES (``learner.cmaes``) tunes within the bounds.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+
+DEG = math.pi / 180.0
 
 
 @dataclass(frozen=True)
@@ -27,60 +30,68 @@ class Parameter:
     meaning: str
 
 
+def _gain(name: str, nominal: float, meaning: str) -> Parameter:
+    """A gain searched from 0 to three times its nominal value."""
+    return Parameter(name, nominal, 0.0, 3.0 * nominal, meaning)
+
+
 PARAMETERS: tuple[Parameter, ...] = (
-    Parameter("pre_stim", 0.01, 0.0, 0.1, "every muscle's excitation floor"),
-    Parameter("contact_load", 0.1, 0.02, 0.4, "foot load (body weights) that counts as stance"),
-    # stance: leg compliance (M1) and knee protection (M2)
-    Parameter("stance.sol_force", 1.2, 0.0, 3.0, "SOL positive force feedback"),
-    Parameter("stance.gas_force", 1.1, 0.0, 3.0, "GAS positive force feedback"),
-    Parameter("stance.vas_force", 1.15, 0.0, 3.0, "VAS positive force feedback"),
-    Parameter("stance.glu_force", 0.2, 0.0, 2.0, "GLU positive force feedback"),
-    Parameter("stance.ta_length", 1.1, 0.0, 4.0, "TA length feedback"),
-    Parameter("stance.ta_length_offset", 1.0, 0.6, 1.3, "TA length above which it fires"),
-    Parameter("stance.sol_ta", 0.3, 0.0, 2.0, "SOL force inhibiting TA"),
-    Parameter("stance.knee_offset", 0.15, 0.0, 0.6, "knee flexion below which VAS is inhibited"),
-    Parameter("stance.knee_stop", 2.0, 0.0, 8.0, "VAS inhibition per rad of knee overextension"),
-    Parameter("stance.bfsh_knee_stop", 1.0, 0.0, 8.0, "BFSH per rad of knee overextension"),
-    # stance: trunk balance (M3)
-    Parameter("trunk.lean", 0.1, -0.2, 0.4, "sagittal trunk lean held in stance (forward +)"),
-    Parameter("trunk.kp", 1.9, 0.0, 8.0, "hip torque for trunk lean error"),
-    Parameter("trunk.kd", 0.2, 0.0, 2.0, "hip torque for trunk lean rate"),
-    Parameter("trunk.ham_share", 0.65, 0.0, 1.5, "HAM's share of GLU's trunk excitation"),
-    Parameter("trunk.list_kp", 1.0, 0.0, 8.0, "hip ab/adduction for frontal lean error"),
-    Parameter("trunk.list_kd", 0.1, 0.0, 2.0, "hip ab/adduction for frontal lean rate"),
-    # swing initiation in double support, trailing leg (M4)
-    Parameter("swing_init.hfl", 0.25, 0.0, 1.0, "HFL added"),
-    Parameter("swing_init.glu", 0.25, 0.0, 1.0, "GLU taken away"),
-    Parameter("swing_init.rf", 0.1, 0.0, 1.0, "RF added"),
-    Parameter("swing_init.bfsh", 0.1, 0.0, 1.0, "BFSH added"),
-    Parameter(
-        "swing_init.vas_load", 1.2, 0.0, 4.0, "VAS inhibition per body weight on the other leg"
-    ),
-    # swing: leg placement (M5)
-    Parameter("swing.leg_angle", 0.3, 0.0, 0.7, "leg angle aimed at (forward of vertical)"),
-    Parameter("swing.speed_gain", 0.1, -0.3, 0.5, "rad more leg angle per m/s of pelvis speed"),
-    Parameter("swing.hip_kp", 1.0, 0.0, 6.0, "hip flexion per rad the leg is short of its aim"),
-    Parameter("swing.hip_kd", 0.1, 0.0, 1.0, "hip damping per rad/s of leg angle rate"),
-    Parameter("swing.hfl_length", 0.35, 0.0, 3.0, "HFL length feedback"),
-    Parameter("swing.hfl_length_offset", 1.1, 0.7, 1.4, "HFL length above which it fires"),
-    Parameter("swing.ham_length", 0.6, 0.0, 4.0, "HAM length feedback (late swing retraction)"),
-    Parameter("swing.ham_length_offset", 1.0, 0.7, 1.3, "HAM length above which it fires"),
-    Parameter("swing.knee_flexion", 0.8, 0.2, 1.4, "knee flexion aimed at early in swing"),
-    Parameter("swing.knee_kp", 1.0, 0.0, 6.0, "knee excitation per rad off its aim"),
-    Parameter("swing.knee_kd", 0.05, 0.0, 1.0, "knee damping per rad/s"),
-    Parameter("swing.extend_before", 0.15, 0.0, 0.5, "rad short of the aim where the knee extends"),
-    Parameter("swing.ta_length", 1.1, 0.0, 4.0, "TA length feedback (toe clearance)"),
-    Parameter("swing.adduction", -0.05, -0.3, 0.2, "hip adduction aimed at"),
-    Parameter("swing.lateral_gain", 0.2, -0.5, 1.0, "rad more abduction per m/s toward the leg"),
-    Parameter("swing.adduction_kp", 1.0, 0.0, 6.0, "hip ab/adduction per rad off its aim"),
-    Parameter("swing.adduction_kd", 0.1, 0.0, 1.0, "hip ab/adduction damping per rad/s"),
-    # the start pose, from rest
-    Parameter("pose.lean", 0.05, -0.1, 0.3, "trunk lean at the start (forward +)"),
-    Parameter("pose.lead_hip", 0.2, -0.2, 0.6, "leading (right) hip flexion at the start"),
-    Parameter("pose.trail_hip", -0.1, -0.5, 0.3, "trailing (left) hip flexion at the start"),
-    Parameter("pose.lead_knee", 0.1, 0.0, 0.8, "leading knee flexion at the start"),
-    Parameter("pose.trail_knee", 0.1, 0.0, 0.8, "trailing knee flexion at the start"),
-    Parameter("pose.ankle", 0.05, -0.2, 0.3, "both ankles' dorsiflexion at the start"),
+    # what the "brain" sets: targets
+    Parameter("trunk.lean", 10 * DEG, 0.0, 60 * DEG, "sagittal trunk lean held in stance"),
+    Parameter("trunk.list", 5 * DEG, 0.0, 10 * DEG, "frontal lean toward the stance leg held"),
+    Parameter("swing.leg_angle", 15 * DEG, -25 * DEG, 55 * DEG, "leg aimed forward of vertical"),
+    Parameter("swing.speed_gain", 2 * DEG, 0.0, 10 * DEG, "more leg angle per m/s of speed"),
+    Parameter("swing.stop_before", 5 * DEG, 0.0, 15 * DEG, "how far short of its aim the leg stops"),
+    Parameter("swing.knee_flexion", 40 * DEG, 0.0, 100 * DEG, "knee flexion of early swing"),
+    Parameter("swing.knee_held", 5 * DEG, 0.0, 110 * DEG, "knee flexion held in late swing"),
+    Parameter("stance.knee_offset", 5 * DEG, 0.0, 25 * DEG, "knee flexion below which VAS stops"),
+    Parameter("ankle.dorsiflexion", 10 * DEG, -30 * DEG, 30 * DEG, "dorsiflexion TA holds"),
+    Parameter("swing.adduction", -10 * DEG, -30 * DEG, 30 * DEG, "hip adduction aimed at"),
+    Parameter("swing.lateral_gain", 10 * DEG, 0.0, 30 * DEG, "more adduction per m/s sideways"),
+    # stance: trunk balance (HFL, GLU, HAM; HAB, HAD)
+    _gain("stance.hfl_trunk_kp", 2.0, "HFL against trunk lean behind its target"),
+    _gain("stance.hfl_trunk_kd", 1.0, "HFL against trunk lean rate"),
+    _gain("stance.glu_trunk_kp", 2.0, "GLU against trunk lean ahead of its target"),
+    _gain("stance.glu_trunk_kd", 0.5, "GLU against trunk lean rate"),
+    _gain("stance.ham_glu_share", 1.0, "HAM's share of GLU's trunk excitation"),
+    _gain("stance.hab_trunk_kp", 10.0, "HAB against frontal lean away from the leg"),
+    _gain("stance.hab_trunk_kd", 1.0, "HAB against frontal lean rate"),
+    _gain("stance.had_trunk_kp", 2.0, "HAD against frontal lean toward the leg"),
+    _gain("stance.had_trunk_kd", 0.3, "HAD against frontal lean rate"),
+    # stance: leg compliance and knee protection
+    _gain("stance.rf_force", 0.3, "RF positive force feedback"),
+    _gain("stance.vas_force", 1.0, "VAS positive force feedback"),
+    _gain("stance.vas_knee_kp", 2.0, "VAS inhibition as the knee nears straight"),
+    _gain("stance.bfsh_knee_kp", 2.0, "BFSH as the knee nears straight"),
+    _gain("stance.gas_force", 1.2, "GAS positive force feedback"),
+    _gain("stance.sol_force", 1.2, "SOL positive force feedback"),
+    _gain("stance.sol_ta", 0.5, "SOL's excitation inhibiting TA"),
+    _gain("ankle.ta_kp", 2.0, "TA per rad of plantarflexion past its target"),
+    # swing: leg placement, knee, retraction
+    _gain("swing.hfl_leg_kp", 1.0, "HFL per rad the leg is behind its aim"),
+    _gain("swing.hfl_leg_kd", 0.1, "HFL per rad/s the leg retracts"),
+    _gain("swing.glu_leg_kp", 1.0, "GLU per rad the leg is ahead of its aim"),
+    _gain("swing.glu_leg_kd", 0.1, "GLU per rad/s the leg swings forward"),
+    _gain("swing.hfl_hold_kp", 1.0, "HFL holding the hip at the end of swing"),
+    _gain("swing.glu_hold_kp", 0.5, "GLU holding the hip at the end of swing"),
+    _gain("swing.ham_stop_kp", 2.0, "HAM per rad the leg is past its stop"),
+    _gain("swing.rf_knee_kd", 0.1, "RF braking knee flexion while the knee is held"),
+    _gain("swing.vas_hold_kp", 0.3, "VAS extending the knee to its held flexion"),
+    _gain("swing.bfsh_flex_kp", 2.0, "BFSH flexing the knee in early swing"),
+    _gain("swing.bfsh_flex_kd", 0.2, "BFSH per rad/s the leg swings forward, early swing"),
+    _gain("swing.bfsh_hold_kd", 1.0, "BFSH braking knee extension before the leg's aim"),
+    _gain("swing.bfsh_ham_gain", 2.0, "BFSH with HAM's retraction excitation"),
+    _gain("swing.bfsh_ham_offset", 0.3, "HAM retraction excitation below which BFSH is quiet"),
+    _gain("swing.bfsh_knee_hold_kp", 2.0, "BFSH flexing the knee to its held flexion"),
+    _gain("swing.hab_leg_kp", 2.0, "HAB per rad the hip is adducted past its aim"),
+    _gain("swing.had_leg_kp", 2.0, "HAD per rad the hip is abducted short of its aim"),
+    # the start pose
+    Parameter("pose.lean", 0.0, -0.1, 0.3, "trunk lean at the start (forward +)"),
+    Parameter("pose.lead_hip", 0.0, -0.2, 0.6, "leading (right) hip flexion at the start"),
+    Parameter("pose.trail_hip", 0.0, -0.5, 0.3, "trailing (left) hip flexion at the start"),
+    Parameter("pose.lead_knee", 0.05, 0.0, 0.8, "leading knee flexion at the start"),
+    Parameter("pose.trail_knee", 0.05, 0.0, 0.8, "trailing knee flexion at the start"),
+    Parameter("pose.ankle", 0.0, -0.2, 0.3, "both ankles' dorsiflexion at the start"),
 )
 NAMES = tuple(p.name for p in PARAMETERS)
 DEFAULTS = np.array([p.default for p in PARAMETERS])
@@ -100,7 +111,7 @@ def parameter_vector(values: dict[str, float] | None = None) -> np.ndarray:
         if name not in INDEX:
             raise ValueError(f"reflex parameter {name!r}: unknown; the parameters are {NAMES}")
         spec = PARAMETERS[INDEX[name]]
-        if not spec.low <= value <= spec.high:
+        if not spec.low - 1e-12 <= value <= spec.high + 1e-12:
             raise ValueError(
                 f"reflex parameter {name!r}: {value} is outside [{spec.low}, {spec.high}]"
             )
