@@ -27,12 +27,7 @@ from gaitforge.learner.stage_verdict import GOES_ON, Outcome, RuleFigure, StageV
 from gaitforge.learner.symmetry import MirrorMap
 from gaitforge.workers.fragment import Fragment
 from gaitforge.workers.scenes import Scene
-from gaitforge.workers.scenes.io_names import (
-    action_names,
-    lateral_axis,
-    needs_planar_muscles,
-    observation_names,
-)
+from gaitforge.workers.scenes.io_names import action_names, lateral_axis, observation_names
 from gaitforge.workers.spec_io import SpecError
 
 WINDOW_MAX = 10_000
@@ -45,18 +40,11 @@ class StageShortfallError(RuntimeError):
 
 class StageIO:
     """Observation and muscle names of a stage's scene on ``backend``, and its lateral axis,
-    asked of the scene (``workers.scenes.io_names``): no env is built. A ``keep.planar``
-    scene on MuJoCo has its in-plane muscles measured on the unpruned model first."""
+    asked of the scene (``workers.scenes.io_names``): no env is built."""
 
     def __init__(self, scene: Scene, backend: str) -> None:
-        planar = None
-        if needs_planar_muscles(scene, backend):
-            # lazy: imports mujoco
-            from gaitforge.workers.sim.mujoco.compile import planar_muscles_of
-
-            planar = planar_muscles_of(scene)
-        self.obs_names: list[str] = observation_names(scene, backend, planar)
-        self.act_names: list[str] = action_names(scene, backend, planar)
+        self.obs_names: list[str] = observation_names(scene, backend)
+        self.act_names: list[str] = action_names(scene, backend)
         self.lateral_axis = lateral_axis(scene.body)
 
 

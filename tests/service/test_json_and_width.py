@@ -76,10 +76,10 @@ def test_scenes_check_json() -> None:
 
 def test_scenes_check_at_80_columns_cuts_nothing() -> None:
     result = runner.invoke(
-        app, ["scenes", "check", "walk-3d+planar", "--seconds", "0.2"], env=NARROW
+        app, ["scenes", "check", "imitate-walk-3d", "--seconds", "0.2"], env=NARROW
     )
     assert result.exit_code == 0, result.output
-    assert "…" not in result.output and "│ walk-3d+planar │" in result.output
+    assert "…" not in result.output and "│ imitate-walk-3d │" in result.output
     assert "episodes" in result.output and "steps/s" in result.output
 
 

@@ -112,7 +112,6 @@ def pruning(scene: Scene, backend: str, reference: Rollout, size: SweepSize) -> 
         **raw["keep"],
         "joints": "all",
         "muscles": "all",
-        "planar": False,
         "lock_at": {},
         "contacts": "all",
         "visuals": True,

@@ -9,11 +9,7 @@ over the whole catalogue checks the names asked of the scene against built envs 
 backend (the kept dofs, feet and muscles of the pruning plan against those the simulator
 built), and the env counts every entry's values against its names at each reset.
 
-Computed from the body's topology and the scene's pruning plan and task. One case needs a
-measurement: ``keep.planar`` on MuJoCo keeps the muscles whose moment arms act in the plane
-of the kept dofs (``workers.sim.mujoco.compile.planar_muscles_of`` measures them on the
-unpruned model; no simulator is built). :func:`needs_planar_muscles` says when; the OpenSim
-backend does not apply ``keep.planar``.
+Computed from the body's topology and the scene's pruning plan and task.
 """
 
 from __future__ import annotations
@@ -22,7 +18,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from gaitforge.workers.bodies.topology import MJCF_BODIES, topology_for
-from gaitforge.workers.scenes.prune import PrunePlan, plan_pruning
+from gaitforge.workers.scenes.prune import plan_pruning
 from gaitforge.workers.scenes.spec import Scene
 
 XYZ = "xyz"
@@ -189,42 +185,17 @@ def action_layout(scene: Scene, dofs: Sequence[str], muscles: Sequence[str]) -> 
     return [f"target:{d}" for d in dofs] if scene.action.targets else list(muscles)
 
 
-def needs_planar_muscles(scene: Scene, backend: str) -> bool:
-    """Whether :func:`observation_names` and :func:`action_names` need the measured planar
-    muscles for ``scene`` on ``backend`` (``keep.planar`` on MuJoCo)."""
-    return scene.keep.planar and backend == "mujoco"
-
-
-def kept_plan(scene: Scene, backend: str, planar_muscles: Sequence[str] | None = None) -> PrunePlan:
-    """The pruning plan ``backend`` compiles ``scene`` with.
-
-    Raises:
-        ValueError: ``keep.planar`` on MuJoCo without ``planar_muscles``.
-    """
-    if needs_planar_muscles(scene, backend) and planar_muscles is None:
-        raise ValueError(
-            f"scene {scene.name!r}: keep.planar on mujoco needs the measured planar muscles "
-            "(workers.sim.mujoco.compile.planar_muscles_of)"
-        )
-    planar = list(planar_muscles) if needs_planar_muscles(scene, backend) else None
-    return plan_pruning(scene, topology_for(scene.body), planar)
-
-
-def action_names(
-    scene: Scene, backend: str = "mujoco", planar_muscles: Sequence[str] | None = None
-) -> list[str]:
+def action_names(scene: Scene, backend: str = "mujoco") -> list[str]:
     """The action's entry names (see :func:`action_layout`), equal to the built env's
-    ``act_names``."""
-    plan = kept_plan(scene, backend, planar_muscles)
+    ``act_names`` on ``backend`` (either: both compile the same plan)."""
+    plan = plan_pruning(scene, topology_for(scene.body))
     return action_layout(scene, plan.kept_dofs, plan.kept_muscles)
 
 
-def observation_names(
-    scene: Scene, backend: str = "mujoco", planar_muscles: Sequence[str] | None = None
-) -> list[str]:
+def observation_names(scene: Scene, backend: str = "mujoco") -> list[str]:
     """The observation's entry names [n_obs] of ``scene`` on ``backend``, equal to the built
     env's ``obs_names`` (see :func:`observation_layout`)."""
-    plan = kept_plan(scene, backend, planar_muscles)
+    plan = plan_pruning(scene, topology_for(scene.body))
     feet = sorted(topology_for(scene.body).feet)
     return observation_layout(scene, plan.kept_dofs, feet, plan.kept_muscles)
 

@@ -41,8 +41,18 @@ OPENSIM_LAWS = (
     "MuJoCo on OpenSim's laws was removed; commit a1888fe has its code, "
     "docs/results/opensim.md its results"
 )
-REMOVED_NAMES = {"opensim-laws": OPENSIM_LAWS, "walk-2d-clock-opensim-laws-half-ms": OPENSIM_LAWS}
-"""scene options and scene files no longer shipped, refused with why (as parts of a name)"""
+PLANAR = (
+    "the planar option (keep.planar) was removed; commit a1888fe has its code, "
+    "docs/results/throughput.md its results"
+)
+REMOVED_NAMES = {
+    "opensim-laws": OPENSIM_LAWS,
+    "walk-2d-clock-opensim-laws-half-ms": OPENSIM_LAWS,
+    "planar": PLANAR,
+    "walk-3d-planar": PLANAR,
+}
+"""scene options and former scene names no longer shipped, refused with why (as parts of a
+name)"""
 REMOVED_VALUES = {"muscle_curves": "opensim", "muscle_passive": "opensim"}
 """``mujoco:`` values no longer known, refused with :data:`OPENSIM_LAWS`"""
 
@@ -57,7 +67,6 @@ FORMER_NAMES = {
     "run-2d-clock-one-leg": "run-2d+clock+one-leg+forward",
     "walk-2d-clock": "walk-2d+clock",
     "walk-2d-clock-paced": "walk-2d+clock",
-    "walk-3d-planar": "walk-3d+planar",
 }
 """catalogue names from before scenes were composed, as older checkpoints, their jobs and
 job files name them: each loads as the composition it was (the same fields, a test checks)"""
@@ -87,6 +96,7 @@ RETIRED_SETTINGS: tuple[tuple[str, object, str], ...] = (
     ("task.imitate.scales.pelvis_heading", 10.0, "its term did not help MyoLeg"),
     ("mujoco.contact_model", "mujoco", OPENSIM_LAWS),  # its other value: hunt-crossley
     ("mujoco.joint_limits", "mujoco", OPENSIM_LAWS),  # its other value: opensim
+    ("keep.planar", False, PLANAR),
     (
         "task.assist",
         None,

@@ -57,16 +57,8 @@ def check_names(scene: Scene, topology: Topology) -> None:
     check_clock(scene.task.clock, scene.body, scene.keep.joints, topology)
 
 
-def plan_pruning(
-    scene: Scene, topology: Topology, planar_muscles: list[str] | None = None
-) -> PrunePlan:
-    """What ``scene`` keeps of the body described by ``topology``.
-
-    Args:
-        planar_muscles: with ``keep.planar``, the muscles that act in the plane of the kept
-            dofs (the backend measures moment arms: at least 5 mm about some kept dof, and at
-            least half the moment arm about the welded ones); the others are dropped.
-    """
+def plan_pruning(scene: Scene, topology: Topology) -> PrunePlan:
+    """What ``scene`` keeps of the body described by ``topology``."""
     check_names(scene, topology)
     wanted = set(topology.dof_defaults if scene.keep.joints == "all" else scene.keep.joints)
     if scene.task.reach_dof:
@@ -85,8 +77,6 @@ def plan_pruning(
             removed[muscle] = "not in keep.muscles"
         elif not any(d in wanted or d in topology.root_dofs for d in spans):
             removed[muscle] = "spans only locked joints"
-        elif scene.keep.planar and planar_muscles is not None and muscle not in planar_muscles:
-            removed[muscle] = "out of plane"
         else:
             kept_muscles.append(muscle)
     feet = [g for geoms in topology.feet.values() for g in geoms]

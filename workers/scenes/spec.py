@@ -57,10 +57,6 @@ class Keep(_Strict):
         default=False,
         description="keep geoms and sites that only draw (bone meshes, markers); for rendering",
     )
-    planar: bool = Field(
-        default=False,
-        description="drop muscles that act mainly out of the kept dofs' plane (see prune.py)",
-    )
 
 
 class Terrain(_Strict):

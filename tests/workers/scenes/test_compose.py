@@ -42,14 +42,32 @@ def test_each_former_scene_is_a_base_with_options(former: str) -> None:
 
 
 @pytest.mark.parametrize(
-    "ref", ["walk-2d-clock-opensim-laws-half-ms", "walk-2d+clock+opensim-laws"]
+    ("ref", "what"),
+    [
+        ("walk-2d-clock-opensim-laws-half-ms", "MuJoCo on OpenSim's laws"),
+        ("walk-2d+clock+opensim-laws", "MuJoCo on OpenSim's laws"),
+        ("walk-3d-planar", "the planar option (keep.planar)"),
+        ("walk-3d+planar", "the planar option (keep.planar)"),
+    ],
 )
-def test_a_removed_scene_or_option_is_refused_naming_the_commit_that_has_it(ref: str) -> None:
-    with pytest.raises(SpecError, match=r"^scene .*MuJoCo on OpenSim's laws was removed") as err:
+def test_a_removed_scene_or_option_is_refused_naming_the_commit_that_has_it(
+    ref: str, what: str
+) -> None:
+    with pytest.raises(SpecError, match=r"^scene ") as err:
         load_scene(ref)
-    assert "commit a1888fe has its code" in str(err.value)
-    with pytest.raises(ValueError, match=r"mujoco.contact_model: retired \(MuJoCo on OpenSim's"):
-        Scene.model_validate(FORMER["walk-2d-clock-opensim-laws-half-ms"])  # the file it was
+    assert f"{what} was removed; commit a1888fe has its code" in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("former", "field"),
+    [
+        ("walk-2d-clock-opensim-laws-half-ms", "mujoco.contact_model"),
+        ("walk-3d-planar", "keep.planar"),
+    ],
+)
+def test_a_former_scene_of_a_removed_knob_is_refused_naming_it(former: str, field: str) -> None:
+    with pytest.raises(ValueError, match=rf"{field}: retired \(.* commit a1888fe has its code"):
+        Scene.model_validate(FORMER[former])  # as it was stored
 
 
 def test_the_shipped_walkers_own_scene_is_walk_with_the_clock() -> None:

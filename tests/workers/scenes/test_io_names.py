@@ -15,12 +15,10 @@ from gaitforge.workers.scenes.io_names import (
     OBSERVATION,
     action_names,
     lateral_axis,
-    needs_planar_muscles,
     observation_names,
     world_axes,
 )
 from gaitforge.workers.scenes.migration import FORMER_NAMES
-from gaitforge.workers.sim.mujoco.compile import planar_muscles_of
 
 SCENES = catalogue() + sorted(set(FORMER_NAMES.values()))
 CASES = [(name, backend) for name in SCENES for backend in load_scene(name).backends]
@@ -29,13 +27,12 @@ CASES = [(name, backend) for name in SCENES for backend in load_scene(name).back
 @pytest.mark.parametrize(("name", "backend"), CASES)
 def test_names_equal_the_built_envs(name: str, backend: str) -> None:
     scene = load_scene(name)
-    planar = planar_muscles_of(scene) if needs_planar_muscles(scene, backend) else None
     env = MuscleEnv(scene, backend)
     try:
-        assert observation_names(scene, backend, planar) == env.obs_names
+        assert observation_names(scene, backend) == env.obs_names
         obs, _ = env.reset(seed=0)  # counts each part's values against its names
         assert obs.shape == (len(env.obs_names),)
-        assert action_names(scene, backend, planar) == env.act_names
+        assert action_names(scene, backend) == env.act_names
         if not scene.action.targets:
             assert env.act_names == env.sim.muscle_names
         assert world_axes(scene.body) == (env.sim.up_axis, env.sim.forward_axis)
@@ -50,30 +47,19 @@ def test_each_part_has_its_own_key_and_names() -> None:
     for name in SCENES:
         scene = load_scene(name)
         for backend in scene.backends:
-            planar = planar_muscles_of(scene) if needs_planar_muscles(scene, backend) else None
-            names = observation_names(scene, backend, planar)
+            names = observation_names(scene, backend)
             assert len(set(names)) == len(names), (name, backend)
-
-
-def test_a_planar_scene_on_mujoco_asks_for_the_measured_muscles() -> None:
-    scene = load_scene("walk-3d+planar")
-    assert needs_planar_muscles(scene, "mujoco")
-    with pytest.raises(ValueError, match="planar"):
-        observation_names(scene, "mujoco")
-    planar = planar_muscles_of(scene)
-    assert planar is not None and 0 < len(action_names(scene, "mujoco", planar)) < 80
 
 
 def test_no_simulator_is_imported_to_ask() -> None:
     code = (
         "import sys\n"
         "from gaitforge.workers.scenes import catalogue, load_scene\n"
-        "from gaitforge.workers.scenes.io_names import needs_planar_muscles, observation_names\n"
+        "from gaitforge.workers.scenes.io_names import observation_names\n"
         "for name in catalogue():\n"
         "    scene = load_scene(name)\n"
         "    for backend in scene.backends:\n"
-        "        if not needs_planar_muscles(scene, backend):\n"
-        "            assert observation_names(scene, backend)\n"
+        "        assert observation_names(scene, backend)\n"
         "loaded = [m for m in ('mujoco', 'opensim') if m in sys.modules]\n"
         "assert not loaded, loaded\n"
     )

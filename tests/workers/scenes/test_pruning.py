@@ -71,17 +71,6 @@ def test_walk_3d_drops_subtalar_and_toes_and_the_muscles_that_only_span_them() -
     assert report.size["contact_pairs"] < report.size_full["contact_pairs"]
 
 
-@pytest.mark.parametrize("planar", [True])
-def test_planar_myoleg_drops_out_of_plane_muscles(planar: bool) -> None:
-    sagittal = [f"{j}_{s}" for j in ("hip_flexion", "knee_angle", "ankle_angle") for s in "rl"]
-    report = MujocoSimulator(_variant("walk-3d", joints=sagittal, planar=planar)).report
-    reasons = set(report.plan.removed_muscles.values())
-    out_of_plane = [m for m, r in report.plan.removed_muscles.items() if r.startswith("out of")]
-    assert out_of_plane, reasons
-    assert "vasint_r" not in report.plan.removed_muscles
-    assert report.size["muscles"] == 80 - len(report.plan.removed_muscles)
-
-
 def test_training_scenes_drop_drawing_only_parts_and_visuals_keeps_them() -> None:
     """Bone meshes, visual capsules and markers cost kinematics time and memory, not physics."""
     lean = MujocoSimulator(load_scene("walk-3d"))

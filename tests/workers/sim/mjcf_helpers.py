@@ -4,11 +4,6 @@ from __future__ import annotations
 
 import mujoco
 
-OUT_OF_PLANE = [
-    f"{j}_{s}" for s in "rl" for j in ("hip_adduction", "hip_rotation", "subtalar_angle")
-]
-"""MyoLeg's out-of-plane hinge joints, right then left."""
-
 
 def object_names(model: mujoco.MjModel, obj: mujoco.mjtObj, n: int) -> list[str]:
     return [mujoco.mj_id2name(model, obj, i) for i in range(n)]

@@ -2,25 +2,16 @@
 
 from __future__ import annotations
 
-import logging
-
 import mujoco
 import numpy as np
 import pytest
 from gaitforge.workers.sim.mujoco.contacts import contact_pair_mask, model_size, restrict_contacts
-from gaitforge.workers.sim.mujoco.lock import lock_joints
 from gaitforge.workers.sim.mujoco.mjcf_models import (
     FLOOR,
     MYOLEG_FOOT_GEOMS,
-    MYOLEG_SAGITTAL_JOINTS,
     STAND_KEY,
     myoleg_spec,
 )
-from gaitforge.workers.sim.mujoco.moment_arms import planar_muscles
-from gaitforge.workers.sim.mujoco.removal import remove_muscles
-from mjcf_helpers import OUT_OF_PLANE, object_names, warning_counts
-
-logger = logging.getLogger(__name__)
 
 
 def test_restrict_contacts_feet_floor() -> None:
@@ -103,39 +94,3 @@ def test_model_size_consistent(myoleg_model: mujoco.MjModel) -> None:
     # 20 leg and 8 torso-and-arm collision geoms (contype 1, conaffinity 0) against the
     # floor only
     assert size["contact_pairs"] == 28
-
-
-def test_planar_pipeline_size_report() -> None:
-    """Lock out-of-plane joints, drop out-of-plane muscles: logs the size at each step."""
-    spec = myoleg_spec()
-    sizes = {"full": model_size(spec.compile())}
-    lock_joints(
-        spec,
-        dict.fromkeys([f"{j}_{s}" for s in "rl" for j in ("subtalar_angle", "mtp_angle")], 0.0),
-    )
-    sizes["locked subtalar+mtp"] = model_size(spec.compile())
-    model = spec.compile()
-    kept = planar_muscles(
-        model,
-        list(MYOLEG_SAGITTAL_JOINTS),
-        out_of_plane_joints=[j for j in OUT_OF_PLANE if "subtalar" not in j],
-    )
-    names = object_names(model, mujoco.mjtObj.mjOBJ_ACTUATOR, model.nu)
-    remove_muscles(spec, [n for n in names if n not in kept])
-    lock_joints(
-        spec,
-        dict.fromkeys([f"{j}_{s}" for s in "rl" for j in ("hip_adduction", "hip_rotation")], 0.0),
-    )
-    restrict_contacts(spec, list(MYOLEG_FOOT_GEOMS), [FLOOR])
-    model = spec.compile()
-    sizes["planar"] = model_size(model)
-    for label, size in sizes.items():
-        logger.info("%s: %s", label, size)
-    assert sizes["planar"]["muscles"] == len(kept) < 80
-    assert sizes["planar"]["dofs"] == 34 - 8
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, model.key(STAND_KEY).id)
-    for _ in range(50):
-        data.ctrl[:] = 0.2
-        mujoco.mj_step(model, data)
-    assert warning_counts(data) == {}

@@ -2,17 +2,13 @@
 
 from __future__ import annotations
 
-import logging
-
 import mujoco
 import numpy as np
 import pytest
-from gaitforge.workers.sim.mujoco.mjcf_models import MYOLEG_SAGITTAL_JOINTS, ROOT_JOINT, myoleg_spec
-from gaitforge.workers.sim.mujoco.moment_arms import muscle_spans, planar_muscles
+from gaitforge.workers.sim.mujoco.mjcf_models import ROOT_JOINT, myoleg_spec
+from gaitforge.workers.sim.mujoco.moment_arms import muscle_spans
 from gaitforge.workers.sim.mujoco.removal import remove_muscles
-from mjcf_helpers import OUT_OF_PLANE, object_names
-
-logger = logging.getLogger(__name__)
+from mjcf_helpers import object_names
 
 
 def test_remove_muscles_exactly_the_named() -> None:
@@ -68,7 +64,7 @@ def test_remove_muscles_keeps_shared_path_points() -> None:
     assert "wrap" not in geoms and "solid" in geoms  # "solid" collides and has mass
 
 
-# ------------------------------------------------------------------ spans and planar
+# ------------------------------------------------------------------ spans
 
 
 def test_muscle_spans_myoleg(myoleg_model: mujoco.MjModel) -> None:
@@ -86,53 +82,3 @@ def test_muscle_spans_myoleg(myoleg_model: mujoco.MjModel) -> None:
     driven = {"knee_angle_beta_rotation1_r", "knee_angle_translation1_l"}
     assert all(not driven & set(v) for v in spans.values())
     assert spans == muscle_spans(myoleg_model)  # seeded
-
-
-def test_planar_muscles_myoleg(myoleg_model: mujoco.MjModel) -> None:
-    names = object_names(myoleg_model, mujoco.mjtObj.mjOBJ_ACTUATOR, myoleg_model.nu)
-    sagittal = list(MYOLEG_SAGITTAL_JOINTS)
-    # threshold test only: at qpos0 a few hip muscles lack a 5 mm sagittal arm ...
-    at_rest = planar_muscles(myoleg_model, sagittal, n_poses=1, out_of_plane_joints=())
-    dropped_rest = [n for n in names if n not in at_rest]
-    logger.info("planar (threshold, qpos0 only) drops %s", dropped_rest)
-    assert dropped_rest and all(n.startswith(("add", "gl", "piri")) for n in dropped_rest)
-    # ... but over the random poses all of them reach it somewhere
-    over_poses = planar_muscles(myoleg_model, sagittal, out_of_plane_joints=())
-    assert set(at_rest) <= set(over_poses)
-
-    kept = planar_muscles(myoleg_model, sagittal)  # + ratio against all other joints
-    dropped = [n for n in names if n not in kept]
-    logger.info("planar (default: threshold + ratio) drops %s", dropped)
-    assert kept == planar_muscles(myoleg_model, sagittal, out_of_plane_joints=OUT_OF_PLANE)
-    oop = (
-        "addbrev",
-        "addmagMid",
-        "addmagProx",
-        "glmed1",
-        "glmin1",
-        "glmin2",
-        "glmin3",
-        "perbrev",
-        "perlong",
-        "piri",
-    )
-    assert {f"{m}_{s}" for m in oop for s in "rl"} <= set(dropped)
-    for keep in (
-        "vasmed",
-        "soleus",
-        "gasmed",
-        "tibant",
-        "recfem",
-        "glmax2",
-        "iliacus",
-        "bfsh",
-        "semiten",
-        "bflh",
-        "psoas",
-    ):
-        assert f"{keep}_r" in kept and f"{keep}_l" in kept
-    assert {n[:-2] for n in dropped if n.endswith("_r")} == {
-        n[:-2] for n in dropped if n.endswith("_l")
-    }  # mirrored poses: same verdict both sides
-    with pytest.raises(KeyError):
-        planar_muscles(myoleg_model, ["nope"])

@@ -95,7 +95,7 @@ def test_only_the_passive_force_changes() -> None:
 
 
 def test_an_mjcf_body_is_refused_with_the_option_named() -> None:
-    scene = load_scene("walk-3d+planar", {"mujoco.muscle_passive": "thelen"})
+    scene = load_scene("walk-3d", {"mujoco.muscle_passive": "thelen"})
     with pytest.raises(ValueError, match=r"muscle_passive 'thelen'.*myoleg"):
         compile_scene(scene)
 

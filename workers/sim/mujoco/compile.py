@@ -20,7 +20,6 @@ from gaitforge.workers.sim.mujoco.build import CONTACT_GROUP, FLOOR, build_spec
 from gaitforge.workers.sim.mujoco.contacts import model_size, restrict_contacts
 from gaitforge.workers.sim.mujoco.lock import lock_joints
 from gaitforge.workers.sim.mujoco.mjcf_sources import MJCF_SOURCES
-from gaitforge.workers.sim.mujoco.moment_arms import planar_muscles
 from gaitforge.workers.sim.mujoco.removal import remove_muscles, strip_unused
 from gaitforge.workers.sim.muscle_curves import (
     MILLARD_ACTIVE_RANGE,
@@ -48,11 +47,9 @@ def source_spec(body: str) -> mujoco.MjSpec:
 
 
 @lru_cache(maxsize=8)
-def _full_model_facts(body: str, sagittal: tuple[str, ...]) -> tuple[dict[str, int], list[str]]:
-    """Size of the unpruned model, and its muscles that act in the given dofs' plane."""
-    model = source_spec(body).compile()
-    planar = planar_muscles(model, list(sagittal)) if sagittal else []
-    return model_size(model), planar
+def _full_model_size(body: str) -> dict[str, int]:
+    """Size of the unpruned model."""
+    return model_size(source_spec(body).compile())
 
 
 def _add_obstacles(spec: mujoco.MjSpec, count: int) -> list[str]:
@@ -67,21 +64,6 @@ def _add_obstacles(spec: mujoco.MjSpec, count: int) -> list[str]:
             rgba=[0.6, 0.4, 0.3, 1.0],
         )
     return names
-
-
-def _sagittal(scene: Scene) -> tuple[str, ...]:
-    """With ``keep.planar``, the scene's kept dofs (they do not depend on the planar muscle
-    set, so a plan without it gives them); else none."""
-    if not scene.keep.planar:
-        return ()
-    return tuple(plan_pruning(scene, topology_for(scene.body)).kept_dofs)
-
-
-def planar_muscles_of(scene: Scene) -> list[str] | None:
-    """With ``keep.planar``, the body's muscles that act in the plane of the scene's kept
-    dofs, measured on the unpruned model (cached; no simulator built); else None. What
-    ``workers.scenes.io_names`` needs for such a scene on MuJoCo."""
-    return _full_model_facts(scene.body, _sagittal(scene))[1] if scene.keep.planar else None
 
 
 def _fit_muscle_curves_to_millard(model: mujoco.MjModel) -> None:
@@ -126,8 +108,8 @@ def _fit_passive_to_thelen_whole(model: mujoco.MjModel, scene: Scene) -> None:
 def compile_scene(scene: Scene) -> tuple[mujoco.MjModel, CompileReport, Topology]:
     """Compile ``scene`` to a pruned model, with the report of what was removed."""
     topology = topology_for(scene.body)
-    size_full, planar = _full_model_facts(scene.body, _sagittal(scene))
-    plan: PrunePlan = plan_pruning(scene, topology, planar if scene.keep.planar else None)
+    size_full = _full_model_size(scene.body)
+    plan: PrunePlan = plan_pruning(scene, topology)
     spec = source_spec(scene.body)
     dropped = lock_joints(spec, plan.locked_dofs)
     remove_muscles(spec, list(plan.removed_muscles))

@@ -58,11 +58,6 @@ MYOLEG_FOOT_GEOMS: tuple[str, ...] = tuple(
 )
 """Collision geoms of the feet (calcaneus and toes), right then left."""
 
-MYOLEG_SAGITTAL_JOINTS: tuple[str, ...] = tuple(
-    f"{name}_{side}" for side in ("r", "l") for name in ("hip_flexion", "knee_angle", "ankle_angle")
-)
-"""The sagittal-plane joints of MyoLeg, right then left (for ``planar_muscles``)."""
-
 _LEG_FRAGMENTS = (
     "myolegs_assets.xml",
     "myolegs_chain.xml",

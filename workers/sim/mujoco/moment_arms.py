@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import logging
 import re
-from collections.abc import Sequence
 
 import mujoco
 import numpy as np
@@ -171,73 +170,3 @@ def muscle_spans(
         ]
         for m, aid in enumerate(ids)
     }
-
-
-def _dofs_of(model: mujoco.MjModel, joints: Sequence[str], caller: str) -> list[int]:
-    dofs = []
-    for name in joints:
-        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-        if jid < 0:
-            raise KeyError(f"{caller}: no joint named {name!r}")
-        dofs.append(int(model.jnt_dofadr[jid]))
-    return dofs
-
-
-def planar_muscles(
-    model: mujoco.MjModel,
-    sagittal_joints: Sequence[str],
-    min_moment_arm_m: float = 0.005,
-    n_poses: int = _DEFAULT_POSES,
-    seed: int = _DEFAULT_SEED,
-    out_of_plane_joints: Sequence[str] | None = None,
-    min_ratio: float = 0.5,
-) -> list[str]:
-    """Muscles that act in the sagittal plane; the rest are out-of-plane.
-
-    A muscle is kept if both:
-
-    * its peak ``|moment arm|`` about the sagittal joints (max over those joints and over
-      the poses of :func:`muscle_spans`) is at least ``min_moment_arm_m``;
-    * its sagittal moment arm is at least ``min_ratio`` times its out-of-plane one, each
-      taken as the largest ``|moment arm|`` over the joint group, averaged over the poses.
-
-    The second test is what discriminates on MyoLeg: over the hip's range nearly every hip
-    muscle reaches 5 mm of flexion moment arm somewhere, so the first test alone keeps
-    all 80; the ratio drops the ab/adductors, deep rotators and evertors.
-
-    Args:
-        model: Compiled model.
-        sagittal_joints: Hinge/slide joints of the plane (e.g. hip flexion, knee, ankle).
-        min_moment_arm_m: Minimum peak sagittal moment arm (m).
-        n_poses: Number of poses including ``qpos0`` (1: ``qpos0`` only).
-        seed: Seed of the random poses.
-        out_of_plane_joints: Joints for the ratio test. None: every other hinge/slide
-            joint not driven by a coupling. Empty: no ratio test.
-        min_ratio: Minimum (mean sagittal arm) / (mean out-of-plane arm).
-
-    Returns:
-        Names of the kept muscles, in actuator order.
-
-    Raises:
-        KeyError: A joint name is unknown.
-    """
-    dofs = _dofs_of(model, sagittal_joints, "planar_muscles")
-    if out_of_plane_joints is None:
-        oop = [int(model.jnt_dofadr[j]) for j in _spannable_joints(model)]
-        oop = [d for d in oop if d not in set(dofs)]
-    else:
-        oop = _dofs_of(model, out_of_plane_joints, "planar_muscles")
-    ids, arms = muscle_moment_arms(model, n_poses, seed)
-    if not ids:
-        return []
-    peak = np.abs(arms[:, :, dofs]).max(axis=(0, 2))
-    keep = peak >= min_moment_arm_m
-    if oop:
-        sag_mean = np.abs(arms[:, :, dofs]).max(axis=2).mean(axis=0)
-        oop_mean = np.abs(arms[:, :, oop]).max(axis=2).mean(axis=0)
-        keep &= sag_mean >= min_ratio * oop_mean
-    return [
-        _name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, aid)
-        for aid, k in zip(ids, keep, strict=True)
-        if k
-    ]
