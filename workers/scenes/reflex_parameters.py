@@ -41,7 +41,7 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("trunk.list", 5 * DEG, 0.0, 10 * DEG, "frontal lean toward the stance leg held"),
     Parameter("swing.leg_angle", 15 * DEG, -25 * DEG, 55 * DEG, "leg aimed forward of vertical"),
     Parameter("swing.speed_gain", 2 * DEG, 0.0, 10 * DEG, "more leg angle per m/s of speed"),
-    Parameter("swing.stop_before", 5 * DEG, 0.0, 15 * DEG, "how far short of its aim the leg stops"),
+    Parameter("swing.stop_before", 5 * DEG, 0.0, 15 * DEG, "how far short of its aim it stops"),
     Parameter("swing.knee_flexion", 40 * DEG, 0.0, 100 * DEG, "knee flexion of early swing"),
     Parameter("swing.knee_held", 5 * DEG, 0.0, 110 * DEG, "knee flexion held in late swing"),
     Parameter("stance.knee_offset", 5 * DEG, 0.0, 25 * DEG, "knee flexion below which VAS stops"),
