@@ -11,11 +11,12 @@ reset noise by the named measure (``workers.gait_measure``), on a :class:`Worker
 (whose dead or hung actors cost their candidate a re-run, not the generation) or, with no
 pool, in this process.
 
-A run directory holds ``cmaes/state.pkl`` (the optimiser, written after every generation:
-a stopped run resumes from it), ``cmaes/progress.csv`` (one row a generation: best, mean
-and sigma, and the best candidate's parts), TensorBoard scalars under ``tb/`` and
-``cmaes/tuned.yaml``, the scene with the distribution's mean as its parameters (the
-optimiser's estimate of the optimum: on a noisy measure, steadier than the best sample).
+Its folder holds ``state.pkl`` (the optimiser, written after every generation: a stopped
+search resumes from it), ``progress.csv`` (one row a generation: best, mean and sigma, and
+the best candidate's parts), TensorBoard scalars under ``tb/`` (unless a job's run logs
+them) and ``tuned.yaml``, the scene with the distribution's mean as its parameters (the
+optimiser's estimate of the optimum: on a noisy measure, steadier than the best sample). In
+a job, an ``optimize`` stage's folder is ``<run>/cmaes/stage-<i>`` (``Trainer``).
 """
 
 from __future__ import annotations
@@ -27,13 +28,14 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING
 
 import cma
 import numpy as np
 import yaml
+from gaitforge.learner.stage_spec import StageOptimize
 from gaitforge.workers.env import MuscleEnv
-from gaitforge.workers.gait_measure import CandidateScore, GaitMeasure, score_candidate
+from gaitforge.workers.gait_measure import CandidateScore, score_candidate
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.scenes.reflex_parameters import (
     LOWER,
@@ -41,7 +43,6 @@ from gaitforge.workers.scenes.reflex_parameters import (
     parameter_values,
     parameter_vector,
 )
-from pydantic import BaseModel, ConfigDict, Field
 
 if TYPE_CHECKING:
     from gaitforge.workers.pool import WorkerPool
@@ -51,26 +52,6 @@ logger = logging.getLogger(__name__)
 STATE_FILE = "state.pkl"
 PROGRESS_FILE = "progress.csv"
 TUNED_FILE = "tuned.yaml"
-
-
-class CmaesSettings(BaseModel):
-    """How a reflex controller is tuned."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    population: Annotated[int, Field(ge=2, le=1024)] = 16
-    generations: Annotated[int, Field(ge=1, le=100_000)] = 200
-    minutes: Annotated[float, Field(gt=0)] | None = Field(
-        default=None, description="stop after this much wall-clock time (with the state kept)"
-    )
-    sigma: Annotated[float, Field(gt=0, le=0.5)] = Field(
-        default=0.1, description="initial step, as a share of each parameter's range"
-    )
-    episodes: Annotated[int, Field(ge=1, le=100)] = Field(
-        default=3, description="episodes per candidate, each from its own noisy start"
-    )
-    measure: GaitMeasure = GaitMeasure()
-    seed: int = 0
 
 
 @dataclass
@@ -83,7 +64,11 @@ class Generation:
     sigma: float
     best_parts: dict[str, float]
     env_steps: int
+    """the search's, so far"""
     wall_s: float
+    """s of wall clock the search has taken, so far"""
+    steps: int
+    """env steps of this generation"""
 
     def row(self) -> dict[str, float]:
         parts = {f"best_{k}": v for k, v in self.best_parts.items() if k != "cost"}
@@ -126,8 +111,9 @@ class CmaesTuning:
 
     Args:
         scene: a resolved scene with ``action.kind: reflex_gait``.
-        settings: the search's settings.
-        out_dir: where ``cmaes/`` and ``tb/`` go; an existing state there is resumed.
+        settings: the search's settings (a job stage's ``optimize``).
+        out_dir: the search's folder; an existing state there is resumed.
+        seed: the search's seed and the episodes' reset seeds' base.
         pool: actors to score on (their scene must be ``scene``); None scores in-process.
         backend: the simulator, for in-process scoring.
         tensorboard: write TensorBoard scalars.
@@ -136,17 +122,19 @@ class CmaesTuning:
     def __init__(
         self,
         scene: Scene,
-        settings: CmaesSettings,
+        settings: StageOptimize,
         out_dir: Path,
         pool: WorkerPool | None = None,
         backend: str = "mujoco",
         tensorboard: bool = True,
+        seed: int = 0,
     ) -> None:
         if not scene.action.gait:
             raise ValueError(f"scene {scene.name!r}: action.kind is not reflex_gait")
         self.scene = scene
         self.settings = settings
-        self.dir = out_dir / "cmaes"
+        self.seed = seed
+        self.dir = out_dir
         self.dir.mkdir(parents=True, exist_ok=True)
         self.pool = pool
         self._env = None if pool is not None else MuscleEnv(scene, backend)
@@ -163,7 +151,7 @@ class CmaesTuning:
         options = {
             "popsize": self.settings.population,
             "bounds": [0.0, 1.0],
-            "seed": self.settings.seed + 1,  # cma reads 0 as "from the clock"
+            "seed": self.seed + 1,  # cma reads 0 as "from the clock"
             "verbose": -9,
         }
         return _Saved(strategy=cma.CMAEvolutionStrategy(x0, self.settings.sigma, options))
@@ -211,7 +199,7 @@ class CmaesTuning:
         candidates = [np.asarray(x) for x in strategy.ask()]
         parameters = [from_unit(x) for x in candidates]
         seeds = [
-            self.settings.seed * 1_000_003 + saved.generation * self.settings.episodes + i
+            self.seed * 1_000_003 + saved.generation * self.settings.episodes + i
             for i in range(self.settings.episodes)
         ]
         try:
@@ -224,7 +212,8 @@ class CmaesTuning:
         if costs[best] < saved.best_cost:
             saved.best_cost, saved.best_parameters = costs[best], parameters[best]
         saved.generation += 1
-        saved.env_steps += sum(s.env_steps for s in scores)
+        steps = sum(s.env_steps for s in scores)
+        saved.env_steps += steps
         saved.wall_s += time.perf_counter() - start
         generation = Generation(
             generation=saved.generation,
@@ -234,6 +223,7 @@ class CmaesTuning:
             best_parts=scores[best].as_dict(),
             env_steps=saved.env_steps,
             wall_s=saved.wall_s,
+            steps=steps,
         )
         saved.history.append(generation)
         self._save(generation)
@@ -280,10 +270,40 @@ class CmaesTuning:
         """The distribution's mean, by name (the tuned controller)."""
         return parameter_values(from_unit(np.asarray(self.saved.strategy.mean)))
 
+    def tuned_scene(self) -> Scene:
+        """The scene with the tuned parameters."""
+        return with_parameters(self.scene, self.tuned_parameters())
+
     def write_tuned(self) -> Path:
-        """``cmaes/tuned.yaml``: the scene with the tuned parameters."""
-        data = self.scene.model_dump(mode="json", exclude_defaults=True)
-        data.setdefault("action", {})["parameters"] = self.tuned_parameters()
+        """``tuned.yaml``: :meth:`tuned_scene` as a scene file."""
+        data = self.tuned_scene().model_dump(mode="json", exclude_defaults=True)
         path = self.dir / TUNED_FILE
         path.write_text(yaml.safe_dump(data, sort_keys=False))
         return path
+
+
+def saved_parameters(folder: Path) -> dict[str, float] | None:
+    """The tuned parameters (the distribution's mean) of the search saved in ``folder``;
+    None if it holds none."""
+    path = folder / STATE_FILE
+    if not path.exists():
+        return None
+    with path.open("rb") as f:
+        saved = pickle.load(f)  # written by CmaesTuning into the run's own directory
+    return parameter_values(from_unit(np.asarray(saved.strategy.mean)))
+
+
+def with_parameters(scene: Scene, parameters: dict[str, float]) -> Scene:
+    """``scene`` with its reflex gait controller's ``parameters`` (all of them, by name)."""
+    action = scene.action.model_copy(update={"parameters": dict(parameters)})
+    return scene.model_copy(update={"action": action})
+
+
+def carries(tuned: Scene, scene: Scene) -> bool:
+    """Whether a controller tuned on ``tuned`` goes on to ``scene``: the same controller
+    (``reflex_gait``) on the same body and wiring."""
+    return (
+        scene.action.gait
+        and scene.body == tuned.body
+        and scene.action.wiring == tuned.action.wiring
+    )

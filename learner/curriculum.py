@@ -49,13 +49,20 @@ class StageIO:
 
 
 def check_stages(job: Job, scenes: list[Scene]) -> tuple[list[StageIO], list[MirrorMap | None]]:
-    """What the job file alone cannot tell: the stages' envs (``scenes``, resolved, one per
-    stage) fit one policy lineage. Returns each stage's :class:`StageIO` and mirror map (None
+    """What the job file alone cannot tell: each ``optimize`` stage's scene has a reflex gait
+    controller, and the stages' envs (``scenes``, resolved, one per stage) fit one policy
+    lineage. Returns each stage's :class:`StageIO` and mirror map (None
     where the stage's ``ppo.mirror`` is off).
 
     Raises:
         SpecError: naming the stage (or ``ppo.mirror``) and what does not fit.
     """
+    for i, (stage, scene) in enumerate(zip(job.stages, scenes, strict=True)):
+        if stage.optimize is not None and not scene.action.gait:
+            raise SpecError(
+                f"stages.{i}.optimize: scene {scene.name!r} has action.kind "
+                f"{scene.action.kind!r}; CMA-ES tunes a reflex_gait controller"
+            )
     io = [StageIO(scene, job.stage_backend(i)) for i, scene in enumerate(scenes)]
     acts = io[0].act_names
     mirrors: list[MirrorMap | None] = []

@@ -15,6 +15,7 @@ from gaitforge.learner.run_state import RunState
 from gaitforge.workers.fragment import Fragment
 
 if TYPE_CHECKING:
+    from gaitforge.learner.cmaes import Generation
     from torch.utils.tensorboard import SummaryWriter
 
 
@@ -75,6 +76,27 @@ def iteration_metrics(
     }
 
 
+def search_metrics(run: RunState, generation: Generation, elapsed_s: float) -> dict:
+    """A CMA-ES generation's metrics (an ``optimize`` stage's iteration): where ``run`` is,
+    as :func:`iteration_metrics` says it, and the generation's figures as ``cmaes_*`` (best
+    and mean cost, sigma, the best candidate's parts, its generation and the search's
+    wall-clock s)."""
+    curriculum = run.curriculum
+    row = generation.row()
+    figures = {f"cmaes_{k}": v for k, v in row.items() if k != "env_steps"}
+    return {
+        "iteration": run.iteration,
+        "env_steps": run.env_steps,
+        "stage": curriculum.stage,
+        "stage_name": run.stage.name or run.scene.name,
+        "scene": run.scene.name,
+        "stage_env_steps": curriculum.stage_env_steps,
+        "train_s": run.train_s,
+        "steps_per_s": generation.steps / max(elapsed_s, 1e-9),
+        **figures,
+    }
+
+
 class ScalarLog:
     """TensorBoard scalars in ``log_dir``: every number of an iteration's metrics under
     ``train/``, and each reward term and health cause under their own group; x = env steps.
@@ -100,7 +122,7 @@ class ScalarLog:
             if isinstance(value, int | float) and np.isfinite(value):
                 self._writer.add_scalar(f"train/{key}", value, step)
         for group in ("reward_terms", "health"):
-            for key, value in metrics[group].items():
+            for key, value in metrics.get(group, {}).items():
                 self._writer.add_scalar(f"{group}/{key}", value, step)
 
     def close(self) -> None:

@@ -10,6 +10,7 @@ from typing import Annotated, Any, Literal
 
 from gaitforge.learner.metrics import EVALUATION_PREFIX, RULE_METRICS
 from gaitforge.learner.ppo import EntropyWeight, LearningRate
+from gaitforge.workers.gait_measure import GaitMeasure
 from gaitforge.workers.spec_types import MAX_NAME_LENGTH, SPEC_VALUES, Name, Ref
 from pydantic import (
     BaseModel,
@@ -203,6 +204,26 @@ class StagePPO(StrictSpec):
     """entropy weight at the stage's end (linear schedule)"""
 
 
+class StageOptimize(StrictSpec):
+    """A stage that tunes its scene's reflex gait controller (``action.kind: reflex_gait``)
+    with CMA-ES instead of training the network (``learner.cmaes``): each iteration is one
+    generation, scored on the rollout actors."""
+
+    method: Literal["cmaes"] = "cmaes"
+    population: Annotated[int, Field(ge=2, le=1024)] = 16
+    generations: Annotated[int, Field(ge=1, le=100_000)] = 200
+    minutes: Annotated[float, Field(gt=0)] | None = Field(
+        default=None, description="end the stage after this much wall-clock time of it"
+    )
+    sigma: Annotated[float, Field(gt=0, le=0.5)] = Field(
+        default=0.1, description="initial step, as a share of each parameter's range"
+    )
+    episodes: Annotated[int, Field(ge=1, le=100)] = Field(
+        default=3, description="episodes per candidate, each from its own noisy start"
+    )
+    measure: GaitMeasure = GaitMeasure()
+
+
 class Stage(StrictSpec):
     """One curriculum stage: a scene, a budget and a rule to leave early."""
 
@@ -242,6 +263,10 @@ class Stage(StrictSpec):
     its end; None: none"""
     ppo: StagePPO = StagePPO()
     """the stage's learning-rate and entropy schedules, where they differ from the job's"""
+    optimize: StageOptimize | None = None
+    """tune the scene's reflex gait controller with CMA-ES in this stage (its budget is
+    ``env_steps`` and the generations); the tuned parameters go on to the later stages whose
+    scenes use the same controller (PPO on top); None: a PPO stage"""
     action_std: Annotated[float, Field(gt=0, le=1)] | None = None
     """with transition ``continue``: the action noise's standard deviation (action units)
     the network starts the stage with, in place of the one the stage before (or, in the
@@ -283,6 +308,27 @@ class Stage(StrictSpec):
             raise ValueError(
                 f"promote: {on_evaluation[0]} reads the stage's deterministic evaluation; "
                 "the stage needs evaluate: (e.g. evaluate: {episodes: 50})"
+            )
+        return self
+
+    @model_validator(mode="after")
+    def _optimize_alone(self) -> Stage:
+        if self.optimize is None:
+            return self
+        used = [
+            name
+            for name, on in (
+                ("promote", bool(self.promote)),
+                ("evaluate", self.evaluate is not None),
+                ("network", self.network is not None),
+                ("transition", self.transition != "continue"),
+                ("action_std", self.action_std is not None),
+            )
+            if on
+        ]
+        if used:
+            raise ValueError(
+                f"optimize: a CMA-ES stage trains no network; {used} are for PPO stages"
             )
         return self
 

@@ -36,12 +36,13 @@ import time
 from pathlib import Path
 from typing import Any
 
+from gaitforge.learner.cmaes import CmaesTuning, carries, saved_parameters, with_parameters
 from gaitforge.learner.curriculum import StageShortfallError
 from gaitforge.learner.evaluation.training_hooks import StageJudging, record_due
 from gaitforge.learner.hooks import Checkpoints, IterationCallback, MetricsReport, ramp_blend
 from gaitforge.learner.job import Job, resolve_scenes
 from gaitforge.learner.policy import ActorCritic
-from gaitforge.learner.run_log import batch_stats, iteration_metrics
+from gaitforge.learner.run_log import batch_stats, iteration_metrics, search_metrics
 from gaitforge.learner.run_state import RunState
 from gaitforge.learner.stage_verdict import Outcome, StageVerdict
 from gaitforge.learner.transitions import stage_network
@@ -103,6 +104,9 @@ class Trainer:
         self.state.restore()
         self.judging.resume(self.state.env_steps)
         self.checkpoints = Checkpoints()
+        self._tunings: dict[int, CmaesTuning] = {}
+        """stage index -> its CMA-ES search (``optimize`` stages, once entered)"""
+        self._carry_searched()
 
     @property
     def history(self) -> list[dict]:
@@ -120,6 +124,16 @@ class Trainer:
     @on_iteration.setter
     def on_iteration(self, callback: IterationCallback | None) -> None:
         self.report.callback = callback
+
+    def _carry_searched(self) -> None:
+        """After a resume: the tuned controllers of the ``optimize`` stages the run has
+        passed (or is in) go on to their later stages again."""
+        run = self.state
+        for index, stage in enumerate(run.job.stages[: run.curriculum.stage + 1]):
+            if stage.optimize is not None:
+                tuned = saved_parameters(self._search_dir(index))
+                if tuned is not None:
+                    self._carry(index, tuned)
 
     def request_stop(self) -> None:
         """Ask :meth:`run` to stop: the batch being gathered is dropped (its env steps and
@@ -161,12 +175,15 @@ class Trainer:
         return self.history
 
     def iterate(self) -> dict:
-        """One iteration: sample a batch, update the policy on it, ramp a blend, publish the
+        """One iteration: a CMA-ES generation in an ``optimize`` stage (:meth:`search`);
+        else sample a batch, update the policy on it, ramp a blend, publish the
         new weights; then the stage's verdict (``StageJudging.decide``), the metrics'
         report, the checkpoint and the recording where due, in that order (a checkpoint
         holds its network's evaluation, a recording names its checkpoint); then the next
         stage if this one ended. Returns the iteration's metrics."""
         run = self.state
+        if run.stage.optimize is not None:
+            return self.search()
         ppo = run.stage_ppo
         start = time.perf_counter()
         fragments = run.rollouts.gather(ppo.batch_env_steps, run.count)
@@ -193,6 +210,71 @@ class Trainer:
         if verdict.ends:
             self._next_stage(verdict)
         return metrics
+
+    def search(self) -> dict:
+        """One CMA-ES generation of the ``optimize`` stage's reflex gait controller
+        (``learner.cmaes``), on the rollout actors where the job has a pool, else in this
+        process. The stage's scene then carries the search's mean (its checkpoints evaluate
+        the controller as tuned so far), and so do the later stages' scenes with the same
+        controller: PPO starts on top of it. Then the verdict, report and checkpoint as in
+        :meth:`iterate`. Returns the iteration's metrics.
+
+        Raises:
+            StopRequested: a stop was requested while candidates were scored (the
+                generation is dropped; the search's state is the one before it).
+        """
+        run = self.state
+        index = run.curriculum.stage
+        tuning = self._tuning(index)
+        start = time.perf_counter()
+        generation = tuning.step()
+        if generation is None:
+            raise StopRequested
+        run.env_steps += generation.steps
+        run.curriculum.stage_env_steps += generation.steps
+        run.iteration += 1
+        self._carry(index, tuning.tuned_parameters())
+        metrics = search_metrics(run, generation, time.perf_counter() - start)
+        verdict = self.judging.decide(run, metrics)
+        self.report.add(metrics)
+        self.checkpoints.at_iteration_end(run, metrics, verdict)
+        if verdict.ends:
+            tuning.write_tuned()
+            self._next_stage(verdict)
+        return metrics
+
+    def _tuning(self, index: int) -> CmaesTuning:
+        """Stage ``index``'s search (``optimize``), resumed from its folder if it has one."""
+        if index not in self._tunings:
+            run = self.state
+            stage = run.job.stages[index]
+            assert stage.optimize is not None
+            sampler = run.rollouts.sampler
+            self._tunings[index] = CmaesTuning(
+                run.scenes[index],
+                stage.optimize,
+                self._search_dir(index),
+                pool=sampler if hasattr(sampler, "score_candidates") else None,  # a WorkerPool
+                backend=run.job.stage_backend(index),
+                tensorboard=False,  # the run's scalars hold its figures
+                seed=run.job.seed,
+            )
+        return self._tunings[index]
+
+    def _search_dir(self, index: int) -> Path:
+        return self.state.run_dir / "cmaes" / f"stage-{index}"
+
+    def _carry(self, searched: int, tuned: dict[str, float]) -> None:
+        """``tuned``, the search of stage ``searched``, into that stage's scene and every
+        later stage's with the same controller (their evaluation scenes too)."""
+        run = self.state
+        origin = run.scenes[searched]
+        for index in range(searched, len(run.scenes)):
+            if carries(origin, run.scenes[index]):
+                run.scenes[index] = with_parameters(run.scenes[index], tuned)
+            judge = self.judging.judges.get(index)
+            if judge is not None and carries(origin, judge.scene):
+                judge.scene = with_parameters(judge.scene, tuned)
 
     # ---- stages (their networks: learner/transitions.py) ----------------------------------
 

@@ -6,8 +6,8 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from gaitforge.learner.cmaes import CmaesSettings
 from gaitforge.learner.job import MAX_NUM_WORKERS
+from gaitforge.learner.stage_spec import StageOptimize
 from gaitforge.service.console import fail, out
 from gaitforge.service.ops.tune import tune as tune_op
 from gaitforge.workers.gait_measure import GaitMeasure
@@ -30,22 +30,21 @@ def tune(
     min_speed: Annotated[float, typer.Option(help="m/s the gait measure asks for.")] = 1.0,
     seed: Annotated[int, typer.Option(help="The search's and the starts' seed.")] = 0,
 ) -> None:
-    """Tune a reflex gait controller's parameters with CMA-ES; writes
-    OUT/cmaes/tuned.yaml (the scene with them), progress.csv and TensorBoard scalars."""
+    """Tune a reflex gait controller's parameters with CMA-ES; writes OUT/tuned.yaml (the
+    scene with them), OUT/progress.csv and TensorBoard scalars (OUT/tb)."""
     try:
-        settings = CmaesSettings(
+        settings = StageOptimize(
             population=population,
             generations=generations,
             minutes=minutes,
             sigma=sigma,
             episodes=episodes,
             measure=GaitMeasure(min_speed=min_speed, max_speed=max(min_speed, 1.6)),
-            seed=seed,
         )
     except ValidationError as exc:
         raise fail(str(exc).splitlines()[0] + ": " + exc.errors()[0]["msg"]) from None
     try:
-        tuning, _ = tune_op(scene, out_dir, settings, backend, workers)
+        tuning, _ = tune_op(scene, out_dir, settings, backend, workers, seed=seed)
     except SpecError as exc:
         raise fail(exc) from None
     last = tuning.saved.history[-1] if tuning.saved.history else None

@@ -49,6 +49,8 @@ from gaitforge.workers.sim.base import Pose, SimState, Simulator
 GRAVITY = 9.81
 CONTACT_LOAD = 0.1
 """body weights on a foot that count as contact"""
+START_CONTACT_M = 0.01
+"""m between a foot's lowest point and the floor within which it starts in stance"""
 PRE_STIM = 0.01
 """every group's excitation floor"""
 _G = {g: i for i, g in enumerate(GROUPS)}
@@ -199,12 +201,16 @@ class GaitReflex:
 
     def reset(self, state: SimState) -> None:
         """Start the phases from ``state`` (after the simulator's reset and start pose): a
-        leg on the ground is in stance, one in the air in swing with its knee flexing."""
+        leg whose foot is within ``START_CONTACT_M`` of the floor is in stance (at the start
+        it carries no load yet), one in the air in swing with its knee flexing."""
         self._previous = None
-        sensed = self._read(state)
-        for k, phase in enumerate(self._phases):
+        self._read(state)
+        spheres = self.sim.contact_spheres()
+        up = self.sim.up_axis
+        for leg, phase in zip(self.wiring.legs(), self._phases, strict=True):
             phase.__init__()
-            phase.contact = bool(sensed.load[k] > CONTACT_LOAD)
+            foot = spheres[leg.foot]
+            phase.contact = bool((foot[:, up] - foot[:, 3]).min() < START_CONTACT_M)
             if phase.contact:
                 phase.touch_down()
             else:
@@ -274,15 +280,23 @@ class GaitReflex:
         error = aim - s.leg[k]
         # trunk balance in stance
         trunk = p[P["trunk.lean"]]
-        hfl_trunk = stance * load * max(
-            -p[P["stance.hfl_trunk_kp"]] * (s.lean - trunk)
-            - p[P["stance.hfl_trunk_kd"]] * s.lean_rate,
-            0.0,
+        hfl_trunk = (
+            stance
+            * load
+            * max(
+                -p[P["stance.hfl_trunk_kp"]] * (s.lean - trunk)
+                - p[P["stance.hfl_trunk_kd"]] * s.lean_rate,
+                0.0,
+            )
         )
-        glu_trunk = stance * load * max(
-            p[P["stance.glu_trunk_kp"]] * (s.lean - trunk)
-            + p[P["stance.glu_trunk_kd"]] * s.lean_rate,
-            0.0,
+        glu_trunk = (
+            stance
+            * load
+            * max(
+                p[P["stance.glu_trunk_kp"]] * (s.lean - trunk)
+                + p[P["stance.glu_trunk_kd"]] * s.lean_rate,
+                0.0,
+            )
         )
         # swing placement and the leg's hold
         hfl_leg = placing * max(
@@ -294,11 +308,11 @@ class GaitReflex:
         knee_held = p[P["swing.knee_held"]]
         hip_aim = aim + 0.5 * knee_held
         hip_error = hip_aim - s.hip[k]
-        u[_G["HFL"]] += hfl_trunk + hfl_leg + hold_leg * p[P["swing.hfl_hold_kp"]] * max(
-            hip_error, 0.0
+        u[_G["HFL"]] += (
+            hfl_trunk + hfl_leg + hold_leg * p[P["swing.hfl_hold_kp"]] * max(hip_error, 0.0)
         )
-        u[_G["GLU"]] += glu_trunk + glu_leg + hold_leg * p[P["swing.glu_hold_kp"]] * max(
-            -hip_error, 0.0
+        u[_G["GLU"]] += (
+            glu_trunk + glu_leg + hold_leg * p[P["swing.glu_hold_kp"]] * max(-hip_error, 0.0)
         )
         stop = aim - p[P["swing.stop_before"]]
         ham_stop = float(phase.stop_leg) * p[P["swing.ham_stop_kp"]] * max(s.leg[k] - stop, 0.0)

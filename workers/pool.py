@@ -288,6 +288,8 @@ class WorkerPool:
                     )
                     self._replace(slot)
                     pending.appendleft(index)
+        for slot in self._slots:  # a fragment's clock starts now, not before the scoring
+            slot.progress_at = time.monotonic()
         return [score for score in scores if score is not None]
 
     @property

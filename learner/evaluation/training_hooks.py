@@ -68,6 +68,15 @@ class StageJudging:
         metrics and the verdict's text (``verdict``) to ``metrics``."""
         stage, curriculum = run.stage, run.curriculum
         verdict = curriculum.verdict(stage)
+        if stage.optimize is not None:  # a CMA-ES stage: its budgets alone end it
+            search = stage.optimize
+            spent = metrics["cmaes_generation"] >= search.generations or (
+                search.minutes is not None and metrics["cmaes_wall_s"] >= 60.0 * search.minutes
+            )
+            if spent and not verdict.ends:
+                verdict = StageVerdict(Outcome.BUDGET_SPENT)
+            metrics["verdict"] = verdict.text
+            return verdict
         judge = self.judges.get(curriculum.stage)
         if judge is not None and (verdict.ends or judge.due(curriculum.stage_env_steps)):
             verdict = self._evaluated(judge, run, metrics)

@@ -237,11 +237,20 @@ def status_line(m: dict) -> str:
             f"; ends with the best, from {m['kept_best_from_env_steps']:,} env steps (falls "
             f"{100 * m['kept_eval_fall_rate']:.0f} %, speed {m['kept_eval_speed']:.2f} m/s)"
         )
-    return (
+    where = (
         f"stage {m['stage']} {m['stage_name']}{verdict}: iteration {m['iteration']}, "
         f"{m['env_steps']:,} env steps ({m['stage_env_steps']:,} in stage), "
-        f"{m['steps_per_s']:,.0f} steps/s; return {m['return']:.1f}, "
-        f"speed {m['speed']:.2f} m/s, falls {100 * m['fall_rate']:.0f} %{evaluated}"
+        f"{m['steps_per_s']:,.0f} steps/s; "
+    )
+    if "cmaes_generation" in m:  # a CMA-ES stage's generation
+        return where + (
+            f"generation {m['cmaes_generation']}: best {m['cmaes_best']:.3f}, mean "
+            f"{m['cmaes_mean']:.3f}, sigma {m['cmaes_sigma']:.3f}; the best alive "
+            f"{100 * m['cmaes_best_alive']:.0f} % of its episodes, {m['cmaes_best_speed']:.2f} m/s"
+        )
+    return where + (
+        f"return {m['return']:.1f}, speed {m['speed']:.2f} m/s, "
+        f"falls {100 * m['fall_rate']:.0f} %{evaluated}"
     )
 
 

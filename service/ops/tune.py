@@ -6,7 +6,8 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
-from gaitforge.learner.cmaes import CmaesSettings, CmaesTuning, Generation
+from gaitforge.learner.cmaes import CmaesTuning, Generation
+from gaitforge.learner.stage_spec import StageOptimize
 from gaitforge.service.ops.errors import InputError
 from gaitforge.workers.policy_api import UniformExcitationPolicy
 from gaitforge.workers.scenes import BackendMismatch, load_scene
@@ -15,10 +16,11 @@ from gaitforge.workers.scenes import BackendMismatch, load_scene
 def tune(
     scene_ref: str,
     out_dir: Path,
-    settings: CmaesSettings,
+    settings: StageOptimize,
     backend: str = "mujoco",
     workers: int = 0,
     tensorboard: bool = True,
+    seed: int = 0,
 ) -> tuple[CmaesTuning, list[Generation]]:
     """Tune ``scene_ref``'s controller into ``out_dir`` (resuming a state there) on
     ``backend``, with ``workers`` Ray actors (0: in this process).
@@ -50,10 +52,10 @@ def tune(
             num_workers=workers,
             envs_per_worker=1,
             queue_depth=0,
-            seed=settings.seed,
+            seed=seed,
         )
     try:
-        tuning = CmaesTuning(scene, settings, out_dir, pool, backend, tensorboard)
+        tuning = CmaesTuning(scene, settings, out_dir, pool, backend, tensorboard, seed)
         return tuning, tuning.run()
     finally:
         if pool is not None:

@@ -7,24 +7,27 @@ import csv
 from pathlib import Path
 
 import pytest
-from gaitforge.learner.cmaes import CmaesSettings, CmaesTuning
+from gaitforge.learner.cmaes import CmaesTuning
+from gaitforge.learner.stage_spec import StageOptimize
 from gaitforge.workers.scenes import load_scene
 
 SCENE = load_scene("reflex-walk-3d", {"episode_s": 0.3}).resolved()
-SETTINGS = CmaesSettings(population=4, generations=3, episodes=1, sigma=0.2, seed=5)
+SETTINGS = StageOptimize(population=4, generations=3, episodes=1, sigma=0.2)
 
 
 def _rows(run_dir: Path) -> list[dict[str, str]]:
-    with (run_dir / "cmaes" / "progress.csv").open() as f:
+    with (run_dir / "progress.csv").open() as f:
         return list(csv.DictReader(f))
 
 
 def test_a_resumed_search_goes_on_as_one_that_never_stopped(tmp_path: Path) -> None:
-    straight = CmaesTuning(SCENE, SETTINGS, tmp_path / "straight", tensorboard=False)
+    straight = CmaesTuning(SCENE, SETTINGS, tmp_path / "straight", tensorboard=False, seed=5)
     straight.run()
-    first = CmaesTuning(SCENE, SETTINGS.model_copy(update={"generations": 2}), tmp_path / "resumed")
+    first = CmaesTuning(
+        SCENE, SETTINGS.model_copy(update={"generations": 2}), tmp_path / "resumed", seed=5
+    )
     first.run()
-    resumed = CmaesTuning(SCENE, SETTINGS, tmp_path / "resumed", tensorboard=False)
+    resumed = CmaesTuning(SCENE, SETTINGS, tmp_path / "resumed", tensorboard=False, seed=5)
     assert resumed.saved.generation == 2
     resumed.run()
     a, b = _rows(tmp_path / "straight"), _rows(tmp_path / "resumed")
@@ -32,9 +35,9 @@ def test_a_resumed_search_goes_on_as_one_that_never_stopped(tmp_path: Path) -> N
     for row_a, row_b in zip(a, b, strict=True):
         for key in ("best", "mean", "sigma", "env_steps"):
             assert float(row_b[key]) == pytest.approx(float(row_a[key]), rel=1e-9), key
-    tuned = load_scene(str(tmp_path / "resumed" / "cmaes" / "tuned.yaml"))
+    tuned = load_scene(str(tmp_path / "resumed" / "tuned.yaml"))
     assert tuned.action.parameters == pytest.approx(resumed.tuned_parameters(), rel=1e-12)
-    assert (tmp_path / "resumed" / "tb").is_dir()
+    assert (tmp_path / "resumed" / "tb").is_dir()  # the first part wrote TensorBoard
 
 
 def test_a_scene_without_the_controller_is_refused(tmp_path: Path) -> None:

@@ -78,8 +78,7 @@ class ActionSpec(BaseModel):
             self.wiring is not None or self.parameters or self.start_speed
         ):
             raise ValueError(
-                "action.wiring, action.parameters and action.start_speed are for kind "
-                "reflex_gait"
+                "action.wiring, action.parameters and action.start_speed are for kind reflex_gait"
             )
         parameter_vector(self.parameters)  # names and bounds
         return self
