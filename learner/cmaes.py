@@ -7,9 +7,9 @@ keeps candidates inside it, so that one ``sigma`` means the same share of every 
 starts at the scene's parameters (``action.parameters``, the rest at their defaults). Each
 generation draws fresh reset seeds shared by all its candidates (they are compared on the
 same starts); each candidate is scored over ``episodes`` episodes of the scene with its
-reset noise by the named measure (``workers.gait_measure``), on a :class:`WorkerPool`
-(whose dead or hung actors cost their candidate a re-run, not the generation) or, with no
-pool, in this process.
+reset noise by the named measure (``workers.gait_measure``), by a scorer: a ``WorkerPool``
+(whose dead or hung actors cost their candidate a re-run, not the generation) or a
+``RolloutWorker`` in this process.
 
 Its folder holds ``state.pkl`` (the optimiser, written after every generation: a stopped
 search resumes from it), ``progress.csv`` (one row a generation: best, mean and sigma, and
@@ -28,14 +28,12 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import cma
 import numpy as np
 import yaml
 from gaitforge.learner.stage_spec import StageOptimize
-from gaitforge.workers.env import MuscleEnv
-from gaitforge.workers.gait_measure import CandidateScore, score_candidate
+from gaitforge.workers.gait_measure import CandidateScorer
 from gaitforge.workers.scenes import Scene
 from gaitforge.workers.scenes.reflex_parameters import (
     LOWER,
@@ -43,9 +41,6 @@ from gaitforge.workers.scenes.reflex_parameters import (
     parameter_values,
     parameter_vector,
 )
-
-if TYPE_CHECKING:
-    from gaitforge.workers.pool import WorkerPool
 
 logger = logging.getLogger(__name__)
 
@@ -124,8 +119,7 @@ class CmaesTuning:
         scene: Scene,
         settings: StageOptimize,
         out_dir: Path,
-        pool: WorkerPool | None = None,
-        backend: str = "mujoco",
+        scorer: CandidateScorer,
         tensorboard: bool = True,
         seed: int = 0,
     ) -> None:
@@ -136,8 +130,7 @@ class CmaesTuning:
         self.seed = seed
         self.dir = out_dir
         self.dir.mkdir(parents=True, exist_ok=True)
-        self.pool = pool
-        self._env = None if pool is not None else MuscleEnv(scene, backend)
+        self.scorer = scorer
         self._stop = threading.Event()
         self._writer = None
         if tensorboard:
@@ -203,7 +196,9 @@ class CmaesTuning:
             for i in range(self.settings.episodes)
         ]
         try:
-            scores = self._score(parameters, seeds)
+            scores = self.scorer.score_candidates(
+                parameters, seeds, self.settings.measure, stop=self._stop
+            )
         except StopRequested:
             return None
         costs = [s.cost for s in scores]
@@ -237,13 +232,6 @@ class CmaesTuning:
             scores[best].speed,
         )
         return generation
-
-    def _score(self, parameters: list[np.ndarray], seeds: list[int]) -> list[CandidateScore]:
-        measure = self.settings.measure
-        if self.pool is not None:
-            return self.pool.score_candidates(parameters, seeds, measure, stop=self._stop)
-        assert self._env is not None
-        return [score_candidate(self._env, p, seeds, measure) for p in parameters]
 
     def _save(self, generation: Generation) -> None:
         path = self.dir / STATE_FILE

@@ -13,10 +13,12 @@ import threading
 from collections.abc import Callable
 from typing import Protocol
 
+import numpy as np
 import torch
 from gaitforge.learner.job import WorkersSpec
 from gaitforge.learner.policy import ActorCritic, build_policy
 from gaitforge.workers.fragment import Fragment, StopRequested
+from gaitforge.workers.gait_measure import CandidateScore, GaitMeasure
 from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
 from gaitforge.workers.scenes import Scene
 
@@ -38,6 +40,17 @@ class Sampler(Protocol):
     ) -> tuple[Fragment, int]:
         """The next fragment and its policy version; raises ``StopRequested`` once ``stop``
         is set, ``TimeoutError`` when none comes within ``timeout_s``."""
+        ...
+
+    def score_candidates(
+        self,
+        candidates: list[np.ndarray],
+        seeds: list[int],
+        measure: GaitMeasure,
+        stop: threading.Event | None = None,
+    ) -> list[CandidateScore]:
+        """Reflex controller candidates' scores (``workers.gait_measure.CandidateScorer``),
+        for a CMA-ES stage."""
         ...
 
     def close(self) -> None: ...
@@ -69,6 +82,16 @@ class LocalSampler:
         if stop is not None and stop.is_set():
             raise StopRequested
         return self.worker.sample(self._weights, self.version), self.version
+
+    def score_candidates(
+        self,
+        candidates: list[np.ndarray],
+        seeds: list[int],
+        measure: GaitMeasure,
+        stop: threading.Event | None = None,
+    ) -> list[CandidateScore]:
+        """Reflex controller candidates scored by the worker (``RolloutWorker``)."""
+        return self.worker.score_candidates(candidates, seeds, measure, stop)
 
     def close(self) -> None:
         pass

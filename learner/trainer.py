@@ -249,13 +249,11 @@ class Trainer:
             run = self.state
             stage = run.job.stages[index]
             assert stage.optimize is not None
-            sampler = run.rollouts.sampler
             self._tunings[index] = CmaesTuning(
                 run.scenes[index],
                 stage.optimize,
                 self._search_dir(index),
-                pool=sampler if hasattr(sampler, "score_candidates") else None,  # a WorkerPool
-                backend=run.job.stage_backend(index),
+                run.rollouts.sampler,
                 tensorboard=False,  # the run's scalars hold its figures
                 seed=run.job.seed,
             )

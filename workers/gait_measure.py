@@ -15,13 +15,16 @@ beside it. Lower is better.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal, Protocol
 
 import numpy as np
 from gaitforge.workers.sim.base import HEALTHY
+from gaitforge.workers.spec_types import SPEC_VALUES
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 if TYPE_CHECKING:
+    import threading
+
     from gaitforge.workers.env import MuscleEnv
 
 NonNegative = Annotated[float, Field(ge=0)]
@@ -30,7 +33,7 @@ NonNegative = Annotated[float, Field(ge=0)]
 class GaitMeasure(BaseModel):
     """The measure's settings (see the module docstring)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, **SPEC_VALUES)
 
     name: Literal["gait"] = "gait"
     min_speed: NonNegative = Field(default=1.0, description="m/s")
@@ -120,3 +123,19 @@ def score_candidate(
         episodes=len(seeds),
         env_steps=steps_total,
     )
+
+
+class CandidateScorer(Protocol):
+    """What scores a generation of candidates: a ``WorkerPool`` (on its actors) or a
+    ``RolloutWorker`` (in this process)."""
+
+    def score_candidates(
+        self,
+        candidates: list[np.ndarray],
+        seeds: list[int],
+        measure: GaitMeasure,
+        stop: threading.Event | None = None,
+    ) -> list[CandidateScore]:
+        """Each candidate's score [n_parameters] -> :class:`CandidateScore`, in order;
+        raises ``StopRequested`` once ``stop`` is set."""
+        ...

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -19,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 from gaitforge.workers.env import MuscleEnv
-from gaitforge.workers.fragment import Fragment
+from gaitforge.workers.fragment import Fragment, StopRequested
 from gaitforge.workers.gait_measure import CandidateScore, GaitMeasure, score_candidate
 from gaitforge.workers.policy_api import RolloutPolicy
 from gaitforge.workers.probe import process_rss_mib
@@ -181,6 +182,26 @@ class RolloutWorker:
         score = score_candidate(self.envs[0], parameters, seeds, measure)
         self.steps_total += score.env_steps
         return score
+
+    def score_candidates(
+        self,
+        candidates: list[np.ndarray],
+        seeds: list[int],
+        measure: GaitMeasure,
+        stop: threading.Event | None = None,
+    ) -> list[CandidateScore]:
+        """Each candidate's :meth:`score`, in order, in this process (``WorkerPool``'s
+        counterpart; a ``workers.gait_measure.CandidateScorer``).
+
+        Raises:
+            StopRequested: ``stop`` was set (looked at between candidates).
+        """
+        scores = []
+        for parameters in candidates:
+            if stop is not None and stop.is_set():
+                raise StopRequested
+            scores.append(self.score(parameters, seeds, measure))
+        return scores
 
     def sim_profile(self) -> FidelityProfile:
         """The fidelity profile this worker's simulators integrate with."""

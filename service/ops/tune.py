@@ -39,23 +39,28 @@ def tune(
             f"{scene.name!r}: action.kind is {scene.action.kind!r}, not reflex_gait "
             "(the controller CMA-ES tunes)",
         )
+    from gaitforge.workers.rollout import RolloutWorker
+    from gaitforge.workers.scenes.io_names import action_names
+
+    # the policy is never asked: candidates run the controller alone
+    act_dim = len(action_names(scene, backend))
+    policy = functools.partial(UniformExcitationPolicy, act_dim)
     pool = None
     if workers > 0:
-        from gaitforge.workers.env import MuscleEnv
         from gaitforge.workers.pool import WorkerPool
 
-        act_dim = MuscleEnv(scene, backend).action_space.shape[0]
         pool = WorkerPool(
             scene,
-            functools.partial(UniformExcitationPolicy, act_dim),
+            policy,
             backend=backend,
             num_workers=workers,
             envs_per_worker=1,
             queue_depth=0,
             seed=seed,
         )
+    scorer = pool or RolloutWorker(scene, policy, backend=backend, num_envs=1, seed=seed)
     try:
-        tuning = CmaesTuning(scene, settings, out_dir, pool, backend, tensorboard, seed)
+        tuning = CmaesTuning(scene, settings, out_dir, scorer, tensorboard, seed)
         return tuning, tuning.run()
     finally:
         if pool is not None:

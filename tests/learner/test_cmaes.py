@@ -4,15 +4,19 @@ state saved after each, and a resumed run goes on as one that never stopped."""
 from __future__ import annotations
 
 import csv
+import functools
 from pathlib import Path
 
 import pytest
 from gaitforge.learner.cmaes import CmaesTuning
 from gaitforge.learner.stage_spec import StageOptimize
+from gaitforge.workers.policy_api import UniformExcitationPolicy
+from gaitforge.workers.rollout import RolloutWorker
 from gaitforge.workers.scenes import load_scene
 
 SCENE = load_scene("reflex-walk-3d", {"episode_s": 0.3}).resolved()
 SETTINGS = StageOptimize(population=4, generations=3, episodes=1, sigma=0.2)
+WORKER = RolloutWorker(SCENE, functools.partial(UniformExcitationPolicy, 22), num_envs=1)
 
 
 def _rows(run_dir: Path) -> list[dict[str, str]]:
@@ -21,13 +25,13 @@ def _rows(run_dir: Path) -> list[dict[str, str]]:
 
 
 def test_a_resumed_search_goes_on_as_one_that_never_stopped(tmp_path: Path) -> None:
-    straight = CmaesTuning(SCENE, SETTINGS, tmp_path / "straight", tensorboard=False, seed=5)
+    straight = CmaesTuning(SCENE, SETTINGS, tmp_path / "straight", WORKER, False, seed=5)
     straight.run()
     first = CmaesTuning(
-        SCENE, SETTINGS.model_copy(update={"generations": 2}), tmp_path / "resumed", seed=5
+        SCENE, SETTINGS.model_copy(update={"generations": 2}), tmp_path / "resumed", WORKER, seed=5
     )
     first.run()
-    resumed = CmaesTuning(SCENE, SETTINGS, tmp_path / "resumed", tensorboard=False, seed=5)
+    resumed = CmaesTuning(SCENE, SETTINGS, tmp_path / "resumed", WORKER, False, seed=5)
     assert resumed.saved.generation == 2
     resumed.run()
     a, b = _rows(tmp_path / "straight"), _rows(tmp_path / "resumed")
@@ -42,4 +46,4 @@ def test_a_resumed_search_goes_on_as_one_that_never_stopped(tmp_path: Path) -> N
 
 def test_a_scene_without_the_controller_is_refused(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="not reflex_gait"):
-        CmaesTuning(load_scene("walk-2d").resolved(), SETTINGS, tmp_path)
+        CmaesTuning(load_scene("walk-2d").resolved(), SETTINGS, tmp_path, WORKER)
