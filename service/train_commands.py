@@ -74,6 +74,19 @@ class TrainDisplay:
         if not m:
             table.add_row("starting workers ...")
             return table
+        if "cmaes_generation" in m:  # a CMA-ES stage
+            table.add_row("iteration", f"{m['iteration']}   env steps {m['env_steps']:,}")
+            table.add_row(
+                "cma-es",
+                f"generation {m['cmaes_generation']}   best {m['cmaes_best']:.3f}   mean "
+                f"{m['cmaes_mean']:.3f}   sigma {m['cmaes_sigma']:.3f}",
+            )
+            table.add_row(
+                "its best",
+                f"alive {100 * m['cmaes_best_alive']:.0f} %   speed {m['cmaes_best_speed']:.2f} "
+                f"m/s   falls {100 * m['cmaes_best_falls']:.0f} %",
+            )
+            return table
         alpha = "" if m["alpha"] is None else f"   blend alpha {m['alpha']:.2f}"
         health = ", ".join(f"{k} {v}" for k, v in m["health"].items()) or "ok"
         table.add_row("iteration", f"{m['iteration']}   env steps {m['env_steps']:,}{alpha}")

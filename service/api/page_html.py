@@ -16,8 +16,10 @@ from gaitforge.service.api.schemas import JobStatus
 CURVES = [
     *([name, BY_NAME[name].label] for name in ("return", "speed", "fall_rate")),
     ["steps_per_s", "env steps/s"],
+    *([f"cmaes_{key}", f"CMA-ES {key}"] for key in ("best", "mean", "sigma")),
 ]
-"""the job page's curves against env steps: [metric key, label] (``learner.metrics``)"""
+"""the job page's curves against env steps: [metric key, label] (``learner.metrics``; the
+CMA-ES ones, ``learner.run_log.search_metrics``, in a job with an ``optimize`` stage)"""
 
 STYLE = """
 body { font: 14px/1.4 system-ui, sans-serif; margin: 1.5em auto; max-width: 70em; color: #222; }

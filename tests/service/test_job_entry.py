@@ -183,3 +183,35 @@ def test_a_failure_at_run_time_is_reported_with_exit_code_1(tmp_path: Path) -> N
     assert "policy.safetensors: missing" in progress.error and "\n" not in progress.error
     assert "Traceback" in progress.traceback and "CheckpointError" in progress.traceback
     assert "failed: " in layout.log_file.read_text()
+
+
+SEARCH_THEN_PPO = """name: reflex
+ppo: {batch_env_steps: 60, minibatch_size: 30, epochs: 1}
+workers: {num_workers: 0, envs_per_worker: 2, fragment_length: 30}
+checkpoint: {every_iters: 1}
+stages:
+  - scene: reflex-walk-3d
+    scene_set: {episode_s: 0.3}
+    env_steps: 1000000
+    optimize: {population: 4, generations: 2, episodes: 1}
+  - scene: reflex-walk-3d
+    scene_set: {episode_s: 0.3}
+    env_steps: 60
+"""
+
+
+def test_a_cma_es_stage_then_ppo_runs_as_a_job(tmp_path: Path) -> None:
+    """A job of a CMA-ES stage followed by a PPO stage runs through the entry like any other:
+    its generations and its PPO iteration in metrics.jsonl, the final checkpoint evaluated
+    with the tuned controller."""
+    layout = JobLayout(tmp_path, "j-0123456789ac")
+    write_job_files(layout, prepare_submission(SEARCH_THEN_PPO))
+    rc, out = _finish(_start(layout, "--no-video"))
+    assert rc == 0, out
+    assert read_progress(layout.progress_file).phase == "finished", out
+    rows = read_metrics(layout.metrics_file)
+    assert [r.get("cmaes_generation") for r in rows] == [1, 2, None]
+    assert [r["stage"] for r in rows] == [0, 0, 1]
+    _, meta = load_checkpoint(latest_checkpoint(layout.checkpoints_dir))
+    assert set(meta.scene["action"]["parameters"]) >= {"trunk.lean", "pose.ankle"}
+    assert list(layout.reports_dir.glob("evaluate-*.json")), out
