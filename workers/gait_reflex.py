@@ -26,15 +26,21 @@ its peak; ``kf`` knee flexion, ``a`` the leg angle, ``a*`` its aim, ``e = a* - a
   straight (``[knee_offset - kf]+``); GAS and SOL positive force feedback in all stance;
 - swing placement (swing, or preparing to swing times the other leg's load): HFL ``[kp e -
   kd a']+``, GLU ``[-kp e + kd a']+``, HAB and HAD toward the adduction aim;
-- the knee in swing: BFSH flexes it early; RF brakes its flexion and BFSH its extension
-  while it is held; HAM retracts a leg past its stop; once held, HFL and GLU hold the hip
-  and VAS and BFSH the knee at their aims;
+- the knee in swing: BFSH flexes it early; while it is held RF brakes its flexion, and BFSH
+  ``[(extension rate - knee_brake_rate) e]+``: it brakes an extension faster than that rate
+  while the leg is short of its aim, and flexes the knee once the leg has passed it; HAM
+  retracts a leg past its stop; once held, HFL and GLU hold the hip and VAS and BFSH the
+  knee at their aims;
 - the ankle: TA ``ta_kp [dorsiflexion* - dorsiflexion]+``, less ``sol_ta`` times SOL's
   feedback in stance.
 
-Each group's excitation starts at ``PRE_STIM`` and is clipped to [PRE_STIM, 1]; a muscle's
-excitation is the weighted sum of its groups' (``workers.bodies.reflex_wiring``). No neural
-delays are modelled beyond the control period (the baseline's 10 ms at 100 Hz).
+Each group's excitation but HAB's and HAD's starts at ``PRE_STIM``; all are clipped to
+[PRE_STIM, 1]; a muscle's excitation is the weighted sum of its groups'
+(``workers.bodies.reflex_wiring``). No neural delays are modelled beyond the control period
+(the baseline's 10 ms at 100 Hz). Where the baseline's code reads the hip's abduction speed
+for the frontal leg angle, this reads its angle, as the paper's circuitry does; otherwise,
+fed the same sensors, the groups' excitations and the phases equal the baseline's at its
+nominal parameters (checked along a rollout, off the repository).
 """
 
 from __future__ import annotations
@@ -271,6 +277,7 @@ class GaitReflex:
         clip)."""
         p, P = self.parameters, INDEX
         u = np.full(len(GROUPS), PRE_STIM)
+        u[[_G["HAB"], _G["HAD"]]] = 0.0  # no floor added: only the clip's
         load, other_load = float(s.load[k]), float(s.load[1 - k])
         stance, init, swing = float(phase.stance), float(phase.swing_init), float(phase.swing)
         plain_stance = stance * (1.0 - init)
@@ -336,7 +343,9 @@ class GaitReflex:
                 + p[P["swing.bfsh_flex_kp"]] * (p[P["swing.knee_flexion"]] - knee),
                 0.0,
             )
-            + hold_knee * p[P["swing.bfsh_hold_kd"]] * max(-knee_rate * error, 0.0)
+            + hold_knee
+            * p[P["swing.bfsh_hold_kd"]]
+            * max((-knee_rate - p[P["swing.knee_brake_rate"]]) * error, 0.0)
             + p[P["swing.bfsh_ham_gain"]] * max(ham_stop - p[P["swing.bfsh_ham_offset"]], 0.0)
             + hold_leg * p[P["swing.bfsh_knee_hold_kp"]] * max(knee_held - knee, 0.0)
         )

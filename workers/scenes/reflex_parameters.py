@@ -80,6 +80,13 @@ PARAMETERS: tuple[Parameter, ...] = (
     _gain("swing.bfsh_flex_kp", 2.0, "BFSH flexing the knee in early swing"),
     _gain("swing.bfsh_flex_kd", 0.2, "BFSH per rad/s the leg swings forward, early swing"),
     _gain("swing.bfsh_hold_kd", 1.0, "BFSH braking knee extension before the leg's aim"),
+    Parameter(
+        "swing.knee_brake_rate",
+        175 * DEG,
+        155 * DEG,
+        180 * DEG,
+        "knee extension rate (rad/s) above which BFSH brakes it while the knee is held",
+    ),
     _gain("swing.bfsh_ham_gain", 2.0, "BFSH with HAM's retraction excitation"),
     _gain("swing.bfsh_ham_offset", 0.3, "HAM retraction excitation below which BFSH is quiet"),
     _gain("swing.bfsh_knee_hold_kp", 2.0, "BFSH flexing the knee to its held flexion"),
