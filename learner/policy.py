@@ -95,6 +95,15 @@ class GaussianPolicy(ActorCritic):
             "init_std": self.init_std,
         }
 
+    def act_neutrally(self) -> None:
+        """Zero the actor's output layer: the mean action is 0.5 for every observation (a
+        reflex gait controller's residual of nothing) until training moves it."""
+        output = self.actor[-1]
+        assert isinstance(output, nn.Linear)
+        with torch.no_grad():
+            output.weight.zero_()
+            output.bias.zero_()
+
     def mean_logits(self, obs: torch.Tensor) -> torch.Tensor:
         """obs [N, obs_dim] -> the actor's output before the sigmoid [N, act_dim]."""
         return self.actor(self.norm(obs))

@@ -58,6 +58,8 @@ class RunState:
         policy = GaussianPolicy(
             len(first.obs_names), len(first.act_names), tuple(network.hidden), network.init_std
         )
+        if scenes[0].action.gait:  # a residual on a reflex controller starts at nothing
+            policy.act_neutrally()
         self.ppo = self.new_ppo(policy)
         self.obs_names: list[str] = first.obs_names
         """the names the policy observes, in input order"""

@@ -9,6 +9,7 @@ import csv
 from pathlib import Path
 
 import pytest
+import torch
 from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint
 from gaitforge.learner.cmaes import saved_parameters
 from gaitforge.learner.job import Job
@@ -73,3 +74,13 @@ def test_a_search_stage_needs_the_reflex_controller(tmp_path: Path) -> None:
     raw["stages"] = raw["stages"][:1]
     with pytest.raises(SpecError, match=r"stages.0.optimize: scene 'walk-2d' .* reflex_gait"):
         Trainer(Job.model_validate(raw), tmp_path, tensorboard=False)
+
+
+def test_the_residual_on_the_controller_starts_at_nothing(tmp_path: Path) -> None:
+    """A job on a reflex controller starts with a network whose mean action is 0.5 (no
+    residual) for any observation."""
+    import torch
+
+    trainer = Trainer(search_then_ppo(), tmp_path, tensorboard=False)
+    obs = torch.randn(5, trainer.policy.obs_dim) * 3.0
+    assert torch.equal(trainer.policy.distribution(obs).mean, torch.full((5, 22), 0.5))

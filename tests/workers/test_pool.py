@@ -185,7 +185,7 @@ def test_a_candidate_whose_actor_dies_mid_generation_is_rerun_not_the_generation
     """CMA-ES candidates on the pool's actors: one actor is killed once the first score is
     back (the others still running or waiting); its candidate is scored again on the
     replacement and every other score is kept."""
-    no_falls = {"episode_s": 2.0, "task.min_pelvis_height": 0.01}  # every episode runs 2 s
+    no_falls = {"episode_s": 1.0, "task.min_pelvis_height": 0.01}  # every episode runs 1 s
     scene = load_scene("reflex-walk-3d", overrides=no_falls).resolved()
     policy = functools.partial(UniformExcitationPolicy, 22)
     pool = WorkerPool(scene, policy, num_workers=2, envs_per_worker=1, queue_depth=0)
