@@ -79,7 +79,6 @@ def test_a_search_stage_needs_the_reflex_controller(tmp_path: Path) -> None:
 def test_the_residual_on_the_controller_starts_at_nothing(tmp_path: Path) -> None:
     """A job on a reflex controller starts with a network whose mean action is 0.5 (no
     residual) for any observation."""
-    import torch
 
     trainer = Trainer(search_then_ppo(), tmp_path, tensorboard=False)
     obs = torch.randn(5, trainer.policy.obs_dim) * 3.0
