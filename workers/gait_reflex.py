@@ -207,16 +207,20 @@ class GaitReflex:
 
     def reset(self, state: SimState) -> None:
         """Start the phases from ``state`` (after the simulator's reset and start pose): a
-        leg whose foot is within ``START_CONTACT_M`` of the floor is in stance (at the start
-        it carries no load yet), one in the air in swing with its knee flexing."""
+        leg whose foot's contact spheres come within ``START_CONTACT_M`` of the floor (at the
+        start it may carry no load yet; a foot without spheres, MyoLeg's: one that carries
+        any) is in stance, one in the air in swing with its knee flexing."""
         self._previous = None
-        self._read(state)
+        sensed = self._read(state)
         spheres = self.sim.contact_spheres()
         up = self.sim.up_axis
-        for leg, phase in zip(self.wiring.legs(), self._phases, strict=True):
+        for k, (leg, phase) in enumerate(zip(self.wiring.legs(), self._phases, strict=True)):
             phase.__init__()
-            foot = spheres[leg.foot]
-            phase.contact = bool((foot[:, up] - foot[:, 3]).min() < START_CONTACT_M)
+            foot = spheres.get(leg.foot, np.zeros((0, 4)))
+            if len(foot):
+                phase.contact = bool((foot[:, up] - foot[:, 3]).min() < START_CONTACT_M)
+            else:
+                phase.contact = bool(sensed.load[k] > 0.0)
             if phase.contact:
                 phase.touch_down()
             else:

@@ -101,3 +101,15 @@ def test_a_candidates_cost_is_made_of_its_parts() -> None:
         assert single.cost == pytest.approx(expected, rel=1e-9)
     assert score.cost == pytest.approx(np.mean([s.cost for s in singles]), rel=1e-9)
     assert len(NAMES) == len(DEFAULTS)
+
+
+@pytest.mark.parametrize("scene", ["walk-2d", "walk-3d"])
+def test_the_shipped_wirings_drive_their_bodies(scene: str) -> None:
+    """gait2d (planar: no frontal circuits) and MyoLeg (80 muscles in eleven groups) take the
+    same controller from their shipped wiring: a few steps give excitations in [0, 1]."""
+    env = MuscleEnv(load_scene(scene, {"action.kind": "reflex_gait", "episode_s": 0.1}))
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(np.full(env.action_space.shape, 0.5, dtype=np.float32))
+        assert 0.0 <= env.excitation.min() <= env.excitation.max() <= 1.0
+    assert env.excitation.max() > 0.01  # the feedback acts, not only the floor
