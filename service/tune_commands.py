@@ -8,11 +8,12 @@ from typing import Annotated
 import typer
 from gaitforge.learner.job import MAX_NUM_WORKERS
 from gaitforge.learner.stage_spec import StageOptimize
+from gaitforge.service.cli_options import SetFields, assignments
 from gaitforge.service.console import fail, out
+from gaitforge.service.ops.errors import validate_request
 from gaitforge.service.ops.tune import tune as tune_op
-from gaitforge.workers.gait_measure import GaitMeasure
 from gaitforge.workers.spec_io import SpecError
-from pydantic import ValidationError
+from gaitforge.workers.spec_types import SEED_LIMIT
 
 
 def tune(
@@ -28,23 +29,29 @@ def tune(
     sigma: Annotated[float, typer.Option(help="Initial step, share of each range.")] = 0.1,
     episodes: Annotated[int, typer.Option(help="Episodes a candidate.")] = 3,
     min_speed: Annotated[float, typer.Option(help="m/s the gait measure asks for.")] = 1.0,
-    seed: Annotated[int, typer.Option(help="The search's and the starts' seed.")] = 0,
+    seed: Annotated[
+        int, typer.Option(min=0, max=SEED_LIMIT - 1, help="The search's and the starts' seed.")
+    ] = 0,
+    set_fields: SetFields = None,
 ) -> None:
     """Tune a reflex gait controller's parameters with CMA-ES; writes OUT/tuned.yaml (the
     scene with them), OUT/progress.csv and TensorBoard scalars (OUT/tb)."""
     try:
-        settings = StageOptimize(
+        settings = validate_request(
+            StageOptimize,
             population=population,
             generations=generations,
             minutes=minutes,
             sigma=sigma,
             episodes=episodes,
-            measure=GaitMeasure(min_speed=min_speed, max_speed=max(min_speed, 1.6)),
+            measure={"min_speed": min_speed, "max_speed": max(min_speed, 1.6)},
         )
-    except ValidationError as exc:
-        raise fail(str(exc).splitlines()[0] + ": " + exc.errors()[0]["msg"]) from None
+    except SpecError as exc:
+        raise fail(exc) from None
     try:
-        tuning, _ = tune_op(scene, out_dir, settings, backend, workers, seed=seed)
+        tuning, _ = tune_op(
+            scene, out_dir, settings, backend, workers, seed=seed, overrides=assignments(set_fields)
+        )
     except SpecError as exc:
         raise fail(exc) from None
     last = tuning.saved.history[-1] if tuning.saved.history else None

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
+from typing import Any
 
 from gaitforge.learner.cmaes import CmaesTuning, Generation
 from gaitforge.learner.stage_spec import StageOptimize
@@ -21,16 +22,18 @@ def tune(
     workers: int = 0,
     tensorboard: bool = True,
     seed: int = 0,
+    overrides: dict[str, Any] | None = None,
 ) -> tuple[CmaesTuning, list[Generation]]:
-    """Tune ``scene_ref``'s controller into ``out_dir`` (resuming a state there) on
-    ``backend``, with ``workers`` Ray actors (0: in this process).
+    """Tune ``scene_ref``'s controller (with ``overrides``, dotted scene fields) into
+    ``out_dir`` (resuming a state there) on ``backend``, with ``workers`` Ray actors (0: in
+    this process).
 
     Raises:
         SpecError: the scene cannot be loaded (an ``InputError`` where it does not run on
             ``backend`` or has no reflex gait controller).
     """
     try:
-        scene = load_scene(scene_ref, backend=backend).resolved()
+        scene = load_scene(scene_ref, overrides, backend=backend).resolved()
     except BackendMismatch as exc:
         raise InputError("backend", str(exc)) from None
     if not scene.action.gait:

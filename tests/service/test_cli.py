@@ -93,3 +93,25 @@ def test_evaluate_sets_fields_of_the_checkpoints_own_scene() -> None:
     wrong = runner.invoke(app, [*args, "-o", "task.target_sped=1.0"])
     assert wrong.exit_code == 2 and wrong.stderr.startswith("error: --set: ")
     assert "task.target_sped: Extra inputs" in wrong.stderr
+
+
+def test_tune_searches_resumes_and_refuses_a_scene_without_the_controller(
+    tmp_path: Path,
+) -> None:
+    """``gaitforge tune`` runs CMA-ES in-process, writes the tuned scene, and a second call
+    with more generations goes on from the saved state; a scene without the reflex
+    controller, or a population of one, is one line."""
+    args = ["tune", "reflex-walk-3d", "--out", str(tmp_path), "--population", "2"]
+    args += ["--episodes", "1", "--set", "episode_s=0.2"]
+    first = runner.invoke(app, [*args, "--generations", "1"])
+    assert first.exit_code == 0, first.output
+    assert "generation 1:" in first.stdout and (tmp_path / "tuned.yaml").exists()
+    second = runner.invoke(app, [*args, "--generations", "2"])
+    assert second.exit_code == 0 and "generation 2:" in second.stdout, second.output
+    with (tmp_path / "progress.csv").open() as f:
+        assert len(f.read().splitlines()) == 3  # the header and one row a generation
+    wrong = runner.invoke(app, ["tune", "walk-2d", "--out", str(tmp_path / "w")])
+    assert wrong.exit_code != 0 and "not reflex_gait" in wrong.stderr
+    small = runner.invoke(app, [*args, "--population", "1"])
+    assert small.exit_code != 0 and "population" in small.stderr
+    assert len(small.stderr.strip().splitlines()) == 1
