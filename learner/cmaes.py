@@ -108,10 +108,10 @@ class CmaesTuning:
         scene: a resolved scene with ``action.kind: reflex_gait``.
         settings: the search's settings (a job stage's ``optimize``).
         out_dir: the search's folder; an existing state there is resumed.
-        seed: the search's seed and the episodes' reset seeds' base.
-        pool: actors to score on (their scene must be ``scene``); None scores in-process.
-        backend: the simulator, for in-process scoring.
+        scorer: what scores the candidates (its envs must be of ``scene``).
         tensorboard: write TensorBoard scalars.
+        seed: the search's seed and the episodes' reset seeds' base.
+        stop: set to stop scoring (``request_stop``; a trainer shares its own).
     """
 
     def __init__(
@@ -122,6 +122,7 @@ class CmaesTuning:
         scorer: CandidateScorer,
         tensorboard: bool = True,
         seed: int = 0,
+        stop: threading.Event | None = None,
     ) -> None:
         if not scene.action.gait:
             raise ValueError(f"scene {scene.name!r}: action.kind is not reflex_gait")
@@ -131,7 +132,7 @@ class CmaesTuning:
         self.dir = out_dir
         self.dir.mkdir(parents=True, exist_ok=True)
         self.scorer = scorer
-        self._stop = threading.Event()
+        self._stop = stop or threading.Event()
         self._writer = None
         if tensorboard:
             from torch.utils.tensorboard import SummaryWriter  # lazy: imports tensorboard

@@ -230,8 +230,11 @@ class Trainer:
         generation = tuning.step()
         if generation is None:
             raise StopRequested
-        run.env_steps += generation.steps
-        run.curriculum.stage_env_steps += generation.steps
+        # the search's own count: after a resume from a checkpoint older than its last
+        # generation it is ahead of the run's, and the generations between count once
+        searched = tuning.saved.env_steps - run.curriculum.stage_env_steps
+        run.env_steps += searched
+        run.curriculum.stage_env_steps = tuning.saved.env_steps
         run.iteration += 1
         self._carry(index, tuning.tuned_parameters())
         metrics = search_metrics(run, generation, time.perf_counter() - start)
@@ -256,6 +259,7 @@ class Trainer:
                 run.rollouts.sampler,
                 tensorboard=False,  # the run's scalars hold its figures
                 seed=run.job.seed,
+                stop=self._stop,
             )
         return self._tunings[index]
 
