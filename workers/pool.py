@@ -21,7 +21,7 @@ Failures are counted in :class:`PoolStats` and end a run only when they keep com
 The same actors score reflex controller candidates (``score_candidates``, a CMA-ES
 generation): one candidate per actor at a time, and a candidate whose actor dies or hangs
 is re-run on its replacement, not the generation. A pool made with ``queue_depth=0`` queues
-no fragments until ``start_sampling``.
+no fragments (``gaitforge tune``: candidates only).
 
 The pool asks for no more actors than a cluster that cannot grow has CPUs (one each): on a
 Ray this driver started, more raise ``SpecError`` at once (they would wait forever); on a
@@ -215,14 +215,6 @@ class WorkerPool:
                 return fragment, fragment.policy_version
             self._kill_overdue()
         raise TimeoutError(f"no fragment within {timeout_s} s")
-
-    def start_sampling(self, queue_depth: int = 2) -> None:
-        """Queue ``queue_depth`` fragment requests on every actor from now on (a pool made
-        with ``queue_depth=0`` for candidates, now training a policy)."""
-        self.queue_depth = queue_depth
-        for slot in self._slots:
-            slot.progress_at = time.monotonic()
-            self._fill(slot)
 
     def score_candidates(
         self,
