@@ -58,13 +58,7 @@ def iteration_metrics(
     steps = stats.pop("batch_steps")
     curriculum, policy = run.curriculum, run.policy
     return {
-        "iteration": run.iteration,
-        "env_steps": run.env_steps,
-        "stage": curriculum.stage,
-        "stage_name": run.stage.name or run.scene.name,
-        "scene": run.scene.name,
-        "stage_env_steps": curriculum.stage_env_steps,
-        "train_s": run.train_s,
+        **_where(run),
         "alpha": float(policy.alpha) if isinstance(policy, BlendedPolicy) else None,
         "steps_per_s": steps / max(elapsed_s, 1e-9),
         "sample_steps_per_s": steps / max(sampled_s, 1e-9),
@@ -76,22 +70,29 @@ def iteration_metrics(
     }
 
 
+def _where(run: RunState) -> dict:
+    """Where ``run`` is: iteration, env steps, stage (index, name, scene, env steps) and
+    ``train_s`` (s of wall clock the run has trained)."""
+    return {
+        "iteration": run.iteration,
+        "env_steps": run.env_steps,
+        "stage": run.curriculum.stage,
+        "stage_name": run.stage.name or run.scene.name,
+        "scene": run.scene.name,
+        "stage_env_steps": run.curriculum.stage_env_steps,
+        "train_s": run.train_s,
+    }
+
+
 def search_metrics(run: RunState, generation: Generation, elapsed_s: float) -> dict:
     """A CMA-ES generation's metrics (an ``optimize`` stage's iteration): where ``run`` is,
     as :func:`iteration_metrics` says it, and the generation's figures as ``cmaes_*`` (best
     and mean cost, sigma, the best candidate's parts, its generation and the search's
     wall-clock s)."""
-    curriculum = run.curriculum
     row = generation.row()
     figures = {f"cmaes_{k}": v for k, v in row.items() if k != "env_steps"}
     return {
-        "iteration": run.iteration,
-        "env_steps": run.env_steps,
-        "stage": curriculum.stage,
-        "stage_name": run.stage.name or run.scene.name,
-        "scene": run.scene.name,
-        "stage_env_steps": curriculum.stage_env_steps,
-        "train_s": run.train_s,
+        **_where(run),
         "steps_per_s": generation.steps / max(elapsed_s, 1e-9),
         **figures,
     }

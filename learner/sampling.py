@@ -18,12 +18,12 @@ import torch
 from gaitforge.learner.job import WorkersSpec
 from gaitforge.learner.policy import ActorCritic, build_policy
 from gaitforge.workers.fragment import Fragment, StopRequested
-from gaitforge.workers.gait_measure import CandidateScore, GaitMeasure
+from gaitforge.workers.gait_measure import CandidateScore, CandidateScorer, GaitMeasure
 from gaitforge.workers.rollout import PolicyFactory, RolloutWorker
 from gaitforge.workers.scenes import Scene
 
 
-class Sampler(Protocol):
+class Sampler(CandidateScorer, Protocol):
     version: int
     """the newest weights' version, handed out by ``set_weights`` and ``set_policy``"""
 
@@ -40,17 +40,6 @@ class Sampler(Protocol):
     ) -> tuple[Fragment, int]:
         """The next fragment and its policy version; raises ``StopRequested`` once ``stop``
         is set, ``TimeoutError`` when none comes within ``timeout_s``."""
-        ...
-
-    def score_candidates(
-        self,
-        candidates: list[np.ndarray],
-        seeds: list[int],
-        measure: GaitMeasure,
-        stop: threading.Event | None = None,
-    ) -> list[CandidateScore]:
-        """Reflex controller candidates' scores (``workers.gait_measure.CandidateScorer``),
-        for a CMA-ES stage."""
         ...
 
     def close(self) -> None: ...
