@@ -24,6 +24,8 @@ def schema_examples(schemas: dict[str, Any]) -> dict[str, Any]:
         "WarmStartSpec": {"excitations": "walk", "env_steps": 8192, "rounds": 2},
         "StagePPO": {"lr": 1e-4, "lr_end": 5e-5},
         "StageEvaluation": {"scene": "run-2d+clock", "episodes": 100, "every_env_steps": 250000},
+        "StageOptimize": {"population": 16, "generations": 5000, "minutes": 55, "episodes": 2},
+        "GaitMeasure": {"min_speed": 1.0, "max_speed": 1.6, "fall": 1.0, "effort": 0.1},
         "Action": status["actions"][0],
         "Artifact": artifacts["items"][0],
         "FieldError": {"field": "stages.0.scene", "message": "unknown scene 'walk-9d'"},
