@@ -235,8 +235,6 @@ class WorkerPool:
         pending = deque(range(len(candidates)))
         scores: list[CandidateScore | None] = [None] * len(candidates)
         running: dict[ray.ObjectRef, tuple[_Slot, int]] = {}
-        since: dict[int, float] = {}
-        """id(slot) -> when its running candidate's clock started"""
         while pending or running:
             busy = {id(slot) for slot, _ in running.values()}
             for slot in self._slots:
@@ -244,7 +242,7 @@ class WorkerPool:
                     index = pending.popleft()
                     ref = slot.actor.score.remote(candidates[index], seeds, measure)
                     running[ref] = (slot, index)
-                    since[id(slot)] = time.monotonic()
+                    slot.progress_at = time.monotonic()  # the candidate's clock
             ready, _ = ray.wait(list(running), num_returns=1, timeout=POLL_S)
             if stop is not None and stop.is_set():
                 raise StopRequested
@@ -258,28 +256,11 @@ class WorkerPool:
                     continue
                 scores[index] = score
                 self.stats.env_steps += score.env_steps
-            now = time.monotonic()
-            for ref, (slot, index) in list(running.items()):
-                if not slot.up:
-                    done, _ = ray.wait([slot.started], timeout=0)
-                    if done:
-                        slot.started, since[id(slot)] = None, now
-                    continue
-                if now - since[id(slot)] > self.timeout_s:
-                    logger.warning(
-                        "rollout actor %d: candidate %d not scored in %.0f s, replacing it",
-                        slot.worker_id,
-                        index,
-                        self.timeout_s,
-                    )
-                    self.stats.timeouts += 1
-                    del running[ref]
-                    self._count_failure(
-                        f"actor {slot.worker_id} hung: no score in {self.timeout_s:g} s "
-                        "(workers.timeout_s)"
-                    )
-                    self._replace(slot)
-                    pending.appendleft(index)
+            ref_of = {id(slot): ref for ref, (slot, _) in running.items()}
+            busy_slots = [slot for slot, _ in running.values()]
+            for slot in self._kill_overdue(busy_slots, awaited="score"):
+                _, index = running.pop(ref_of[id(slot)])
+                pending.appendleft(index)
         for slot in self._slots:  # a fragment's clock starts now, not before the scoring
             slot.progress_at = time.monotonic()
         return [score for score in scores if score is not None]
@@ -355,9 +336,15 @@ class WorkerPool:
             + ("" if last == first else f"; last: {last}")
         )
 
-    def _kill_overdue(self) -> None:
+    def _kill_overdue(
+        self, slots: list[_Slot] | None = None, awaited: str = "fragment"
+    ) -> list[_Slot]:
+        """Start the clock of each of ``slots`` (default: every slot) whose actor has come
+        up; kill and replace each that has been up ``timeout_s`` without returning its
+        ``awaited`` result (a fragment, a candidate's score). Returns the slots replaced."""
         now = time.monotonic()
-        for slot in self._slots:
+        replaced = []
+        for slot in self._slots if slots is None else slots:
             if not slot.up:
                 done, _ = ray.wait([slot.started], timeout=0)
                 if done:  # up now: its clock starts
@@ -365,16 +352,19 @@ class WorkerPool:
                 continue
             if now - slot.progress_at > self.timeout_s:
                 logger.warning(
-                    "rollout actor %d: no fragment in %.0f s, replacing it",
+                    "rollout actor %d: no %s in %.0f s, replacing it",
                     slot.worker_id,
+                    awaited,
                     self.timeout_s,
                 )
                 self.stats.timeouts += 1
                 self._count_failure(
-                    f"actor {slot.worker_id} hung: no fragment in {self.timeout_s:g} s "
+                    f"actor {slot.worker_id} hung: no {awaited} in {self.timeout_s:g} s "
                     "(workers.timeout_s)"
                 )
                 self._replace(slot)
+                replaced.append(slot)
+        return replaced
 
     def _account(self, slot: _Slot, fragment: Fragment) -> None:
         slot.progress_at = time.monotonic()
