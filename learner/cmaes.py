@@ -26,7 +26,7 @@ import logging
 import pickle
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import cma
@@ -88,7 +88,21 @@ class _Saved:
     wall_s: float = 0.0
     best_cost: float = float("inf")
     best_parameters: np.ndarray | None = None
-    history: list[Generation] = field(default_factory=list)
+    last: Generation | None = None
+    """the latest generation's summary (``progress.csv`` holds them all)"""
+
+    def mean_parameters(self) -> dict[str, float]:
+        """The distribution's mean, by name."""
+        return parameter_values(from_unit(np.asarray(self.strategy.mean)))
+
+
+def _read_state(folder: Path) -> _Saved | None:
+    """The search saved in ``folder``, None if it holds none."""
+    path = folder / STATE_FILE
+    if not path.exists():
+        return None
+    with path.open("rb") as f:
+        return pickle.load(f)  # written by CmaesTuning into the run's own directory
 
 
 def to_unit(parameters: np.ndarray) -> np.ndarray:
@@ -111,7 +125,8 @@ class CmaesTuning:
         scorer: what scores the candidates (its envs must be of ``scene``).
         tensorboard: write TensorBoard scalars.
         seed: the search's seed and the episodes' reset seeds' base.
-        stop: set to stop scoring (``request_stop``; a trainer shares its own).
+        stop: set to stop scoring: the generation being scored is dropped and the state
+            stays as it was (a trainer shares its own).
     """
 
     def __init__(
@@ -151,17 +166,10 @@ class CmaesTuning:
         return _Saved(strategy=cma.CMAEvolutionStrategy(x0, self.settings.sigma, options))
 
     def _load(self) -> _Saved | None:
-        path = self.dir / STATE_FILE
-        if not path.exists():
-            return None
-        with path.open("rb") as f:
-            saved = pickle.load(f)  # written by this class into the run's own directory
-        logger.info("cmaes: resuming at generation %d", saved.generation)
+        saved = _read_state(self.dir)
+        if saved is not None:
+            logger.info("cmaes: resuming at generation %d", saved.generation)
         return saved
-
-    def request_stop(self) -> None:
-        """Stop after the generation being scored is dropped; the state stays as it was."""
-        self._stop.set()
 
     @property
     def done(self) -> bool:
@@ -221,7 +229,7 @@ class CmaesTuning:
             wall_s=saved.wall_s,
             steps=steps,
         )
-        saved.history.append(generation)
+        saved.last = generation
         self._save(generation)
         logger.info(
             "cmaes generation %d: best %.3f mean %.3f sigma %.3f (alive %.2f, %.2f m/s)",
@@ -257,7 +265,7 @@ class CmaesTuning:
 
     def tuned_parameters(self) -> dict[str, float]:
         """The distribution's mean, by name (the tuned controller)."""
-        return parameter_values(from_unit(np.asarray(self.saved.strategy.mean)))
+        return self.saved.mean_parameters()
 
     def tuned_scene(self) -> Scene:
         """The scene with the tuned parameters."""
@@ -274,12 +282,8 @@ class CmaesTuning:
 def saved_parameters(folder: Path) -> dict[str, float] | None:
     """The tuned parameters (the distribution's mean) of the search saved in ``folder``;
     None if it holds none."""
-    path = folder / STATE_FILE
-    if not path.exists():
-        return None
-    with path.open("rb") as f:
-        saved = pickle.load(f)  # written by CmaesTuning into the run's own directory
-    return parameter_values(from_unit(np.asarray(saved.strategy.mean)))
+    saved = _read_state(folder)
+    return None if saved is None else saved.mean_parameters()
 
 
 def with_parameters(scene: Scene, parameters: dict[str, float]) -> Scene:

@@ -54,7 +54,7 @@ def tune(
         )
     except SpecError as exc:
         raise fail(exc) from None
-    last = tuning.saved.history[-1] if tuning.saved.history else None
+    last = tuning.saved.last
     if last is not None:
         out.print(
             f"generation {last.generation}: best {last.best:.3f}, mean {last.mean:.3f}, "
