@@ -30,9 +30,11 @@ run: $(STAMP)
 	$(BIN)/gaitforge evaluate examples/policies/walk-2d --episodes 5 \
 		--video $(RUN_DIR)/walker.mp4 --record $(RUN_DIR)/walker.mcap
 
+# The suite runs on every core (pytest-xdist): each worker has its own Ray head, service and
+# browser, and every port a test opens is chosen free, so workers never collide.
 test: $(STAMP)
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
