@@ -1,5 +1,5 @@
-"""Shared fixtures of the service tests: one local Ray head for the whole session (a head
-takes ~7 s to start), tiny job specs and a store in ``tmp_path``.
+"""Shared fixtures of the service tests: one local Ray head for the whole session (one per
+pytest-xdist worker; a head takes ~7 s to start), tiny job specs and a store in ``tmp_path``.
 
     def test_x(ray_connection, service_settings, store, tiny_job):
         runner = JobRunner(service_settings, store, ray_connection, evaluate_episodes=1)
