@@ -57,6 +57,7 @@ class Generation:
     best: float
     mean: float
     sigma: float
+    population: int
     best_parts: dict[str, float]
     env_steps: int
     """the search's, so far"""
@@ -72,6 +73,7 @@ class Generation:
             "best": self.best,
             "mean": self.mean,
             "sigma": self.sigma,
+            "population": self.population,
             **parts,
             "env_steps": self.env_steps,
             "wall_s": self.wall_s,
@@ -88,12 +90,18 @@ class _Saved:
     wall_s: float = 0.0
     best_cost: float = float("inf")
     best_parameters: np.ndarray | None = None
+    restarts: int = 0
     last: Generation | None = None
     """the latest generation's summary (``progress.csv`` holds them all)"""
 
+    def mean_unit(self) -> np.ndarray:
+        """The distribution's mean in the unit cube [n] (cma's own ``mean`` lies in its
+        unbounded genotype space)."""
+        return np.asarray(self.strategy.result.xfavorite)
+
     def mean_parameters(self) -> dict[str, float]:
         """The distribution's mean, by name."""
-        return parameter_values(from_unit(np.asarray(self.strategy.mean)))
+        return parameter_values(from_unit(self.mean_unit()))
 
 
 def _read_state(folder: Path) -> _Saved | None:
@@ -157,13 +165,33 @@ class CmaesTuning:
 
     def _start(self) -> _Saved:
         x0 = to_unit(parameter_vector(self.scene.action.parameters))
+        return _Saved(strategy=self._strategy(x0, restart=0))
+
+    def _strategy(self, x0: np.ndarray, restart: int) -> cma.CMAEvolutionStrategy:
+        """A fresh distribution at ``x0`` [n] (unit cube) with the initial sigma, and the
+        population doubled ``restart`` times (IPOP)."""
         options = {
-            "popsize": self.settings.population,
+            "popsize": self.settings.population * 2**restart,
             "bounds": [0.0, 1.0],
-            "seed": self.seed + 1,  # cma reads 0 as "from the clock"
+            "seed": self.seed + 1 + restart,  # cma reads 0 as "from the clock"
             "verbose": -9,
         }
-        return _Saved(strategy=cma.CMAEvolutionStrategy(x0, self.settings.sigma, options))
+        return cma.CMAEvolutionStrategy(x0, self.settings.sigma, options)
+
+    def _restart_if_narrow(self) -> None:
+        """Restart from the distribution's mean with twice the population once sigma has
+        fallen below ``restart_below`` (none without it)."""
+        below, saved = self.settings.restart_below, self.saved
+        if below is None or saved.strategy.sigma >= below:
+            return
+        saved.restarts += 1
+        saved.strategy = self._strategy(saved.mean_unit(), saved.restarts)
+        logger.info(
+            "cmaes: sigma below %.3g, restart %d with population %d",
+            below,
+            saved.restarts,
+            saved.strategy.popsize,
+        )
 
     def _load(self) -> _Saved | None:
         saved = _read_state(self.dir)
@@ -224,12 +252,14 @@ class CmaesTuning:
             best=costs[best],
             mean=float(np.mean(costs)),
             sigma=float(strategy.sigma),
+            population=len(candidates),
             best_parts=scores[best].as_dict(),
             env_steps=saved.env_steps,
             wall_s=saved.wall_s,
             steps=steps,
         )
         saved.last = generation
+        self._restart_if_narrow()
         self._save(generation)
         logger.info(
             "cmaes generation %d: best %.3f mean %.3f sigma %.3f (alive %.2f, %.2f m/s)",

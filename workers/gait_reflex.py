@@ -107,15 +107,15 @@ class _Sensed:
     leg_rate: np.ndarray
     """[2]: its rate, rad/s"""
     lean: float
-    """rad the trunk leans forward"""
+    """rad the trunk leans forward (along its heading)"""
     lean_rate: float
     list_right: float
     """rad the trunk leans toward the right"""
     list_rate: float
     forward_speed: float
-    """m/s of the pelvis forward"""
+    """m/s of the pelvis along its heading"""
     right_speed: float
-    """m/s of the pelvis toward the right"""
+    """m/s of the pelvis toward its right"""
 
 
 class GaitReflex:
@@ -388,7 +388,7 @@ class GaitReflex:
 
     def _read(self, state: SimState) -> _Sensed:
         _, force = self.sim.muscle_sensors()
-        up, forward, right = self._axes
+        up, forward, right = self._heading(state)
         angles = state.dof_pos[self._dofs] * self._signs
         rates = state.dof_vel[self._dofs] * self._signs
         trunk_up = state.pelvis_up
@@ -413,6 +413,19 @@ class GaitReflex:
             forward_speed=float(state.pelvis_vel @ forward),
             right_speed=float(state.pelvis_vel @ right),
         )
+
+    def _heading(self, state: SimState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """World up, the pelvis's heading (its forward axis on the ground) and its right
+        [3] each: the frame the trunk's lean and the pelvis's speeds are read in, as the
+        vestibular sense reads them, so that a turn about the vertical does not mix the
+        sagittal and frontal senses. World forward while the pelvis faces straight up or
+        down."""
+        up, forward, _ = self._axes
+        heading = state.pelvis_forward - (state.pelvis_forward @ up) * up
+        norm = float(np.linalg.norm(heading))
+        if norm > 1e-6:
+            forward = heading / norm
+        return up, forward, np.cross(forward, up)
 
 
 def _leg_dofs(leg: Leg) -> tuple:

@@ -4,6 +4,7 @@ early, and a candidate's score is made of the parts it reports."""
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +53,30 @@ def test_a_loaded_foot_is_in_stance_and_a_lifted_one_swings() -> None:
     assert left.swing and left.flex_knee and not left.stance
 
 
+def test_the_trunk_and_pelvis_are_sensed_along_the_heading() -> None:
+    """A body turned about the vertical senses the same lean, list and speeds as one facing
+    ahead: they are read in the pelvis's heading frame (to 1e-9: only rotations are
+    summed)."""
+    env = MuscleEnv(load_scene("reflex-walk-3d", {**SHORT, "action.start_speed": 1.5}))
+    env.reset(seed=0)
+    state = env.sim.state()
+    up, forward = np.eye(3)[env.sim.up_axis], np.eye(3)[env.sim.forward_axis]
+    right = np.cross(forward, up)
+    state.pelvis_up = state.pelvis_up + 0.05 * forward - 0.03 * right
+    state.pelvis_up /= np.linalg.norm(state.pelvis_up)
+    state.pelvis_vel = state.pelvis_vel + 0.2 * right
+    angle, (x, y, z) = 0.8, up
+    across = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])  # up x (.)
+    turn = np.eye(3) + np.sin(angle) * across + (1 - np.cos(angle)) * across @ across
+    turned = copy.copy(state)
+    for name in ("pelvis_up", "pelvis_forward", "pelvis_vel"):
+        setattr(turned, name, turn @ getattr(state, name))
+    ahead, aside = env.gait._read(state), env.gait._read(turned)
+    for name in ("lean", "list_right", "forward_speed", "right_speed"):
+        assert getattr(aside, name) == pytest.approx(getattr(ahead, name), abs=1e-9), name
+    assert abs(ahead.list_right) > 0.01 and abs(ahead.right_speed) > 0.1  # not trivially 0
+
+
 def test_the_policy_adds_a_residual_to_the_controller() -> None:
     """An action of 0.5 adds nothing; 1.0 adds ``action.residual`` to every excitation."""
     excitations = []
@@ -74,13 +99,26 @@ def test_parameters_are_checked_by_name_and_bound() -> None:
         load_scene("reflex-walk-3d", {"action.parameters": {"ankle.ta_kp": 9.0}})
 
 
-def test_a_wiring_that_names_what_the_scene_lacks_is_refused(tmp_path: Path) -> None:
+def test_a_wiring_that_names_what_the_body_lacks_is_refused_at_load(tmp_path: Path) -> None:
     shipped = Path(__file__).resolve().parents[2] / "workers/bodies/data/reflex"
-    text = (shipped / "gait14dof22musc.yaml").read_text().replace("soleus_r", "soleus_x")
-    wiring = tmp_path / "wiring.yaml"
-    wiring.write_text(text)
-    scene = load_scene("reflex-walk-3d", {**SHORT, "action.wiring": str(wiring)})
-    with pytest.raises(ValueError, match=r"no \['muscle soleus_x'\]"):
+    text = (shipped / "gait14dof22musc.yaml").read_text()
+    cases = {
+        "muscle": (text.replace("soleus_r", "soleus_x"), r"right\.groups\.SOL: .* 'soleus_x'"),
+        "dof": (text.replace("knee_angle_l", "knee_x"), r"left\.knee: .* no dof 'knee_x'"),
+        "body": (text.replace("body: gait14dof22musc", "body: gait2d"), "wires body 'gait2d'"),
+    }
+    for name, (changed, message) in cases.items():
+        wiring = tmp_path / f"{name}.yaml"
+        wiring.write_text(changed)
+        with pytest.raises(SpecError, match=message):
+            load_scene("reflex-walk-3d", {**SHORT, "action.wiring": str(wiring)})
+
+
+def test_a_wiring_that_names_what_the_scene_does_not_keep_is_refused() -> None:
+    env = MuscleEnv(load_scene("reflex-walk-3d", SHORT))
+    muscles = [m for m in env.sim.muscle_names if m != "soleus_r"]
+    scene = load_scene("reflex-walk-3d", {**SHORT, "keep.muscles": muscles})
+    with pytest.raises(ValueError, match=r"no \['muscle soleus_r'\]"):
         MuscleEnv(scene)
 
 

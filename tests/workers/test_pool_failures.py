@@ -23,7 +23,7 @@ CPUS = 2
 
 @pytest.fixture(scope="module", autouse=True)
 def local_ray() -> Iterator[None]:
-    ray.init(num_cpus=CPUS, include_dashboard=False, logging_level="ERROR")
+    ray.init(address="local", num_cpus=CPUS, include_dashboard=False, logging_level="ERROR")
     yield
     ray.shutdown()
 

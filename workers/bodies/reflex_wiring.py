@@ -95,10 +95,11 @@ def shipped_wirings() -> list[str]:
 
 @lru_cache(maxsize=16)
 def load_wiring(body: str, path: str | None = None) -> Wiring:
-    """The wiring at ``path``, else the one shipped for ``body``.
+    """The wiring of ``body`` at ``path``, else the one shipped for it.
 
     Raises:
-        SpecError: no shipped wiring for ``body``, or the file is invalid.
+        SpecError: no shipped wiring for ``body``, the file is invalid, or it wires another
+            body.
     """
     if path is None:
         shipped = _data_dir() / f"{body}.yaml"
@@ -108,4 +109,36 @@ def load_wiring(body: str, path: str | None = None) -> Wiring:
                 f"{shipped_wirings()}); name a wiring file (see workers/bodies/reflex_wiring.py)"
             )
         path = str(shipped)
-    return load_yaml_model(Path(path), Wiring)
+    wiring = load_yaml_model(Path(path), Wiring)
+    if wiring.body != body:
+        raise SpecError(
+            f"action.wiring {path!r} wires body {wiring.body!r}, not the scene's {body!r}"
+        )
+    return wiring
+
+
+def check_wiring_names(wiring: Wiring, dofs: set[str], muscles: set[str]) -> None:
+    """Raise ``SpecError`` naming the leg and field where ``wiring`` names a dof or muscle
+    its body (with ``dofs`` and ``muscles``) lacks: checked when a scene loads, before any
+    simulator is built. (Whether the scene keeps them is checked when the controller is
+    built on the pruned simulator.)"""
+    for side, leg in zip(("right", "left"), wiring.legs(), strict=True):
+        named = {
+            "hip_flexion": leg.hip_flexion,
+            "hip_adduction": leg.hip_adduction,
+            "knee": leg.knee,
+            "ankle": leg.ankle,
+        }
+        for key, dof in named.items():
+            if dof is not None and dof.name not in dofs:
+                raise SpecError(
+                    f"action.wiring: {side}.{key}: body {wiring.body!r} has no dof "
+                    f"{dof.name!r}; it has {sorted(dofs)}"
+                )
+        for group, members in leg.groups.items():
+            for muscle in members:
+                if muscle not in muscles:
+                    raise SpecError(
+                        f"action.wiring: {side}.groups.{group}: body {wiring.body!r} has no "
+                        f"muscle {muscle!r}; it has {sorted(muscles)}"
+                    )

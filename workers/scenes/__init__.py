@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from gaitforge.workers.bodies.reflex_wiring import check_wiring_names, load_wiring
 from gaitforge.workers.bodies.topology import topology_for
 from gaitforge.workers.overrides import parse_assignments, set_fields
 from gaitforge.workers.scenes.compose import (
@@ -88,9 +89,16 @@ def load_scene(
         raw = {**raw, "backends": [backend]}
     scene = validate_model(raw, Scene, source)
     try:
-        check_names(scene, topology_for(scene.body))
+        topology = topology_for(scene.body)
+        check_names(scene, topology)
     except SpecError as exc:
         raise SpecError(f"{source}: body: {exc}") from None
     except ValueError as exc:
         raise SpecError(f"{source}: {exc}") from None
+    if scene.action.gait:
+        try:
+            wiring = load_wiring(scene.body, scene.action.wiring)
+            check_wiring_names(wiring, set(topology.dof_defaults), set(topology.muscles))
+        except SpecError as exc:
+            raise SpecError(f"{source}: {exc}") from None
     return scene
