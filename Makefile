@@ -31,10 +31,11 @@ run: $(STAMP)
 		--video $(RUN_DIR)/walker.mp4 --record $(RUN_DIR)/walker.mcap
 
 # The suite runs on every core (pytest-xdist): each worker has its own Ray head, service and
-# browser, and every port a test opens is chosen free, so workers never collide.
+# browser, and every port a test opens is chosen free, so workers never collide. Tests that
+# read one converted model share a worker (xdist_group), so each model is converted once.
 test: $(STAMP)
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest -q -n auto
+	$(BIN)/python -m pytest -q -n auto --dist loadgroup
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -9,13 +9,16 @@ generation draws fresh reset seeds shared by all its candidates (they are compar
 same starts); each candidate is scored over ``episodes`` episodes of the scene with its
 reset noise by the named measure (``workers.gait_measure``), by a scorer: a ``WorkerPool``
 (whose dead or hung actors cost their candidate a re-run, not the generation) or a
-``RolloutWorker`` in this process.
+``RolloutWorker`` in this process. With ``restart_below``, a distribution that has
+narrowed below it starts again from its mean at the initial sigma with twice the population
+(IPOP-CMA-ES, Auger and Hansen 2005).
 
 Its folder holds ``state.pkl`` (the optimiser, written after every generation: a stopped
-search resumes from it), ``progress.csv`` (one row a generation: best, mean and sigma, and
-the best candidate's parts), TensorBoard scalars under ``tb/`` (unless a job's run logs
-them) and ``tuned.yaml``, the scene with the distribution's mean as its parameters (the
-optimiser's estimate of the optimum: on a noisy measure, steadier than the best sample). In
+search resumes from it), ``progress.csv`` (one row a generation: best, mean, sigma, the
+population and the best candidate's parts), TensorBoard scalars under ``tb/`` (unless a
+job's run logs them) and ``tuned.yaml``, the scene with the distribution's mean as its
+parameters (the optimiser's estimate of the optimum: on a noisy measure, steadier than the
+best sample). In
 a job, an ``optimize`` stage's folder is ``<run>/cmaes/stage-<i>`` (``Trainer``).
 """
 

@@ -28,6 +28,8 @@ from typer.testing import CliRunner
 
 from tests.workers.converted import converted
 
+pytestmark = pytest.mark.xdist_group("converted")  # one worker converts each model once
+
 MODELS = Path(__file__).resolve().parents[3] / "examples" / "models"
 EXPECTED = {  # model: (free dofs, coupled dofs, muscles)
     "gait10dof18musc": (10, 4, 18),

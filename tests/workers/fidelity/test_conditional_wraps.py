@@ -6,6 +6,7 @@ and the fit's notes among the report's approximations."""
 
 from __future__ import annotations
 
+import pytest
 from gaitforge.workers.bodies.osim_import import import_osim
 from gaitforge.workers.bodies.schema import PathPoint
 from gaitforge.workers.fidelity.conversion import measure_conversion
@@ -13,6 +14,8 @@ from gaitforge.workers.fidelity.conversion import measure_conversion
 from tests.workers.converted import MODELS, converted
 
 GAIT10 = MODELS / "gait10dof18musc.osim"
+
+pytestmark = pytest.mark.xdist_group("converted")  # one worker converts each model once
 
 
 def test_cylinders_in_place_of_conditional_points_keep_more_moment_arms() -> None:
