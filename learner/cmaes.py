@@ -9,16 +9,13 @@ generation draws fresh reset seeds shared by all its candidates (they are compar
 same starts); each candidate is scored over ``episodes`` episodes of the scene with its
 reset noise by the named measure (``workers.gait_measure``), by a scorer: a ``WorkerPool``
 (whose dead or hung actors cost their candidate a re-run, not the generation) or a
-``RolloutWorker`` in this process. With ``restart_below``, a distribution that has
-narrowed below it starts again from its mean at the initial sigma with twice the population
-(IPOP-CMA-ES, Auger and Hansen 2005).
+``RolloutWorker`` in this process.
 
 Its folder holds ``state.pkl`` (the optimiser, written after every generation: a stopped
-search resumes from it), ``progress.csv`` (one row a generation: best, mean, sigma, the
-population and the best candidate's parts), TensorBoard scalars under ``tb/`` (unless a
-job's run logs them) and ``tuned.yaml``, the scene with the distribution's mean as its
-parameters (the optimiser's estimate of the optimum: on a noisy measure, steadier than the
-best sample). In
+search resumes from it), ``progress.csv`` (one row a generation: best, mean and sigma, and
+the best candidate's parts), TensorBoard scalars under ``tb/`` (unless a job's run logs
+them) and ``tuned.yaml``, the scene with the distribution's mean as its parameters (the
+optimiser's estimate of the optimum: on a noisy measure, steadier than the best sample). In
 a job, an ``optimize`` stage's folder is ``<run>/cmaes/stage-<i>`` (``Trainer``).
 """
 
@@ -60,7 +57,6 @@ class Generation:
     best: float
     mean: float
     sigma: float
-    population: int
     best_parts: dict[str, float]
     env_steps: int
     """the search's, so far"""
@@ -76,7 +72,6 @@ class Generation:
             "best": self.best,
             "mean": self.mean,
             "sigma": self.sigma,
-            "population": self.population,
             **parts,
             "env_steps": self.env_steps,
             "wall_s": self.wall_s,
@@ -93,18 +88,13 @@ class _Saved:
     wall_s: float = 0.0
     best_cost: float = float("inf")
     best_parameters: np.ndarray | None = None
-    restarts: int = 0
     last: Generation | None = None
     """the latest generation's summary (``progress.csv`` holds them all)"""
 
-    def mean_unit(self) -> np.ndarray:
-        """The distribution's mean in the unit cube [n] (cma's own ``mean`` lies in its
-        unbounded genotype space)."""
-        return np.asarray(self.strategy.result.xfavorite)
-
     def mean_parameters(self) -> dict[str, float]:
-        """The distribution's mean, by name."""
-        return parameter_values(from_unit(self.mean_unit()))
+        """The distribution's mean, by name (in the unit cube: cma's own ``mean`` lies in its
+        unbounded genotype space, which its bounds fold onto the cube)."""
+        return parameter_values(from_unit(np.asarray(self.strategy.result.xfavorite)))
 
 
 def _read_state(folder: Path) -> _Saved | None:
@@ -168,33 +158,13 @@ class CmaesTuning:
 
     def _start(self) -> _Saved:
         x0 = to_unit(parameter_vector(self.scene.action.parameters))
-        return _Saved(strategy=self._strategy(x0, restart=0))
-
-    def _strategy(self, x0: np.ndarray, restart: int) -> cma.CMAEvolutionStrategy:
-        """A fresh distribution at ``x0`` [n] (unit cube) with the initial sigma, and the
-        population doubled ``restart`` times (IPOP)."""
         options = {
-            "popsize": self.settings.population * 2**restart,
+            "popsize": self.settings.population,
             "bounds": [0.0, 1.0],
-            "seed": self.seed + 1 + restart,  # cma reads 0 as "from the clock"
+            "seed": self.seed + 1,  # cma reads 0 as "from the clock"
             "verbose": -9,
         }
-        return cma.CMAEvolutionStrategy(x0, self.settings.sigma, options)
-
-    def _restart_if_narrow(self) -> None:
-        """Restart from the distribution's mean with twice the population once sigma has
-        fallen below ``restart_below`` (none without it)."""
-        below, saved = self.settings.restart_below, self.saved
-        if below is None or saved.strategy.sigma >= below:
-            return
-        saved.restarts += 1
-        saved.strategy = self._strategy(saved.mean_unit(), saved.restarts)
-        logger.info(
-            "cmaes: sigma below %.3g, restart %d with population %d",
-            below,
-            saved.restarts,
-            saved.strategy.popsize,
-        )
+        return _Saved(strategy=cma.CMAEvolutionStrategy(x0, self.settings.sigma, options))
 
     def _load(self) -> _Saved | None:
         saved = _read_state(self.dir)
@@ -255,14 +225,12 @@ class CmaesTuning:
             best=costs[best],
             mean=float(np.mean(costs)),
             sigma=float(strategy.sigma),
-            population=len(candidates),
             best_parts=scores[best].as_dict(),
             env_steps=saved.env_steps,
             wall_s=saved.wall_s,
             steps=steps,
         )
         saved.last = generation
-        self._restart_if_narrow()
         self._save(generation)
         logger.info(
             "cmaes generation %d: best %.3f mean %.3f sigma %.3f (alive %.2f, %.2f m/s)",

@@ -87,8 +87,8 @@ def _where(run: RunState) -> dict:
 def search_metrics(run: RunState, generation: Generation, elapsed_s: float) -> dict:
     """A CMA-ES generation's metrics (an ``optimize`` stage's iteration): where ``run`` is,
     as :func:`iteration_metrics` says it, and the generation's figures as ``cmaes_*`` (best
-    and mean cost, sigma, the population, the best candidate's parts, its generation and the
-    search's wall-clock s)."""
+    and mean cost, sigma, the best candidate's parts, its generation and the search's
+    wall-clock s)."""
     row = generation.row()
     figures = {f"cmaes_{k}": v for k, v in row.items() if k != "env_steps"}
     return {

@@ -221,18 +221,7 @@ class StageOptimize(StrictSpec):
     episodes: Annotated[int, Field(ge=1, le=100)] = Field(
         default=3, description="episodes per candidate, each from its own noisy start"
     )
-    restart_below: Annotated[float, Field(gt=0, le=0.5)] | None = Field(
-        default=None,
-        description="restart at the initial sigma with twice the population, from the "
-        "distribution's mean, once sigma falls below this share of each range (IPOP)",
-    )
     measure: GaitMeasure = GaitMeasure()
-
-    @model_validator(mode="after")
-    def _check_restart(self) -> StageOptimize:
-        if self.restart_below is not None and self.restart_below >= self.sigma:
-            raise ValueError(f"restart_below {self.restart_below} must be below sigma {self.sigma}")
-        return self
 
 
 class Stage(StrictSpec):

@@ -28,10 +28,6 @@ def tune(
     minutes: Annotated[float | None, typer.Option(help="Stop after this long.")] = None,
     sigma: Annotated[float, typer.Option(help="Initial step, share of each range.")] = 0.1,
     episodes: Annotated[int, typer.Option(help="Episodes a candidate.")] = 3,
-    restart_below: Annotated[
-        float | None,
-        typer.Option(help="Restart with twice the population once sigma falls below this."),
-    ] = None,
     min_speed: Annotated[float, typer.Option(help="m/s the gait measure asks for.")] = 1.0,
     seed: Annotated[
         int, typer.Option(min=0, max=SEED_LIMIT - 1, help="The search's and the starts' seed.")
@@ -48,7 +44,6 @@ def tune(
             minutes=minutes,
             sigma=sigma,
             episodes=episodes,
-            restart_below=restart_below,
             measure={"min_speed": min_speed, "max_speed": max(min_speed, 1.6)},
         )
     except SpecError as exc:

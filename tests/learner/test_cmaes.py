@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import csv
 import functools
-import itertools
 from pathlib import Path
 
 import pytest
@@ -48,15 +47,3 @@ def test_a_resumed_search_goes_on_as_one_that_never_stopped(tmp_path: Path) -> N
 def test_a_scene_without_the_controller_is_refused(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="not reflex_gait"):
         CmaesTuning(load_scene("walk-2d").resolved(), SETTINGS, tmp_path, WORKER)
-
-
-def test_a_narrow_distribution_restarts_with_twice_the_population(tmp_path: Path) -> None:
-    settings = SETTINGS.model_copy(update={"generations": 4, "restart_below": 0.19})
-    tuning = CmaesTuning(SCENE, settings, tmp_path, WORKER, False, seed=5)
-    tuning.run()
-    rows = _rows(tmp_path)
-    for row, after in itertools.pairwise(rows):
-        narrow = float(row["sigma"]) < 0.19
-        assert int(after["population"]) == int(row["population"]) * (2 if narrow else 1)
-    assert tuning.saved.restarts >= 1, [r["sigma"] for r in rows]
-    assert tuning.saved.strategy.popsize == 4 * 2**tuning.saved.restarts
