@@ -35,7 +35,7 @@ run: $(STAMP)
 # read one converted model share a worker (xdist_group), so each model is converted once.
 test: $(STAMP)
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest -q -n 4 --dist loadgroup
+	$(BIN)/python -m pytest -q -n auto --dist loadgroup
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
