@@ -48,7 +48,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from gaitforge.workers.bodies.reflex_wiring import GROUPS, Leg, Wiring
+from gaitforge.workers.bodies.reflex_wiring import GROUPS, Wiring
 from gaitforge.workers.scenes.reflex_parameters import INDEX
 from gaitforge.workers.sim.base import Pose, SimState, Simulator
 
@@ -156,7 +156,7 @@ class GaitReflex:
                 for muscle, weight in kept.items():
                     self._drive[k, _G[g], muscles[muscle]] = weight
                     self._sense[k, _G[g], muscles[muscle]] = weight / sum(kept.values())
-            for j, dof in enumerate(_leg_dofs(leg)):
+            for j, dof in enumerate(leg.dofs.values()):
                 if dof is None:
                     continue
                 if dof.name not in dofs:
@@ -426,7 +426,3 @@ class GaitReflex:
         if norm > 1e-6:
             forward = heading / norm
         return up, forward, np.cross(forward, up)
-
-
-def _leg_dofs(leg: Leg) -> tuple:
-    return (leg.hip_flexion, leg.hip_adduction, leg.knee, leg.ankle)

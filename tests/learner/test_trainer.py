@@ -14,6 +14,7 @@ import ray
 from gaitforge.learner.checkpoint import latest_checkpoint, load_checkpoint
 from gaitforge.learner.job import Job
 from gaitforge.learner.trainer import Trainer
+from gaitforge.workers.ray_start import start_ray
 
 
 def elbow_job(num_workers: int = 0, envs: int = 4, batch: int = 200) -> Job:
@@ -81,7 +82,7 @@ def test_the_loop_runs_over_a_ray_pool(tmp_path: Path) -> None:
     whatever the timing: with two, one that starts late has its first requests (queued
     before the first weights, dropped) replaced by requests with the newest weights, and a
     later batch holds an on-policy fragment (lags [0, 1, 0.5] were seen under load)."""
-    ray.init(address="local", num_cpus=2, include_dashboard=False, logging_level="ERROR")
+    start_ray(num_cpus=2, logging_level="ERROR")  # never a cluster already running
     try:
         history = Trainer(elbow_job(num_workers=1, envs=2), tmp_path).run(max_iterations=3)
     finally:

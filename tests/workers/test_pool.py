@@ -15,6 +15,7 @@ import torch
 from gaitforge.workers.fragment import StopRequested
 from gaitforge.workers.policy_api import UniformExcitationPolicy
 from gaitforge.workers.pool import WorkerPool
+from gaitforge.workers.ray_start import start_ray
 from gaitforge.workers.scenes import load_scene
 from gaitforge.workers.sim.faults import FAULTS_ENV, FaultInjection
 
@@ -24,7 +25,7 @@ ELBOW = load_scene("elbow-reach").resolved()
 
 @pytest.fixture(scope="module", autouse=True)
 def local_ray() -> Iterator[None]:
-    ray.init(address="local", num_cpus=2, include_dashboard=False, logging_level="ERROR")
+    start_ray(num_cpus=2, logging_level="ERROR")  # never a cluster already running
     yield
     ray.shutdown()
 

@@ -13,6 +13,7 @@ import pytest
 import ray
 from gaitforge.workers.policy_api import UniformExcitationPolicy
 from gaitforge.workers.pool import ActorFailureError, WorkerPool, default_max_failures
+from gaitforge.workers.ray_start import start_ray
 from gaitforge.workers.scenes import load_scene
 from gaitforge.workers.spec_io import SpecError
 
@@ -23,7 +24,7 @@ CPUS = 2
 
 @pytest.fixture(scope="module", autouse=True)
 def local_ray() -> Iterator[None]:
-    ray.init(address="local", num_cpus=CPUS, include_dashboard=False, logging_level="ERROR")
+    start_ray(num_cpus=CPUS, logging_level="ERROR")  # never a cluster already running
     yield
     ray.shutdown()
 

@@ -72,6 +72,17 @@ class Leg(_Strict):
     def frontal(self) -> bool:
         return self.hip_adduction is not None
 
+    @property
+    def dofs(self) -> dict[str, WiredDof | None]:
+        """The four dofs the controller reads, by field, in its order (hip flexion,
+        adduction, knee, ankle); adduction is None on a planar body."""
+        return {
+            "hip_flexion": self.hip_flexion,
+            "hip_adduction": self.hip_adduction,
+            "knee": self.knee,
+            "ankle": self.ankle,
+        }
+
 
 class Wiring(_Strict):
     """A body's wiring for ``workers.gait_reflex``: the right and the left leg."""
@@ -123,13 +134,7 @@ def check_wiring_names(wiring: Wiring, dofs: set[str], muscles: set[str]) -> Non
     simulator is built. (Whether the scene keeps them is checked when the controller is
     built on the pruned simulator.)"""
     for side, leg in zip(("right", "left"), wiring.legs(), strict=True):
-        named = {
-            "hip_flexion": leg.hip_flexion,
-            "hip_adduction": leg.hip_adduction,
-            "knee": leg.knee,
-            "ankle": leg.ankle,
-        }
-        for key, dof in named.items():
+        for key, dof in leg.dofs.items():
             if dof is not None and dof.name not in dofs:
                 raise SpecError(
                     f"action.wiring: {side}.{key}: body {wiring.body!r} has no dof "
