@@ -10,10 +10,13 @@ is plain stance. Swing moves through: flex the knee (until ``swing.knee_flexion`
 (until the leg reaches its aim), stop the leg (once within ``swing.stop_before`` of its aim)
 and hold the leg (once it starts to retract).
 
-**Aims** (the "brain"). The leg's aim, forward of the trunk's long axis, is
-``swing.leg_angle + swing.speed_gain * v_forward + lean``: further forward at speed, and
-measured from the trunk. The hip's adduction aim is ``swing.adduction + swing.lateral_gain *
-v_toward_the_other_side - list``.
+**Aims** (the "brain"). A leg's aim, forward of the trunk's long axis, is
+``swing.leg_angle + swing.speed_gain * v_forward + swing.position_gain * ahead + lean``:
+further forward at speed, and measured from the trunk; ``ahead`` is how far the pelvis is
+ahead of the other (stance) foot, as the other leg's angle behind the vertical, rad. The
+hip's adduction aim is ``swing.adduction + swing.lateral_gain * v_toward_the_other_side +
+swing.lateral_position_gain * under - list``, with ``under`` how far the other foot is
+toward this leg's side of its hip, as that leg's frontal angle from the vertical, rad.
 
 **Excitations** (``[x]+`` = max(x, 0); ``load`` in body weights; ``F`` a group's tension over
 its peak; ``kf`` knee flexion, ``a`` the leg angle, ``a*`` its aim, ``e = a* - a``):
@@ -233,17 +236,42 @@ class GaitReflex:
         the simulator's muscle sensors now."""
         s = self._read(state)
         self._previous = s
-        p, P = self.parameters, INDEX
-        aim = p[P["swing.leg_angle"]] + p[P["swing.speed_gain"]] * s.forward_speed + s.lean
+        aim, adduction_aim = self.aims(s)
         contact = s.load > CONTACT_LOAD
         behind = aim - s.leg
         starter = int(np.argmax(behind)) if contact.all() else -1
         groups = np.zeros((2, len(GROUPS)))
         for k, phase in enumerate(self._phases):
-            self._advance(phase, bool(contact[k]), bool(contact[1 - k]), k == starter, s, k, aim)
-            groups[k] = self._leg(phase, s, k, aim)
+            self._advance(
+                phase, bool(contact[k]), bool(contact[1 - k]), k == starter, s, k, float(aim[k])
+            )
+            groups[k] = self._leg(phase, s, k, float(aim[k]), float(adduction_aim[k]))
         excitation = np.einsum("lg,lgm->m", np.clip(groups, PRE_STIM, 1.0), self._drive)
         return np.clip(excitation, 0.0, 1.0)
+
+    def aims(self, s: _Sensed) -> tuple[np.ndarray, np.ndarray]:
+        """Each leg's placement aims from the sensed picture ``s``: its angle forward of the
+        trunk's long axis [2] and its hip's adduction [2], rad (the module docstring's
+        "brain"; each from the other leg's foot)."""
+        p, P = self.parameters, INDEX
+        ahead = s.lean - s.leg  # [2] rad the pelvis is ahead of each foot
+        aim = (
+            p[P["swing.leg_angle"]]
+            + p[P["swing.speed_gain"]] * s.forward_speed
+            + p[P["swing.position_gain"]] * ahead[::-1]
+            + s.lean
+        )
+        side = np.array([1.0, -1.0])  # right, left
+        lean = side * s.list_right  # [2] toward each leg
+        toward_other = -side * s.right_speed
+        under = s.adduction[::-1] - lean  # the other foot's frontal angle toward this side
+        adduction = (
+            p[P["swing.adduction"]]
+            + p[P["swing.lateral_gain"]] * toward_other
+            + p[P["swing.lateral_position_gain"]] * under
+            - lean
+        )
+        return aim, adduction
 
     def _advance(
         self,
@@ -276,9 +304,11 @@ class GaitReflex:
                     phase.hold_leg = True
         phase.contact = contact
 
-    def _leg(self, phase: _LegPhase, s: _Sensed, k: int, aim: float) -> np.ndarray:
+    def _leg(
+        self, phase: _LegPhase, s: _Sensed, k: int, aim: float, adduction_aim: float
+    ) -> np.ndarray:
         """The eleven groups' excitations [n_groups] of leg ``k`` (before the floor and
-        clip)."""
+        clip), with its aims (rad)."""
         p, P = self.parameters, INDEX
         u = np.full(len(GROUPS), PRE_STIM)
         u[[_G["HAB"], _G["HAD"]]] = 0.0  # no floor added: only the clip's
@@ -362,20 +392,18 @@ class GaitReflex:
             - stance * p[P["stance.sol_ta"]] * sol
         )
         if self._frontal[k]:
-            self._frontal_groups(u, s, k, stance * load, placing)
+            self._frontal_groups(u, s, k, stance * load, placing, adduction_aim)
         return u
 
     def _frontal_groups(
-        self, u: np.ndarray, s: _Sensed, k: int, loaded: float, placing: float
+        self, u: np.ndarray, s: _Sensed, k: int, loaded: float, placing: float, aim: float
     ) -> None:
         """HAB and HAD of leg ``k`` into ``u``: trunk balance in stance (``loaded``: stance
-        times load) and the adduction aim while placing the leg."""
+        times load) and the adduction ``aim`` (rad) while placing the leg."""
         p, P = self.parameters, INDEX
         side = 1.0 if k == 0 else -1.0
         lean, rate = side * s.list_right, side * s.list_rate
         error = lean - p[P["trunk.list"]]
-        toward_other = -side * s.right_speed
-        aim = p[P["swing.adduction"]] + p[P["swing.lateral_gain"]] * toward_other - lean
         past = s.adduction[k] - aim
         u[_G["HAB"]] += loaded * max(
             -p[P["stance.hab_trunk_kp"]] * error - p[P["stance.hab_trunk_kd"]] * rate, 0.0

@@ -77,6 +77,30 @@ def test_the_trunk_and_pelvis_are_sensed_along_the_heading() -> None:
     assert abs(ahead.list_right) > 0.01 and abs(ahead.right_speed) > 0.1  # not trivially 0
 
 
+def test_placement_follows_the_pelvis_over_the_stance_foot() -> None:
+    """Song and Geyer's position terms: with ``swing.position_gain`` g a leg aims g rad
+    further forward per rad the pelvis is ahead of the other foot, and with
+    ``swing.lateral_position_gain`` its hip aims that much more adducted per rad the other
+    foot is under the body; at 0 (the default) the aims are the 2019 baseline's."""
+    mid_stride = {**SHORT, "action.start_speed": 1.5, "action.parameters": {"pose.lead_hip": 0.3}}
+    plain = MuscleEnv(load_scene("reflex-walk-3d", mid_stride))
+    plain.reset(seed=0)
+    gains = {"swing.position_gain": 0.5, "swing.lateral_position_gain": -0.4}
+    tuned = load_scene(
+        "reflex-walk-3d", {**mid_stride, "action.parameters": {"pose.lead_hip": 0.3, **gains}}
+    )
+    env = MuscleEnv(tuned)
+    env.reset(seed=0)
+    s = env.gait._read(env.sim.state())
+    (aim, adduction), (aim0, adduction0) = env.gait.aims(s), plain.gait.aims(s)
+    ahead = s.lean - s.leg  # rad the pelvis is ahead of each foot
+    toward = np.array([1.0, -1.0]) * s.list_right  # the list toward each leg
+    under = s.adduction[::-1] - toward  # the other foot's frontal angle toward each side
+    np.testing.assert_allclose(aim - aim0, 0.5 * ahead[::-1], atol=1e-12)
+    np.testing.assert_allclose(adduction - adduction0, -0.4 * under, atol=1e-12)
+    assert ahead[0] < -0.05  # the right foot leads: the left leg aims further back
+
+
 def test_the_policy_adds_a_residual_to_the_controller() -> None:
     """An action of 0.5 adds nothing; 1.0 adds ``action.residual`` to every excitation."""
     excitations = []

@@ -2,11 +2,14 @@
 
 The defaults are Song and Geyer's nominal values as the 2019 Learn-to-Move baseline scales
 them (its parameter multipliers at 1), the bounds that baseline's search space; angles in
-rad, speeds in m/s. Knee angles are flexion (0 straight), ankle angles dorsiflexion, hip
-angles flexion, leg angles forward of the trunk's long axis (hip flexion less half the knee
-flexion). Gains: excitation per rad (``_kp``), per rad/s (``_kd``), per unit of force over
-the maximum isometric force (``_force``). ``pose.*`` is the start pose the optimiser may
-choose (the right leg leads). CMA-ES (``learner.cmaes``) tunes within the bounds.
+rad, speeds in m/s. The two position gains of swing-leg placement (``swing.position_gain``,
+``swing.lateral_position_gain``) are the paper's, which the baseline leaves out: they
+default to 0, the baseline's controller, and the search may give them either sign. Knee
+angles are flexion (0 straight), ankle angles dorsiflexion, hip angles flexion, leg angles
+forward of the trunk's long axis (hip flexion less half the knee flexion). Gains: excitation
+per rad (``_kp``), per rad/s (``_kd``), per unit of force over the maximum isometric force
+(``_force``). ``pose.*`` is the start pose the optimiser may choose (the right leg leads).
+CMA-ES (``learner.cmaes``) tunes within the bounds.
 """
 
 from __future__ import annotations
@@ -41,6 +44,13 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("trunk.list", 5 * DEG, 0.0, 10 * DEG, "frontal lean toward the stance leg held"),
     Parameter("swing.leg_angle", 15 * DEG, -25 * DEG, 55 * DEG, "leg aimed forward of vertical"),
     Parameter("swing.speed_gain", 2 * DEG, 0.0, 10 * DEG, "more leg angle per m/s of speed"),
+    Parameter(
+        "swing.position_gain",
+        0.0,
+        -1.0,
+        1.0,
+        "more leg angle per rad the pelvis is ahead of the stance foot (Song and Geyer's C_d)",
+    ),
     Parameter("swing.stop_before", 5 * DEG, 0.0, 15 * DEG, "how far short of its aim it stops"),
     Parameter("swing.knee_flexion", 40 * DEG, 0.0, 100 * DEG, "knee flexion of early swing"),
     Parameter("swing.knee_held", 5 * DEG, 0.0, 110 * DEG, "knee flexion held in late swing"),
@@ -48,6 +58,13 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("ankle.dorsiflexion", 10 * DEG, -30 * DEG, 30 * DEG, "dorsiflexion TA holds"),
     Parameter("swing.adduction", -10 * DEG, -30 * DEG, 30 * DEG, "hip adduction aimed at"),
     Parameter("swing.lateral_gain", 10 * DEG, 0.0, 30 * DEG, "more adduction per m/s sideways"),
+    Parameter(
+        "swing.lateral_position_gain",
+        0.0,
+        -1.0,
+        1.0,
+        "more adduction per rad the stance foot is under the body (its frontal C_d)",
+    ),
     # stance: trunk balance (HFL, GLU, HAM; HAB, HAD)
     _gain("stance.hfl_trunk_kp", 2.0, "HFL against trunk lean behind its target"),
     _gain("stance.hfl_trunk_kd", 1.0, "HFL against trunk lean rate"),
