@@ -114,6 +114,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         self._steps = 0
         self._start_forward = 0.0
         self._start_frame = np.eye(3)
+        self._pushes = np.zeros((0, 4))
+        """this episode's pushes (``Pushes.draw``: start s, end s, direction rad, N)"""
 
     # ---- gymnasium API ----------------------------------------------------------------
 
@@ -157,12 +159,16 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             }
         self._start_forward = float(self._state.pelvis_pos[self.sim.forward_axis])
         self._start_frame = pelvis_frame(self._state.pelvis_up, self._state.pelvis_forward)
+        if self.scene.pushes is not None:
+            self._pushes = self.scene.pushes.draw(self.np_random, self.scene.episode_s)
         self._obs = self._observe(self._state, check=True)
         return self._obs.copy(), info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         if self._state is None:
             raise RuntimeError("call reset() before step()")
+        if self.scene.pushes is not None:
+            self.sim.push(self.push_force(self._steps * self.dt))
         self._steps += 1
         truncated = self._steps >= self.scene.steps_per_episode
         if self.reflex is not None:
@@ -250,6 +256,17 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
             base, speeds = self.clock.target_base(self._steps, self.sim.dof_names, base)
         self.reflex.set_targets(action, base, speeds)
         return self.sim.step_reflex(self.reflex, self.dt, self.scene.reflex_chunks)
+
+    def push_force(self, time: float) -> np.ndarray:
+        """[3] N in the world: the push held over the control step starting at ``time`` s
+        (zeros between pushes)."""
+        force = np.zeros(3)
+        for start, end, angle, magnitude in self._pushes:
+            if start <= time < end:
+                forward, up = np.eye(3)[self.sim.forward_axis], np.eye(3)[self.sim.up_axis]
+                right = np.cross(forward, up)
+                force = magnitude * (np.cos(angle) * forward + np.sin(angle) * right)
+        return force
 
     @property
     def excitation(self) -> np.ndarray:

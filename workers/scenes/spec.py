@@ -95,6 +95,49 @@ class Obstacles(_Strict):
         return np.column_stack([ahead, height, radius])
 
 
+class Pushes(_Strict):
+    """Random horizontal pushes on the pelvis's centre of mass, drawn anew each episode:
+    each of a magnitude drawn from ``force_n``, in a direction drawn uniformly about the
+    vertical, held for ``duration_s``; each starts a draw from ``every_s`` after the one
+    before (the first, after the episode's start). They act at control-step boundaries:
+    a push is held over the control steps that start within it."""
+
+    force_n: Range = Field(description="N, each push's magnitude, drawn uniformly")
+    duration_s: Annotated[float, Field(gt=0, le=10)] = Field(
+        default=0.2, description="s each push is held"
+    )
+    every_s: Range = Field(
+        default=(2.0, 3.0), description="s from one push's start to the next's, drawn uniformly"
+    )
+
+    @model_validator(mode="after")
+    def _ranges(self) -> Pushes:
+        for name in ("force_n", "every_s"):
+            lo, hi = getattr(self, name)
+            if not 0 <= lo <= hi:
+                raise ValueError(
+                    f"{name} must be (low, high) with 0 <= low <= high, got {(lo, hi)}"
+                )
+        if self.every_s[0] < self.duration_s:
+            raise ValueError(
+                f"every_s {self.every_s}: its low end must be at least duration_s "
+                f"{self.duration_s} (pushes do not overlap)"
+            )
+        return self
+
+    def draw(self, rng: np.random.Generator, episode_s: float) -> np.ndarray:
+        """[n, 4]: each push's start and end (s), direction (rad about the vertical from
+        the world's forward axis toward its right) and magnitude (N), for an episode of
+        ``episode_s`` seconds."""
+        pushes = []
+        start = float(rng.uniform(*self.every_s))
+        while start < episode_s:
+            angle, force = rng.uniform(0.0, 2.0 * np.pi), rng.uniform(*self.force_n)
+            pushes.append((start, start + self.duration_s, angle, force))
+            start += float(rng.uniform(*self.every_s))
+        return np.array(pushes, dtype=float).reshape(-1, 4)
+
+
 class RewardWeights(_Strict):
     """Weights of the named reward terms (see ``workers.rewards`` for each term's unit)."""
 
@@ -181,6 +224,9 @@ class Scene(_Strict):
     keep: Keep = Keep()
     terrain: Terrain = Terrain()
     obstacles: Obstacles | None = None
+    pushes: Pushes | None = Field(
+        default=None, description="random horizontal pushes on the pelvis (the pushes option)"
+    )
     task: Task
     control_hz: Annotated[float, Field(gt=0, le=1000)] = 100.0
     action: ActionSpec = Field(
@@ -231,6 +277,10 @@ class Scene(_Strict):
                 )
         if self.action.targets:
             self._check_reflex()
+        if self.pushes is not None and self.task.kind != "locomotion":
+            raise ValueError(
+                f"pushes: they push a pelvis, and need a locomotion task, not {self.task.kind!r}"
+            )
         return self
 
     def _check_reflex(self) -> None:

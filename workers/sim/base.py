@@ -197,6 +197,14 @@ class Simulator(Protocol):
             ValueError: ``pose`` names a coordinate the body lacks.
         """
 
+    def push(self, force: np.ndarray) -> None:
+        """Hold ``force`` [3] (N, world frame) on the pelvis's centre of mass from now on,
+        until the next call (zeros to stop; a reset stops it).
+
+        Raises:
+            ValueError: the scene has no ``pushes`` (OpenSim builds the force only then).
+        """
+
     def foot_positions(self) -> dict[str, np.ndarray]:
         """Each foot's (``foot_names``) point: the mean of its contact geoms' centres in
         the world, [3] m."""

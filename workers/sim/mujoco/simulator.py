@@ -250,6 +250,11 @@ class MujocoSimulator:
         check_pose_names(pose, self.scene.body, self.dof_names, self._locked)
         self._poser.apply(self.data, pose)
 
+    def push(self, force: np.ndarray) -> None:
+        if self.scene.pushes is None:
+            raise ValueError(f"scene {self.scene.name!r} has no pushes")
+        self.data.xfrc_applied[self._pelvis, :3] = force  # at the body's centre of mass
+
     def foot_positions(self) -> dict[str, np.ndarray]:
         d = self.data
         return {

@@ -33,7 +33,9 @@ It mirrors :mod:`workers.sim.mujoco.build` with the scene's pruning applied whil
 * wrap objects: cylinders, spheres and ``WrapEllipsoid`` (``dimensions`` the radii), each
   frame turned by its ``orientation`` where given (else a cylinder's Z along its ``axis``);
 * controls: a ``PrescribedController`` ``excitations`` with one ``opensim.Constant`` per kept
-  muscle (``plan.kept_muscles`` order); the simulator sets the constants between steps.
+  muscle (``plan.kept_muscles`` order); the simulator sets the constants between steps;
+* pushes (only when asked): a ``PrescribedForce`` ``push`` on the pelvis's centre of mass,
+  its three ground-frame components ``opensim.Constant`` functions set the same way;
 
 Muscle model: ``Millard2012EquilibriumMuscle`` (the maintained successor of the reference's
 Thelen 2003 muscle, parameterised as our body file is: fibre and tendon strain at one
@@ -91,6 +93,9 @@ TRANSITION_VELOCITY = 0.1
 """m/s: the contacts' slip speed of peak static friction (the reference's HuntCrossleyForce
 value)."""
 CONTROLLER = "excitations"
+PUSH = "push"
+"""the ``PrescribedForce`` on the pelvis's centre of mass that scenes with pushes hold
+(``Simulator.push``): three ``opensim.Constant`` force functions in ground, N"""
 DEG = math.pi / 180.0
 
 
@@ -548,12 +553,24 @@ def _add_contacts(
     return feet, obstacles
 
 
+def _add_push(model: opensim.Model, pelvis: opensim.Body) -> None:
+    """The ``PUSH`` force: on the pelvis's centre of mass, its components in ground."""
+    force = opensim.PrescribedForce(PUSH, pelvis)
+    force.setForceIsInGlobalFrame(True)
+    force.setPointIsInGlobalFrame(False)
+    force.setForceFunctions(opensim.Constant(0.0), opensim.Constant(0.0), opensim.Constant(0.0))
+    com = pelvis.getMassCenter()
+    force.setPointFunctions(*(opensim.Constant(com.get(i)) for i in range(3)))
+    model.addForce(force)
+
+
 def build_model(
     body: Body,
     plan: PrunePlan,
     *,
     tendon: Literal["rigid", "compliant"] = "rigid",
     obstacles: int = 0,
+    push: bool = False,
 ) -> OpenSimBuild:
     """Build ``body`` as pruned by ``plan`` (locked dofs welded, only kept muscles and contacts;
     coupled dofs follow their drivers, locked or not: see :func:`locked_values`).
@@ -562,6 +579,7 @@ def build_model(
         tendon: ``rigid`` (no fibre state) or ``compliant`` (Millard's equilibrium fibre
             state; tendon strain at max isometric force from the body file).
         obstacles: number of obstacle spheres; 0 (the default) takes ``plan.obstacles``.
+        push: add the ``PUSH`` force on the pelvis (held at zero until set).
     """
     model = opensim.Model()
     model.setName(body.name)
@@ -594,6 +612,8 @@ def build_model(
         controller.addActuator(muscles[name])
         controller.prescribeControlForActuator(name, opensim.Constant(0.0))
     model.addController(controller)
+    if push:
+        _add_push(model, bodies["pelvis"])
     model.finalizeConnections()
     logger.debug(
         "built OpenSim %s: %d coordinates, %d muscles, %d contact forces, %d obstacles",

@@ -44,6 +44,7 @@ from gaitforge.workers.sim.base import (
 )
 from gaitforge.workers.sim.opensim.build import (
     PARKED,
+    PUSH,
     build_model,
     quiet_opensim_log,
 )
@@ -115,7 +116,11 @@ class OpenSimSimulator:
 
     def _build(self) -> None:
         built = build_model(
-            self._body, self._plan, tendon=self.scene.opensim.tendon, obstacles=self._plan.obstacles
+            self._body,
+            self._plan,
+            tendon=self.scene.opensim.tendon,
+            obstacles=self._plan.obstacles,
+            push=self.scene.pushes is not None,
         )
         self._built = built
         self.model = built.model
@@ -135,6 +140,11 @@ class OpenSimSimulator:
         self._controls = [
             opensim.Constant.safeDownCast(functions.get(i)) for i in range(functions.getSize())
         ]
+        self._push: list[opensim.Constant] = []
+        if self.scene.pushes is not None:
+            push = opensim.PrescribedForce.safeDownCast(self.model.getForceSet().get(PUSH))
+            functions = push.upd_forceFunctions()
+            self._push = [opensim.Constant.safeDownCast(functions.get(i)) for i in range(3)]
         coords = self.model.getCoordinateSet()
         self._coords = {c: coords.get(c) for c in [*self._initial] if coords.contains(c)}
         self._kept = [self._coords[d] for d in self.dof_names]
@@ -174,7 +184,7 @@ class OpenSimSimulator:
                 value += self._rng.uniform(-noise, noise)
             coord.setValue(state, value, False)
         self._touch_floor(state)
-        for control in self._controls:
+        for control in (*self._controls, *self._push):
             control.setValue(0.0)
         for muscle in self._muscles:
             muscle.setActivation(state, 0.01)
@@ -301,6 +311,12 @@ class OpenSimSimulator:
             lift.setValue(state, lift.getValue(state) + pose.pelvis_height - height, False)
             self._touch_floor(state, raise_only=True)
         self.model.equilibrateMuscles(state)
+
+    def push(self, force: np.ndarray) -> None:
+        if not self._push:
+            raise ValueError(f"scene {self.scene.name!r} has no pushes")
+        for component, value in zip(self._push, force, strict=True):
+            component.setValue(float(value))
 
     def foot_positions(self) -> dict[str, np.ndarray]:
         spheres = self.contact_spheres()
