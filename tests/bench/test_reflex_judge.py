@@ -1,5 +1,5 @@
 """bench/reflex_judge.py: tuned reflex scenes judged side by side on unseen seeds (real
-MuJoCo; 0.3 s episodes)."""
+MuJoCo; 0.3 s episodes, pushed)."""
 
 from __future__ import annotations
 
@@ -21,7 +21,10 @@ def test_two_tuned_scenes_are_judged_side_by_side(tmp_path: Path, run_bench: Run
         )
         scenes.append(str(path))
     out = tmp_path / "judged.json"
-    done = run_bench("reflex_judge.py", *scenes, "--episodes", "2", "--json", str(out))
+    pushes = "pushes={force_n: [50, 60], every_s: [0.2, 0.2]}"  # one push in each episode
+    done = run_bench(
+        "reflex_judge.py", *scenes, "--episodes", "2", "--set", pushes, "--json", str(out)
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     assert "upright.yaml" in done.stdout and "leaning.yaml" in done.stdout
     results = json.loads(out.read_text())
@@ -30,3 +33,5 @@ def test_two_tuned_scenes_are_judged_side_by_side(tmp_path: Path, run_bench: Run
         assert 0.0 <= figures["falls"] <= 1.0
         assert 0.0 < figures["alive_s"] <= 0.3 + 1e-9
         assert 0 < figures["env_steps"] <= 2 * 30
+    refused = run_bench("reflex_judge.py", scenes[0], "--set", "pushes={force_n: [80, 60]}")
+    assert refused.returncode != 0 and "force_n must be (low, high)" in refused.stderr
