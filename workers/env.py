@@ -174,7 +174,8 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.reflex is not None:
             excitation, health = self._step_reflex(action)
         else:
-            excitation = np.nan_to_num(np.asarray(action, dtype=np.float64))
+            excitation = np.asarray(action, dtype=np.float64)
+            excitation = np.where(np.isnan(excitation), 0.0, excitation)  # infinities: clipped
             if self.gait is not None:
                 residual = (2.0 * np.clip(excitation, 0.0, 1.0) - 1.0) * self.scene.action.residual
                 excitation = self.gait(self._state) + residual

@@ -54,6 +54,7 @@ import numpy as np
 from gaitforge.workers.bodies.reflex_wiring import GROUPS, Wiring
 from gaitforge.workers.scenes.reflex_parameters import INDEX
 from gaitforge.workers.sim.base import Pose, SimState, Simulator
+from gaitforge.workers.sim.pose import cross3
 
 GRAVITY = 9.81
 CONTACT_LOAD = 0.1
@@ -453,4 +454,4 @@ class GaitReflex:
         norm = float(np.linalg.norm(heading))
         if norm > 1e-6:
             forward = heading / norm
-        return up, forward, np.cross(forward, up)
+        return up, forward, cross3(forward, up)

@@ -57,20 +57,20 @@ def pelvis_pitch_list(
     return float(np.arctan2(-x, y)), float(np.arcsin(np.clip(z, -1.0, 1.0)))
 
 
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` of two [3] vectors, written out: numpy's ``cross`` costs more than a
+    control step can spare (its result, operation for operation, is the same)."""
+    a0, a1, a2 = (float(v) for v in a)
+    b0, b1, b2 = (float(v) for v in b)
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def pelvis_frame(pelvis_up: np.ndarray, pelvis_forward: np.ndarray) -> np.ndarray:
     """[3, 3] world-from-pelvis rotation (columns: the pelvis's forward, up and right axes in
     the world) of a pelvis whose up and forward axes point along ``pelvis_up`` and
     ``pelvis_forward`` ([3], world, unit, orthogonal)."""
-    f0, f1, f2 = (float(v) for v in pelvis_forward)
-    u0, u1, u2 = (float(v) for v in pelvis_up)
-    # right = forward x up, written out: numpy's cross costs more than the env's step can spare
-    return np.array(
-        [
-            [f0, u0, f1 * u2 - f2 * u1],
-            [f1, u1, f2 * u0 - f0 * u2],
-            [f2, u2, f0 * u1 - f1 * u0],
-        ]
-    )
+    forward, up = np.asarray(pelvis_forward, float), np.asarray(pelvis_up, float)
+    return np.column_stack([forward, up, cross3(forward, up)])
 
 
 def turn_about_up(start: np.ndarray, end: np.ndarray, up_axis: int) -> float:

@@ -149,7 +149,7 @@ class MujocoSimulator:
     def step(self, excitations: np.ndarray, duration: float) -> Health:
         m, d = self.model, self.data
         t0 = self._start_step()
-        d.ctrl[:] = np.clip(np.nan_to_num(excitations, nan=0.0), 0.0, 1.0)
+        d.ctrl[:] = np.clip(np.where(np.isnan(excitations), 0.0, excitations), 0.0, 1.0)
         mujoco.mj_step(m, d, nstep=max(1, round(duration / m.opt.timestep)))
         return self._health(t0)
 
