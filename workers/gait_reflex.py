@@ -141,6 +141,7 @@ class GaitReflex:
         self.wiring = wiring
         self.sim = sim
         self.dt = 1.0 / control_hz
+        self._values: dict[str, float] = {}
         self.parameters = parameters
         muscles = {name: i for i, name in enumerate(sim.muscle_names)}
         dofs = {name: i for i, name in enumerate(sim.dof_names)}
@@ -181,6 +182,17 @@ class GaitReflex:
         self._axes = (up, forward, np.cross(forward, up))
         self._phases = (_LegPhase(), _LegPhase())
         self._previous: _Sensed | None = None
+
+    @property
+    def parameters(self) -> np.ndarray:
+        """The parameter vector [n_parameters] (``reflex_parameters``)."""
+        return self._parameters
+
+    @parameters.setter
+    def parameters(self, vector: np.ndarray) -> None:
+        self._parameters = vector
+        # by name, as Python floats: read several dozen times a control step
+        self._values = {name: float(vector[i]) for name, i in INDEX.items()}
 
     # ---- episode ------------------------------------------------------------------------
 
@@ -254,12 +266,12 @@ class GaitReflex:
         """Each leg's placement aims from the sensed picture ``s``: its angle forward of the
         trunk's long axis [2] and its hip's adduction [2], rad (the module docstring's
         "brain"; each from the other leg's foot)."""
-        p, P = self.parameters, INDEX
+        par = self._values
         ahead = s.lean - s.leg  # [2] rad the pelvis is ahead of each foot
         aim = (
-            p[P["swing.leg_angle"]]
-            + p[P["swing.speed_gain"]] * s.forward_speed
-            + p[P["swing.position_gain"]] * ahead[::-1]
+            par["swing.leg_angle"]
+            + par["swing.speed_gain"] * s.forward_speed
+            + par["swing.position_gain"] * ahead[::-1]
             + s.lean
         )
         side = np.array([1.0, -1.0])  # right, left
@@ -267,9 +279,9 @@ class GaitReflex:
         toward_other = -side * s.right_speed
         under = s.adduction[::-1] - lean  # the other foot's frontal angle toward this side
         adduction = (
-            p[P["swing.adduction"]]
-            + p[P["swing.lateral_gain"]] * toward_other
-            + p[P["swing.lateral_position_gain"]] * under
+            par["swing.adduction"]
+            + par["swing.lateral_gain"] * toward_other
+            + par["swing.lateral_position_gain"] * under
             - lean
         )
         return aim, adduction
@@ -285,7 +297,7 @@ class GaitReflex:
         aim: float,
     ) -> None:
         """Move ``phase`` on by this step's contacts and the leg's angles."""
-        p, P = self.parameters, INDEX
+        par = self._values
         if contact and not phase.contact:
             phase.touch_down()
         if phase.stance:
@@ -294,12 +306,12 @@ class GaitReflex:
             phase.lift_off()
         if phase.swing:
             if phase.flex_knee:
-                if s.knee[k] > p[P["swing.knee_flexion"]]:
+                if s.knee[k] > par["swing.knee_flexion"]:
                     phase.flex_knee, phase.hold_knee = False, True
             else:
                 if phase.hold_knee and s.leg[k] > aim:
                     phase.hold_knee = False
-                if s.leg[k] > aim - p[P["swing.stop_before"]]:
+                if s.leg[k] > aim - par["swing.stop_before"]:
                     phase.stop_leg = True
                 if phase.stop_leg and s.leg_rate[k] < 0.0:
                     phase.hold_leg = True
@@ -310,7 +322,7 @@ class GaitReflex:
     ) -> np.ndarray:
         """The eleven groups' excitations [n_groups] of leg ``k`` (before the floor and
         clip), with its aims (rad)."""
-        p, P = self.parameters, INDEX
+        par = self._values
         u = np.full(len(GROUPS), PRE_STIM)
         u[[_G["HAB"], _G["HAD"]]] = 0.0  # no floor added: only the clip's
         load, other_load = float(s.load[k]), float(s.load[1 - k])
@@ -321,13 +333,13 @@ class GaitReflex:
         hold_leg, hold_knee = float(phase.hold_leg), float(phase.hold_knee)
         error = aim - s.leg[k]
         # trunk balance in stance
-        trunk = p[P["trunk.lean"]]
+        trunk = par["trunk.lean"]
         hfl_trunk = (
             stance
             * load
             * max(
-                -p[P["stance.hfl_trunk_kp"]] * (s.lean - trunk)
-                - p[P["stance.hfl_trunk_kd"]] * s.lean_rate,
+                -par["stance.hfl_trunk_kp"] * (s.lean - trunk)
+                - par["stance.hfl_trunk_kd"] * s.lean_rate,
                 0.0,
             )
         )
@@ -335,62 +347,62 @@ class GaitReflex:
             stance
             * load
             * max(
-                p[P["stance.glu_trunk_kp"]] * (s.lean - trunk)
-                + p[P["stance.glu_trunk_kd"]] * s.lean_rate,
+                par["stance.glu_trunk_kp"] * (s.lean - trunk)
+                + par["stance.glu_trunk_kd"] * s.lean_rate,
                 0.0,
             )
         )
         # swing placement and the leg's hold
         hfl_leg = placing * max(
-            p[P["swing.hfl_leg_kp"]] * error - p[P["swing.hfl_leg_kd"]] * s.leg_rate[k], 0.0
+            par["swing.hfl_leg_kp"] * error - par["swing.hfl_leg_kd"] * s.leg_rate[k], 0.0
         )
         glu_leg = placing * max(
-            -p[P["swing.glu_leg_kp"]] * error + p[P["swing.glu_leg_kd"]] * s.leg_rate[k], 0.0
+            -par["swing.glu_leg_kp"] * error + par["swing.glu_leg_kd"] * s.leg_rate[k], 0.0
         )
-        knee_held = p[P["swing.knee_held"]]
+        knee_held = par["swing.knee_held"]
         hip_aim = aim + 0.5 * knee_held
         hip_error = hip_aim - s.hip[k]
         u[_G["HFL"]] += (
-            hfl_trunk + hfl_leg + hold_leg * p[P["swing.hfl_hold_kp"]] * max(hip_error, 0.0)
+            hfl_trunk + hfl_leg + hold_leg * par["swing.hfl_hold_kp"] * max(hip_error, 0.0)
         )
         u[_G["GLU"]] += (
-            glu_trunk + glu_leg + hold_leg * p[P["swing.glu_hold_kp"]] * max(-hip_error, 0.0)
+            glu_trunk + glu_leg + hold_leg * par["swing.glu_hold_kp"] * max(-hip_error, 0.0)
         )
-        stop = aim - p[P["swing.stop_before"]]
-        ham_stop = float(phase.stop_leg) * p[P["swing.ham_stop_kp"]] * max(s.leg[k] - stop, 0.0)
-        u[_G["HAM"]] += p[P["stance.ham_glu_share"]] * glu_trunk + ham_stop
+        stop = aim - par["swing.stop_before"]
+        ham_stop = float(phase.stop_leg) * par["swing.ham_stop_kp"] * max(s.leg[k] - stop, 0.0)
+        u[_G["HAM"]] += par["stance.ham_glu_share"] * glu_trunk + ham_stop
         # knee
         knee, knee_rate = s.knee[k], s.knee_rate[k]
-        near_straight = max(p[P["stance.knee_offset"]] - knee, 0.0)
-        u[_G["RF"]] += compliant * p[P["stance.rf_force"]] * s.force[k, _G["RF"]] + hold_knee * (
-            p[P["swing.rf_knee_kd"]] * max(knee_rate, 0.0)
+        near_straight = max(par["stance.knee_offset"] - knee, 0.0)
+        u[_G["RF"]] += compliant * par["stance.rf_force"] * s.force[k, _G["RF"]] + hold_knee * (
+            par["swing.rf_knee_kd"] * max(knee_rate, 0.0)
         )
         u[_G["VAS"]] += compliant * (
-            p[P["stance.vas_force"]] * s.force[k, _G["VAS"]]
-            - p[P["stance.vas_knee_kp"]] * near_straight
-        ) + hold_leg * p[P["swing.vas_hold_kp"]] * max(knee - knee_held, 0.0)
+            par["stance.vas_force"] * s.force[k, _G["VAS"]]
+            - par["stance.vas_knee_kp"] * near_straight
+        ) + hold_leg * par["swing.vas_hold_kp"] * max(knee - knee_held, 0.0)
         flexing = init * other_load + float(phase.flex_knee)
         u[_G["BFSH"]] += (
-            compliant * p[P["stance.bfsh_knee_kp"]] * near_straight
+            compliant * par["stance.bfsh_knee_kp"] * near_straight
             + flexing
             * max(
-                p[P["swing.bfsh_flex_kd"]] * s.leg_rate[k]
-                + p[P["swing.bfsh_flex_kp"]] * (p[P["swing.knee_flexion"]] - knee),
+                par["swing.bfsh_flex_kd"] * s.leg_rate[k]
+                + par["swing.bfsh_flex_kp"] * (par["swing.knee_flexion"] - knee),
                 0.0,
             )
             + hold_knee
-            * p[P["swing.bfsh_hold_kd"]]
-            * max((-knee_rate - p[P["swing.knee_brake_rate"]]) * error, 0.0)
-            + p[P["swing.bfsh_ham_gain"]] * max(ham_stop - p[P["swing.bfsh_ham_offset"]], 0.0)
-            + hold_leg * p[P["swing.bfsh_knee_hold_kp"]] * max(knee_held - knee, 0.0)
+            * par["swing.bfsh_hold_kd"]
+            * max((-knee_rate - par["swing.knee_brake_rate"]) * error, 0.0)
+            + par["swing.bfsh_ham_gain"] * max(ham_stop - par["swing.bfsh_ham_offset"], 0.0)
+            + hold_leg * par["swing.bfsh_knee_hold_kp"] * max(knee_held - knee, 0.0)
         )
         # ankle
-        sol = stance * p[P["stance.sol_force"]] * s.force[k, _G["SOL"]]
+        sol = stance * par["stance.sol_force"] * s.force[k, _G["SOL"]]
         u[_G["SOL"]] += sol
-        u[_G["GAS"]] += stance * p[P["stance.gas_force"]] * s.force[k, _G["GAS"]]
+        u[_G["GAS"]] += stance * par["stance.gas_force"] * s.force[k, _G["GAS"]]
         u[_G["TA"]] += (
-            p[P["ankle.ta_kp"]] * max(p[P["ankle.dorsiflexion"]] - s.ankle[k], 0.0)
-            - stance * p[P["stance.sol_ta"]] * sol
+            par["ankle.ta_kp"] * max(par["ankle.dorsiflexion"] - s.ankle[k], 0.0)
+            - stance * par["stance.sol_ta"] * sol
         )
         if self._frontal[k]:
             self._frontal_groups(u, s, k, stance * load, placing, adduction_aim)
@@ -401,17 +413,17 @@ class GaitReflex:
     ) -> None:
         """HAB and HAD of leg ``k`` into ``u``: trunk balance in stance (``loaded``: stance
         times load) and the adduction ``aim`` (rad) while placing the leg."""
-        p, P = self.parameters, INDEX
+        par = self._values
         side = 1.0 if k == 0 else -1.0
         lean, rate = side * s.list_right, side * s.list_rate
-        error = lean - p[P["trunk.list"]]
+        error = lean - par["trunk.list"]
         past = s.adduction[k] - aim
         u[_G["HAB"]] += loaded * max(
-            -p[P["stance.hab_trunk_kp"]] * error - p[P["stance.hab_trunk_kd"]] * rate, 0.0
-        ) + placing * p[P["swing.hab_leg_kp"]] * max(past, 0.0)
+            -par["stance.hab_trunk_kp"] * error - par["stance.hab_trunk_kd"] * rate, 0.0
+        ) + placing * par["swing.hab_leg_kp"] * max(past, 0.0)
         u[_G["HAD"]] += loaded * max(
-            p[P["stance.had_trunk_kp"]] * error + p[P["stance.had_trunk_kd"]] * rate, 0.0
-        ) + placing * p[P["swing.had_leg_kp"]] * max(-past, 0.0)
+            par["stance.had_trunk_kp"] * error + par["stance.had_trunk_kd"] * rate, 0.0
+        ) + placing * par["swing.had_leg_kp"] * max(-past, 0.0)
 
     # ---- sensing ------------------------------------------------------------------------
 
