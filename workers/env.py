@@ -270,13 +270,6 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
         return force
 
     @property
-    def foot_loads(self) -> np.ndarray:
-        """[n_feet] body weights each foot (``sim.foot_names``) carries after the last step
-        (after a failed step, before it)."""
-        assert self._state is not None, "call reset() first"
-        return self._state.foot_forces / self._weight
-
-    @property
     def excitation(self) -> np.ndarray:
         """[n_muscles] in [0, 1]: the excitations of the last step (zeros after a reset)."""
         return self._prev_excitation

@@ -2,17 +2,14 @@
 
 ``gait`` (after SCONE's gait measure): over each episode from rest, with its reset noise,
 
-    cost = fall * (1 - alive) + speed * shortfall + effort * excitation_sq + flight * airborne
+    cost = fall * (1 - alive) + speed * shortfall + effort * excitation_sq
 
 where ``alive`` is the fraction of the episode's time before the body fell (a simulator
 failure counts as a fall), ``shortfall`` (m/s) is how far the episode's mean forward speed
 (distance over the episode's full length, so that a fall stops the clock) lies outside
-``[min_speed, max_speed]``, ``excitation_sq`` the mean over steps and muscles of the squared
-excitation, and ``airborne`` the share of its steps after which no foot carried load (less
-than the controller's ``CONTACT_LOAD``): a walk always has a foot on the ground, and a
-search without this term finds hops, whose flight turns the body about the vertical. A
-candidate's cost is the mean over its episodes; its parts are reported beside it. Lower is
-better.
+``[min_speed, max_speed]``, and ``excitation_sq`` the mean over steps and muscles of the
+squared excitation. A candidate's cost is the mean over its episodes; its parts are reported
+beside it. Lower is better.
 """
 
 from __future__ import annotations
@@ -21,7 +18,6 @@ from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Annotated, Literal, Protocol
 
 import numpy as np
-from gaitforge.workers.gait_reflex import CONTACT_LOAD
 from gaitforge.workers.sim.base import HEALTHY
 from gaitforge.workers.spec_types import SPEC_VALUES
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -45,9 +41,6 @@ class GaitMeasure(BaseModel):
     fall: NonNegative = Field(default=1.0, description="cost of falling at the start")
     speed: NonNegative = Field(default=1.0, description="cost per m/s outside the speed band")
     effort: NonNegative = Field(default=0.1, description="cost per mean squared excitation")
-    flight: NonNegative = Field(
-        default=1.0, description="cost per share of the steps with no foot on the ground"
-    )
 
     @model_validator(mode="after")
     def _check_band(self) -> GaitMeasure:
@@ -66,7 +59,6 @@ class CandidateScore:
         falls: fraction of episodes that fell, 0..1.
         speed: m/s, mean forward speed (distance over the full episode length).
         excitation_sq: mean squared excitation.
-        airborne: share of the steps after which no foot carried load, 0..1.
         episodes: episodes run.
         env_steps: control steps simulated.
     """
@@ -76,7 +68,6 @@ class CandidateScore:
     falls: float
     speed: float
     excitation_sq: float
-    airborne: float
     episodes: int
     env_steps: int
 
@@ -101,11 +92,10 @@ def score_candidate(
     rows, steps_total = [], 0
     for seed in seeds:
         env.reset(seed=seed)
-        effort, steps, fell, distance, airborne = 0.0, 0, False, 0.0, 0
+        effort, steps, fell, distance = 0.0, 0, False, 0.0
         for steps in range(1, length + 1):  # noqa: B007 (read after the loop)
             _, _, terminated, truncated, info = env.step(neutral)
             effort += float(np.mean(env.excitation**2))
-            airborne += bool((env.foot_loads < CONTACT_LOAD).all())
             distance = info["distance"]
             if terminated:
                 fell = info.get("fell", False) or info["health"] != HEALTHY
@@ -116,22 +106,20 @@ def score_candidate(
         alive = steps / length if fell else 1.0
         speed = distance / env.scene.episode_s
         shortfall = max(measure.min_speed - speed, speed - measure.max_speed, 0.0)
-        excitation_sq, flight = effort / steps, airborne / steps
+        excitation_sq = effort / steps
         cost = (
             measure.fall * (1.0 - alive)
             + measure.speed * shortfall
             + measure.effort * excitation_sq
-            + measure.flight * flight
         )
-        rows.append((cost, alive, float(fell), speed, excitation_sq, flight))
-    cost, alive, falls, speed, excitation_sq, flight = np.mean(rows, axis=0)
+        rows.append((cost, alive, float(fell), speed, excitation_sq))
+    cost, alive, falls, speed, excitation_sq = np.mean(rows, axis=0)
     return CandidateScore(
         cost=float(cost),
         alive=float(alive),
         falls=float(falls),
         speed=float(speed),
         excitation_sq=float(excitation_sq),
-        airborne=float(flight),
         episodes=len(seeds),
         env_steps=steps_total,
     )
