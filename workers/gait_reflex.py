@@ -15,12 +15,12 @@ and hold the leg (once it starts to retract).
 further forward at speed, and measured from the trunk; ``ahead`` is how far the pelvis is
 ahead of the other (stance) foot, as the other leg's angle behind the vertical, rad. The
 hip's adduction aim is ``swing.adduction + swing.lateral_gain * v_toward_the_other_side +
-swing.lateral_position_gain * under + swing.steer_gain * turned - list``, with ``under`` how
+swing.lateral_position_gain * under - swing.steer_gain * turned - list``, with ``under`` how
 far the other foot is toward this leg's side of its hip, as that leg's frontal angle from the
 vertical, and ``turned`` how far the pelvis's heading has turned toward this leg's side from
-the world's forward axis, rad. The last steers: with a positive gain the leg on the side the
-body has turned to steps narrower and the other wider, which turns it back (hip rotation,
-the usual way to turn, is locked on the bodies this drives).
+the world's forward axis, rad. The last steers: a leg set wider on the side the body has
+turned to is pushed inward by the ground ahead of the body's centre, which turns it back
+(hip rotation, the usual way to turn, is locked on the bodies this drives).
 
 **Excitations** (``[x]+`` = max(x, 0); ``load`` in body weights; ``F`` a group's tension over
 its peak; ``kf`` knee flexion, ``a`` the leg angle, ``a*`` its aim, ``e = a* - a``):
@@ -289,7 +289,7 @@ class GaitReflex:
             par["swing.adduction"]
             + par["swing.lateral_gain"] * toward_other
             + par["swing.lateral_position_gain"] * under
-            + par["swing.steer_gain"] * side * s.turned_right
+            - par["swing.steer_gain"] * side * s.turned_right
             - lean
         )
         return aim, adduction

@@ -71,7 +71,7 @@ PARAMETERS: tuple[Parameter, ...] = (
         0.0,
         -0.5,
         0.5,
-        "more adduction per rad the heading has turned toward the leg's side from forward",
+        "more abduction per rad the heading has turned toward the leg's side from forward",
     ),
     # stance: trunk balance (HFL, GLU, HAM; HAB, HAD)
     _gain("stance.hfl_trunk_kp", 2.0, "HFL against trunk lean behind its target"),
