@@ -15,12 +15,8 @@ and hold the leg (once it starts to retract).
 further forward at speed, and measured from the trunk; ``ahead`` is how far the pelvis is
 ahead of the other (stance) foot, as the other leg's angle behind the vertical, rad. The
 hip's adduction aim is ``swing.adduction + swing.lateral_gain * v_toward_the_other_side +
-swing.lateral_position_gain * under - swing.steer_gain * turned - list``, with ``under`` how
-far the other foot is toward this leg's side of its hip, as that leg's frontal angle from the
-vertical, and ``turned`` how far the pelvis's heading has turned toward this leg's side from
-the world's forward axis, rad. The last steers: a leg set wider on the side the body has
-turned to is pushed inward by the ground ahead of the body's centre, which turns it back
-(hip rotation, the usual way to turn, is locked on the bodies this drives).
+swing.lateral_position_gain * under - list``, with ``under`` how far the other foot is
+toward this leg's side of its hip, as that leg's frontal angle from the vertical, rad.
 
 **Excitations** (``[x]+`` = max(x, 0); ``load`` in body weights; ``F`` a group's tension over
 its peak; ``kf`` knee flexion, ``a`` the leg angle, ``a*`` its aim, ``e = a* - a``):
@@ -124,9 +120,6 @@ class _Sensed:
     """m/s of the pelvis along its heading"""
     right_speed: float
     """m/s of the pelvis toward its right"""
-    turned_right: float
-    """rad the pelvis's heading has turned toward the world's right from the world's forward
-    axis (the way to walk), in (-pi, pi]"""
 
 
 class GaitReflex:
@@ -289,7 +282,6 @@ class GaitReflex:
             par["swing.adduction"]
             + par["swing.lateral_gain"] * toward_other
             + par["swing.lateral_position_gain"] * under
-            - par["swing.steer_gain"] * side * s.turned_right
             - lean
         )
         return aim, adduction
@@ -461,7 +453,6 @@ class GaitReflex:
             list_rate=0.0 if before is None else (list_right - before.list_right) / self.dt,
             forward_speed=float(state.pelvis_vel @ forward),
             right_speed=float(state.pelvis_vel @ right),
-            turned_right=float(np.arctan2(forward @ self._axes[2], forward @ self._axes[1])),
         )
 
     def _heading(self, state: SimState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

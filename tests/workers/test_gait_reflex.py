@@ -101,27 +101,6 @@ def test_placement_follows_the_pelvis_over_the_stance_foot() -> None:
     assert ahead[0] < -0.05  # the right foot leads: the left leg aims further back
 
 
-def test_a_body_turned_right_sets_its_right_leg_wider() -> None:
-    """``swing.steer_gain`` g: the pelvis's heading, turned 0.3 rad toward the world's right,
-    is sensed as turned (to 1e-9), and the right leg aims 0.3 g rad less adducted, the left
-    0.3 g more; facing ahead, the gain changes nothing."""
-    steer = {**SHORT, "action.parameters": {"swing.steer_gain": 0.4}}
-    env, plain = (MuscleEnv(load_scene("reflex-walk-3d", f)) for f in (steer, SHORT))
-    env.reset(seed=0)
-    state = env.sim.state()
-    up, forward = np.eye(3)[env.sim.up_axis], np.eye(3)[env.sim.forward_axis]
-    right = np.cross(forward, up)
-    ahead = env.gait._read(state)
-    assert ahead.turned_right == pytest.approx(0.0, abs=1e-3)
-    np.testing.assert_allclose(env.gait.aims(ahead)[1], plain.gait.aims(ahead)[1], atol=3e-4)
-    turned = copy.copy(state)
-    turned.pelvis_forward = np.cos(0.3) * forward + np.sin(0.3) * right
-    s = env.gait._read(turned)
-    assert s.turned_right == pytest.approx(0.3, abs=1e-9)
-    change = env.gait.aims(s)[1] - plain.gait.aims(s)[1]
-    np.testing.assert_allclose(change, [-0.4 * 0.3, 0.4 * 0.3], atol=1e-12)
-
-
 def test_the_policy_adds_a_residual_to_the_controller() -> None:
     """An action of 0.5 adds nothing; 1.0 adds ``action.residual`` to every excitation."""
     excitations = []

@@ -3,14 +3,13 @@
 The defaults are Song and Geyer's nominal values as the 2019 Learn-to-Move baseline scales
 them (its parameter multipliers at 1), the bounds that baseline's search space; angles in
 rad, speeds in m/s. The two position gains of swing-leg placement (``swing.position_gain``,
-``swing.lateral_position_gain``) are the paper's, which the baseline leaves out, and the
-steering gain (``swing.steer_gain``) is this project's: they default to 0, the baseline's
-controller, and the search may give them either sign. Knee angles are flexion (0
-straight), ankle angles dorsiflexion, hip angles flexion, leg angles forward of the trunk's
-long axis (hip flexion less half the knee flexion). Gains: excitation per rad (``_kp``), per
-rad/s (``_kd``), per unit of force over the maximum isometric force (``_force``).
-``pose.*`` is the start pose the optimiser may choose (the right leg leads). CMA-ES
-(``learner.cmaes``) tunes within the bounds.
+``swing.lateral_position_gain``) are the paper's, which the baseline leaves out: they
+default to 0, the baseline's controller, and the search may give them either sign. Knee
+angles are flexion (0 straight), ankle angles dorsiflexion, hip angles flexion, leg angles
+forward of the trunk's long axis (hip flexion less half the knee flexion). Gains: excitation
+per rad (``_kp``), per rad/s (``_kd``), per unit of force over the maximum isometric force
+(``_force``). ``pose.*`` is the start pose the optimiser may choose (the right leg leads).
+CMA-ES (``learner.cmaes``) tunes within the bounds.
 """
 
 from __future__ import annotations
@@ -65,13 +64,6 @@ PARAMETERS: tuple[Parameter, ...] = (
         -1.0,
         1.0,
         "more adduction per rad the stance foot is under the body (its frontal C_d)",
-    ),
-    Parameter(
-        "swing.steer_gain",
-        0.0,
-        -0.5,
-        0.5,
-        "more abduction per rad the heading has turned toward the leg's side from forward",
     ),
     # stance: trunk balance (HFL, GLU, HAM; HAB, HAD)
     _gain("stance.hfl_trunk_kp", 2.0, "HFL against trunk lean behind its target"),
