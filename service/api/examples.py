@@ -36,6 +36,7 @@ def schema_examples(schemas: dict[str, Any]) -> dict[str, Any]:
         ("Scene", load_scene("imitate-walk-2d").model_dump(mode="json")),
         ("Scene", load_scene("obstacles-2d").model_dump(mode="json")),
         ("Scene", load_scene("run-2d+clock").model_dump(mode="json")),  # a lead-in
+        ("Scene", load_scene("walk-2d+pushes").model_dump(mode="json")),
         ("SceneSummary", routes_scenes.summaries()[0].model_dump(mode="json")),
         ("OptionSummary", routes_scenes.option_summaries()[0].model_dump(mode="json")),
         ("SceneReport", routes_scenes.report("stand-2d", None).model_dump(mode="json")),

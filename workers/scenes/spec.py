@@ -103,8 +103,8 @@ class Pushes(_Strict):
     a push is held over the control steps that start within it."""
 
     force_n: Range = Field(description="N, each push's magnitude, drawn uniformly")
-    duration_s: Annotated[float, Field(gt=0, le=10)] = Field(
-        default=0.2, description="s each push is held"
+    duration_s: Annotated[float, Field(ge=0.01, le=10)] = Field(
+        default=0.2, description="s each push is held (at least 0.01: a bound on the pushes drawn)"
     )
     every_s: Range = Field(
         default=(2.0, 3.0), description="s from one push's start to the next's, drawn uniformly"
