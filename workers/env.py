@@ -52,7 +52,7 @@ from gaitforge.workers.scenes.io_names import OBSERVATION, action_layout, observ
 from gaitforge.workers.scenes.reflex_parameters import parameter_vector
 from gaitforge.workers.sim import make_simulator
 from gaitforge.workers.sim.base import HEALTHY, Health, SimState
-from gaitforge.workers.sim.pose import pelvis_frame, turn_about_up
+from gaitforge.workers.sim.pose import cross3, pelvis_frame, turn_about_up
 
 GRAVITY = 9.81
 
@@ -261,13 +261,12 @@ class MuscleEnv(gym.Env[np.ndarray, np.ndarray]):
     def push_force(self, time: float) -> np.ndarray:
         """[3] N in the world: the push held over the control step starting at ``time`` s
         (zeros between pushes)."""
-        force = np.zeros(3)
         for start, end, angle, magnitude in self._pushes:
             if start <= time < end:
                 forward, up = np.eye(3)[self.sim.forward_axis], np.eye(3)[self.sim.up_axis]
-                right = np.cross(forward, up)
-                force = magnitude * (np.cos(angle) * forward + np.sin(angle) * right)
-        return force
+                right = cross3(forward, up)
+                return magnitude * (np.cos(angle) * forward + np.sin(angle) * right)
+        return np.zeros(3)
 
     @property
     def excitation(self) -> np.ndarray:
