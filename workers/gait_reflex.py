@@ -201,17 +201,17 @@ class GaitReflex:
         right leg leading, moving forward at ``forward_speed`` m/s (0: from rest).
         ``noise`` (rad) is the most each chosen angle is moved, uniformly from ``rng`` (the
         scene's ``init_noise``)."""
-        p = self.parameters
+        par = self._values
         jitter = rng.uniform(-noise, noise, 7)
-        lean = p[INDEX["pose.lean"]] + jitter[0]
+        lean = par["pose.lean"] + jitter[0]
         coordinates: dict[str, float] = {}
         chosen = (("pose.lead_hip", "pose.lead_knee"), ("pose.trail_hip", "pose.trail_knee"))
         for k, (leg, (hip, knee)) in enumerate(zip(self.wiring.legs(), chosen, strict=True)):
-            hip_flexion = p[INDEX[hip]] + lean + jitter[1 + 2 * k]
+            hip_flexion = par[hip] + lean + jitter[1 + 2 * k]
             coordinates[leg.hip_flexion.name] = leg.hip_flexion.sign * hip_flexion
-            knee_flexion = max(0.0, p[INDEX[knee]] + jitter[2 + 2 * k])
+            knee_flexion = max(0.0, par[knee] + jitter[2 + 2 * k])
             coordinates[leg.knee.name] = leg.knee.sign * knee_flexion
-            ankle = p[INDEX["pose.ankle"]] + jitter[5 + k]
+            ankle = par["pose.ankle"] + jitter[5 + k]
             coordinates[leg.ankle.name] = leg.ankle.sign * ankle
         # OpenSim's pelvis_tilt turns the pelvis backward: a forward lean is negative
         return Pose(
