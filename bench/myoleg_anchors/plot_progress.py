@@ -1,7 +1,7 @@
 """Episode length against training time: the anchors' runs beside gaitforge's, as one PNG.
 
     python bench/myoleg_anchors/plot_progress.py --anchor sb3=RUNS/sb3-s0 [--anchor deprl=...]
-        [--gaitforge learn-to-walk-3d=RUN ...] --out progress.png
+        [--gaitforge learn-to-walk-3d=RUN ...] --out progress.png [--title T --minutes-label L]
 
 An anchor run's ``progress.csv`` (``common.ProgressLog``: episodes ended in each 30 s of
 training, their mean length in 0.01 s steps) and a gaitforge run's TensorBoard scalars
@@ -70,15 +70,17 @@ def main() -> None:
     parser.add_argument("--anchor", action="append", default=[], metavar="LABEL=RUN")
     parser.add_argument("--gaitforge", action="append", default=[], metavar="LABEL=RUN")
     parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--title", default="MyoLeg: how long the body stays up while training")
+    parser.add_argument("--minutes-label", default="training minutes (2 cores)")
     args = parser.parse_args()
     figure, axes = plt.subplots(figsize=(8, 4.5))
     for label, run in labelled(args.anchor, "--anchor"):
         axes.plot(*anchor_curve(run), label=f"{label} (myoLegWalk-v0)")
     for label, run in labelled(args.gaitforge, "--gaitforge"):
         axes.plot(*gaitforge_curve(run), label=f"{label} (gaitforge)")
-    axes.set_xlabel("training minutes (2 cores)")
+    axes.set_xlabel(args.minutes_label)
     axes.set_ylabel("mean training episode length (s)")
-    axes.set_title("MyoLeg: how long the body stays up while training")
+    axes.set_title(args.title)
     axes.grid(alpha=0.3)
     axes.legend()
     figure.tight_layout()
