@@ -5,11 +5,11 @@
 reads ``subject01_walk_IK.mot`` + ``subject01_walk_grf.mot`` + ``walk_subject_controls.sto``
 (treadmill walk), ``subject02_running_ik.mot`` (treadmill run) and ``normal.mot`` (one
 normalised 3-D walking cycle) and writes ``workers/motions/data/``: ``gait2d-walk.yaml``,
-``gait2d-run.yaml``, ``myoleg-walk.yaml``, ``myoleg-run.yaml``, ``gait2354-walk.yaml`` (the
-3-D walk on the imported body) and ``gait2d-walk-excitations.yaml``. It is a run-once data
-script, no part of the installed package; it replays the motions on the MuJoCo models
-(``workers.sim.mujoco.motion_replay``), which the motions package itself never imports (it
-imports bodies only).
+``gait2d-run.yaml``, ``myoleg-walk.yaml``, ``myoleg-run.yaml``, ``gait2354-walk.yaml`` and
+``gait14dof22musc-walk.yaml`` (the 3-D walk on the imported bodies) and
+``gait2d-walk-excitations.yaml``. It is a run-once data script, no part of the installed
+package; it replays the motions on the MuJoCo models (``workers.sim.mujoco.motion_replay``),
+which the motions package itself never imports (it imports bodies only).
 
 Method, per motion (details in each file's ``source`` and the README's "Motion imitation"):
 
@@ -471,6 +471,7 @@ def main() -> None:
     run(args.reference, "myoleg")
     walk_3d(args.reference)
     walk_3d(args.reference, "gait2354")
+    walk_3d(args.reference, "gait14dof22musc")
 
 
 if __name__ == "__main__":

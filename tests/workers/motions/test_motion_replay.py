@@ -34,6 +34,7 @@ SHIPPED = [
     ("myoleg", "walk"),
     ("myoleg", "run"),
     ("gait2354", "walk"),
+    ("gait14dof22musc", "walk"),
 ]
 
 
