@@ -128,6 +128,9 @@ class CmaesTuning:
         seed: the search's seed and the episodes' reset seeds' base.
         stop: set to stop scoring: the generation being scored is dropped and the state
             stays as it was (a trainer shares its own).
+        written: the scene ``tuned.yaml`` sets the parameters in; default ``scene``. A
+            scene as loaded for every backend it runs on, its fidelity not resolved, gives
+            a ``tuned.yaml`` that runs on each of them (``scene`` is resolved for one).
     """
 
     def __init__(
@@ -139,10 +142,12 @@ class CmaesTuning:
         tensorboard: bool = True,
         seed: int = 0,
         stop: threading.Event | None = None,
+        written: Scene | None = None,
     ) -> None:
         if not scene.action.gait:
             raise ValueError(f"scene {scene.name!r}: action.kind is not reflex_gait")
         self.scene = scene
+        self._written = written or scene
         self.settings = settings
         self.seed = seed
         self.dir = out_dir
@@ -268,13 +273,10 @@ class CmaesTuning:
         """The distribution's mean, by name (the tuned controller)."""
         return self.saved.mean_parameters()
 
-    def tuned_scene(self) -> Scene:
-        """The scene with the tuned parameters."""
-        return with_parameters(self.scene, self.tuned_parameters())
-
     def write_tuned(self) -> Path:
-        """``tuned.yaml``: :meth:`tuned_scene` as a scene file."""
-        data = self.tuned_scene().model_dump(mode="json", exclude_defaults=True)
+        """``tuned.yaml``: the ``written`` scene with the tuned parameters, as a scene file."""
+        tuned = with_parameters(self._written, self.tuned_parameters())
+        data = tuned.model_dump(mode="json", exclude_defaults=True)
         path = self.dir / TUNED_FILE
         path.write_text(yaml.safe_dump(data, sort_keys=False))
         return path

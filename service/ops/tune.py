@@ -36,6 +36,8 @@ def tune(
         scene = load_scene(scene_ref, overrides, backend=backend).resolved()
     except BackendMismatch as exc:
         raise InputError("backend", str(exc)) from None
+    # tuned.yaml runs on every backend the scene does: a search on MuJoCo goes on on OpenSim
+    portable = load_scene(scene_ref, overrides)
     if not scene.action.gait:
         raise InputError(
             "scene",
@@ -63,7 +65,7 @@ def tune(
         )
     scorer = pool or RolloutWorker(scene, policy, backend=backend, num_envs=1, seed=seed)
     try:
-        tuning = CmaesTuning(scene, settings, out_dir, scorer, tensorboard, seed)
+        tuning = CmaesTuning(scene, settings, out_dir, scorer, tensorboard, seed, written=portable)
         return tuning, tuning.run()
     finally:
         if pool is not None:

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 from gaitforge.service.cli import app
+from gaitforge.workers.scenes import load_scene
 from typer.testing import CliRunner
 
 runner = CliRunner()
@@ -100,12 +101,19 @@ def test_tune_searches_resumes_and_refuses_a_scene_without_the_controller(
 ) -> None:
     """``gaitforge tune`` runs CMA-ES in-process, writes the tuned scene, and a second call
     with more generations goes on from the saved state; a scene without the reflex
-    controller, or a population of one, is one line."""
+    controller, or a population of one, is one line. The tuned scene of a MuJoCo search
+    loads on OpenSim too (a search goes on there from it), and on MuJoCo it is the scene
+    searched with the tuned parameters, field for field."""
     args = ["tune", "reflex-walk-3d", "--out", str(tmp_path), "--population", "2"]
     args += ["--episodes", "1", "--set", "episode_s=0.2"]
     first = runner.invoke(app, [*args, "--generations", "1"])
     assert first.exit_code == 0, first.output
     assert "generation 1:" in first.stdout and (tmp_path / "tuned.yaml").exists()
+    on_mujoco = load_scene(tmp_path / "tuned.yaml", backend="mujoco").resolved()
+    on_opensim = load_scene(tmp_path / "tuned.yaml", backend="opensim")
+    assert on_opensim.action.parameters == on_mujoco.action.parameters
+    searched = {"episode_s": 0.2, "action.parameters": on_mujoco.action.parameters}
+    assert on_mujoco == load_scene("reflex-walk-3d", searched, backend="mujoco").resolved()
     second = runner.invoke(app, [*args, "--generations", "2"])
     assert second.exit_code == 0 and "generation 2:" in second.stdout, second.output
     with (tmp_path / "progress.csv").open() as f:
