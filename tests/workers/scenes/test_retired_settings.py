@@ -97,7 +97,7 @@ def test_a_removed_value_is_refused_naming_the_commit_that_has_it(name: str) -> 
 
 def test_the_shipped_policies_stored_scenes_load_without_the_retired_settings() -> None:
     metas = sorted(POLICIES.glob("*/meta.json"))
-    assert len(metas) == 5
+    assert len(metas) == 6
     retired = {dotted.split(".")[-1] for dotted, _, _ in RETIRED_SETTINGS}
     for meta in metas:
         stored = json.loads(meta.read_text())["scene"]
